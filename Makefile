@@ -1,0 +1,50 @@
+# One entry point for every check. `make test` is what CI (.ci/run) runs.
+SHELL := /bin/bash
+VENV ?= .venv
+PY := $(VENV)/bin/python
+export CARGO_TERM_COLOR ?= never
+
+.PHONY: install demo test test-rust test-python lint fmt bench compare fuzz clean
+
+$(PY):
+	python3 -m venv $(VENV)
+	$(PY) -m pip install --quiet --upgrade pip
+
+# The wheel (release build) and every test dependency, into .venv.
+install: $(PY)
+	$(PY) -m pip install --quiet -e '.[test]'
+
+# The main job on the embedded default: simulate the paper's scene, convert, score, write outputs.
+demo: install
+	$(VENV)/bin/slam2world demo -o out/demo
+
+test: lint test-rust test-python
+
+test-rust:
+	cargo test --all-targets
+
+test-python: install
+	$(PY) -m pytest
+
+lint: install
+	cargo fmt --check
+	cargo clippy --all-targets -- -D warnings
+	$(VENV)/bin/ruff check python tests benches
+	$(VENV)/bin/ruff format --check python tests benches
+	$(VENV)/bin/mypy python/slam2world tests/python/typing_example.py
+	$(PY) -m mypy.stubtest slam2world._slam2world --allowlist .mypy-stubtest-allowlist
+
+fmt: $(PY)
+	cargo fmt
+	$(VENV)/bin/ruff format python tests benches
+	$(VENV)/bin/ruff check --fix python tests benches
+
+bench:
+	cargo bench
+
+compare: install
+	$(PY) benches/compare.py
+
+clean:
+	cargo clean
+	rm -rf $(VENV) out

@@ -1,0 +1,14 @@
+"""Console script: the same command line as the ``slam2world`` binary."""
+
+import sys
+
+from slam2world._slam2world import run_cli
+
+
+def main() -> None:
+    """Runs ``slam2world`` with ``sys.argv`` and exits with its code."""
+    sys.exit(run_cli(["slam2world", *sys.argv[1:]]))
+
+
+if __name__ == "__main__":
+    main()

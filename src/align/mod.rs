@@ -1,0 +1,1 @@
+//! Closed-form Sim(3) / SE(3) alignment of corresponding point sets.

@@ -1,0 +1,5 @@
+//! The `slam2world` command line; see `slam2world --help`.
+
+fn main() {
+    std::process::exit(slam2world::cli::main_with_args(std::env::args_os()));
+}

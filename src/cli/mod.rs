@@ -1,0 +1,50 @@
+//! The `slam2world` command line (clap). The binary `src/bin/slam2world.rs` and
+//! the wheel's console script both call [`main_with_args`].
+//!
+//! Exit codes: 0 success, 1 bad data (one readable line on stderr), 2 usage.
+
+use std::ffi::OsString;
+
+use clap::{Parser, Subcommand};
+
+use crate::error::Result;
+
+/// Metric, gravity-aligned 3-D worlds from monocular SLAM maps.
+#[derive(Parser, Debug)]
+#[command(name = "slam2world", version, about, long_about = None)]
+pub struct Cli {
+    #[command(subcommand)]
+    command: Command,
+}
+
+#[derive(Subcommand, Debug)]
+enum Command {
+}
+
+fn run(cli: Cli) -> Result<()> {
+    match cli.command {}
+}
+
+/// Parses `args` (the program name first) and runs the command; returns the
+/// process exit code. Never panics on user input.
+pub fn main_with_args<I, T>(args: I) -> i32
+where
+    I: IntoIterator<Item = T>,
+    T: Into<OsString> + Clone,
+{
+    let cli = match Cli::try_parse_from(args) {
+        Ok(cli) => cli,
+        Err(e) => {
+            let code = if e.use_stderr() { 2 } else { 0 };
+            let _ = e.print();
+            return code;
+        }
+    };
+    match run(cli) {
+        Ok(()) => 0,
+        Err(e) => {
+            eprintln!("slam2world: error: {e}");
+            1
+        }
+    }
+}

@@ -1,0 +1,181 @@
+//! `Sim3` for Python.
+
+use nalgebra::Vector3;
+use numpy::{PyArray1, PyArray2, PyArrayMethods, ToPyArray};
+use pyo3::prelude::*;
+use pyo3::types::PyTuple;
+
+use super::convert::{matrix3, matrix4, matrix_to_array, to_array2, vec_f64, vector3, Points};
+use crate::geometry::{rotation_from_matrix, PointScalar, Sim3};
+
+/// A similarity transform `p ↦ s·R·p + t`; `T_a_b` maps frame-b coordinates into frame a.
+#[pyclass(name = "Sim3", module = "slam2world._slam2world", frozen)]
+#[derive(Clone)]
+pub struct PySim3 {
+    pub inner: Sim3,
+}
+
+impl From<Sim3> for PySim3 {
+    fn from(inner: Sim3) -> Self {
+        PySim3 { inner }
+    }
+}
+
+fn apply_typed<T: PointScalar + numpy::Element>(
+    py: Python<'_>,
+    t: &Sim3,
+    src: &[T],
+) -> PyResult<Py<PyAny>> {
+    let out = py.detach(|| t.transform_points(src))?;
+    Ok(to_array2(py, out, 3)?.into_any().unbind())
+}
+
+/// Maps `(N, 3)` points, keeping float32 as float32; the GIL is released.
+pub fn apply_points(py: Python<'_>, t: &Sim3, points: &Bound<'_, PyAny>) -> PyResult<Py<PyAny>> {
+    match Points::extract(points, "points")? {
+        Points::F32(a) => match a.as_slice() {
+            Ok(s) => apply_typed(py, t, s),
+            Err(_) => {
+                let v: Vec<f32> = a.as_array().iter().copied().collect();
+                apply_typed(py, t, &v)
+            }
+        },
+        Points::F64(a) => match a.as_slice() {
+            Ok(s) => apply_typed(py, t, s),
+            Err(_) => {
+                let v: Vec<f64> = a.as_array().iter().copied().collect();
+                apply_typed(py, t, &v)
+            }
+        },
+    }
+}
+
+#[pymethods]
+impl PySim3 {
+    #[new]
+    #[pyo3(signature = (rotation=None, translation=None, scale=1.0))]
+    fn new(
+        rotation: Option<&Bound<'_, PyAny>>,
+        translation: Option<&Bound<'_, PyAny>>,
+        scale: f64,
+    ) -> PyResult<Self> {
+        let r = match rotation {
+            Some(r) => rotation_from_matrix(&matrix3(r, "rotation")?)?,
+            None => nalgebra::UnitQuaternion::identity(),
+        };
+        let t = match translation {
+            Some(t) => vector3(t, "translation")?,
+            None => Vector3::zeros(),
+        };
+        Ok(Sim3::try_new(r, t, scale)?.into())
+    }
+
+    /// The identity transform.
+    #[staticmethod]
+    fn identity() -> Self {
+        Sim3::identity().into()
+    }
+
+    /// From a 4×4 matrix `[[sR, t], [0, 1]]`.
+    #[staticmethod]
+    fn from_matrix(m: &Bound<'_, PyAny>) -> PyResult<Self> {
+        Ok(Sim3::from_matrix(&matrix4(m, "matrix")?)?.into())
+    }
+
+    /// From a quaternion `(x, y, z, w)` (normalised here), a translation and a scale.
+    #[staticmethod]
+    #[pyo3(signature = (quaternion, translation=None, scale=1.0))]
+    fn from_quaternion(
+        quaternion: &Bound<'_, PyAny>,
+        translation: Option<&Bound<'_, PyAny>>,
+        scale: f64,
+    ) -> PyResult<Self> {
+        let q = vec_f64(quaternion, "quaternion", Some(4))?;
+        let t = match translation {
+            Some(t) => vector3(t, "translation")?,
+            None => Vector3::zeros(),
+        };
+        Ok(Sim3::from_quaternion_xyzw([q[0], q[1], q[2], q[3]], t, scale)?.into())
+    }
+
+    /// From LSD-SLAM's `camToWorld` `[qx, qy, qz, qw, tx, ty, tz]` (scale = ‖q‖).
+    #[staticmethod]
+    fn from_lsd_slam(cam_to_world: &Bound<'_, PyAny>) -> PyResult<Self> {
+        let v = vec_f64(cam_to_world, "cam_to_world", Some(7))?;
+        let a: [f64; 7] = [v[0], v[1], v[2], v[3], v[4], v[5], v[6]];
+        Ok(Sim3::from_lsd_slam(&a)?.into())
+    }
+
+    /// LSD-SLAM's `camToWorld` layout: `[s·qx, s·qy, s·qz, s·qw, tx, ty, tz]`.
+    fn to_lsd_slam<'py>(&self, py: Python<'py>) -> Bound<'py, PyArray1<f64>> {
+        self.inner.to_lsd_slam().to_pyarray(py)
+    }
+
+    /// Rotation matrix `R`, shape (3, 3).
+    #[getter]
+    fn rotation<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyArray2<f64>>> {
+        matrix_to_array(py, &self.inner.rotation_matrix())
+    }
+
+    /// Rotation as a unit quaternion `(x, y, z, w)` with `w ≥ 0`.
+    #[getter]
+    fn quaternion<'py>(&self, py: Python<'py>) -> Bound<'py, PyArray1<f64>> {
+        self.inner.quaternion_xyzw().to_pyarray(py)
+    }
+
+    /// Translation `t`, shape (3,).
+    #[getter]
+    fn translation<'py>(&self, py: Python<'py>) -> Bound<'py, PyArray1<f64>> {
+        self.inner.translation.as_slice().to_pyarray(py)
+    }
+
+    /// Scale `s`.
+    #[getter]
+    fn scale(&self) -> f64 {
+        self.inner.scale
+    }
+
+    /// The 4×4 matrix `[[sR, t], [0, 1]]`.
+    fn matrix<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyArray2<f64>>> {
+        matrix_to_array(py, &self.inner.matrix())
+    }
+
+    /// The inverse transform.
+    fn inverse(&self) -> Self {
+        self.inner.inverse().into()
+    }
+
+    fn __matmul__(&self, other: PyRef<'_, PySim3>) -> Self {
+        (self.inner * other.inner).into()
+    }
+
+    /// Maps `(N, 3)` points; float32 in gives float32 out, anything else float64.
+    fn apply(&self, py: Python<'_>, points: &Bound<'_, PyAny>) -> PyResult<Py<PyAny>> {
+        apply_points(py, &self.inner, points)
+    }
+
+    fn __repr__(&self) -> String {
+        let q = self.inner.quaternion_xyzw();
+        let t = self.inner.translation;
+        format!(
+            "Sim3(quaternion=[{:.6}, {:.6}, {:.6}, {:.6}], translation=[{:.6}, {:.6}, {:.6}], scale={:.9})",
+            q[0], q[1], q[2], q[3], t.x, t.y, t.z, self.inner.scale
+        )
+    }
+
+    fn __reduce__<'py>(slf: &Bound<'py, Self>) -> PyResult<Bound<'py, PyTuple>> {
+        let py = slf.py();
+        let this = slf.get();
+        let args = (
+            this.rotation(py)?,
+            this.translation(py),
+            this.inner.scale,
+        );
+        PyTuple::new(py, [slf.get_type().into_any(), args.into_pyobject(py)?.into_any()])
+    }
+}
+
+pub fn register(m: &Bound<'_, PyModule>) -> PyResult<()> {
+    m.add_class::<PySim3>()?;
+    Ok(())
+}
