@@ -29,15 +29,15 @@ test-python: install
 lint: install
 	cargo fmt --check
 	cargo clippy --all-targets -- -D warnings
-	$(VENV)/bin/ruff check python tests benches
-	$(VENV)/bin/ruff format --check python tests benches
-	$(VENV)/bin/mypy python/slam2world tests/python/typing_example.py
+	$(PY) -m ruff check python tests benches
+	$(PY) -m ruff format --check python tests benches
+	$(PY) -m mypy python/slam2world tests/python/typing_example.py
 	$(PY) -m mypy.stubtest slam2world._slam2world --allowlist .mypy-stubtest-allowlist
 
 fmt: $(PY)
 	cargo fmt
-	$(VENV)/bin/ruff format python tests benches
-	$(VENV)/bin/ruff check --fix python tests benches
+	$(PY) -m ruff format python tests benches
+	$(PY) -m ruff check --fix python tests benches
 
 bench:
 	cargo bench

@@ -18,7 +18,11 @@ pub struct ImuSamples {
 
 impl ImuSamples {
     /// Checks lengths, finiteness and strictly increasing times.
-    pub fn try_new(timestamps: Vec<f64>, gyro: Vec<Vector3<f64>>, accel: Vec<Vector3<f64>>) -> Result<Self> {
+    pub fn try_new(
+        timestamps: Vec<f64>,
+        gyro: Vec<Vector3<f64>>,
+        accel: Vec<Vector3<f64>>,
+    ) -> Result<Self> {
         let n = timestamps.len();
         if gyro.len() != n || accel.len() != n {
             return Err(Error::ShapeMismatch {
@@ -28,7 +32,12 @@ impl ImuSamples {
             });
         }
         for i in 0..n {
-            if !timestamps[i].is_finite() || gyro[i].iter().chain(accel[i].iter()).any(|v| !v.is_finite()) {
+            if !timestamps[i].is_finite()
+                || gyro[i]
+                    .iter()
+                    .chain(accel[i].iter())
+                    .any(|v| !v.is_finite())
+            {
                 return Err(Error::NonFinite {
                     what: "imu samples".into(),
                     index: i,
@@ -37,7 +46,11 @@ impl ImuSamples {
             if i > 0 && timestamps[i] <= timestamps[i - 1] {
                 return Err(Error::invalid(
                     "imu timestamps",
-                    format!("must increase strictly (sample {i}: {} after {})", timestamps[i], timestamps[i - 1]),
+                    format!(
+                        "must increase strictly (sample {i}: {} after {})",
+                        timestamps[i],
+                        timestamps[i - 1]
+                    ),
                 ));
             }
         }

@@ -52,7 +52,11 @@ impl Trajectory {
             if i > 0 && timestamps[i] < timestamps[i - 1] {
                 return Err(Error::invalid(
                     "timestamps",
-                    format!("must not decrease (pose {i}: {} after {})", timestamps[i], timestamps[i - 1]),
+                    format!(
+                        "must not decrease (pose {i}: {} after {})",
+                        timestamps[i],
+                        timestamps[i - 1]
+                    ),
                 ));
             }
         }

@@ -18,8 +18,7 @@ pub struct Cli {
 }
 
 #[derive(Subcommand, Debug)]
-enum Command {
-}
+enum Command {}
 
 fn run(cli: Cli) -> Result<()> {
     match cli.command {}

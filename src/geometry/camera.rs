@@ -26,7 +26,10 @@ impl PinholeCamera {
     pub fn try_new(fx: f64, fy: f64, cx: f64, cy: f64, width: u32, height: u32) -> Result<Self> {
         for (name, v) in [("fx", fx), ("fy", fy)] {
             if !(v.is_finite() && v > 0.0) {
-                return Err(Error::invalid(name, format!("must be finite and > 0, got {v}")));
+                return Err(Error::invalid(
+                    name,
+                    format!("must be finite and > 0, got {v}"),
+                ));
             }
         }
         for (name, v) in [("cx", cx), ("cy", cy)] {
@@ -54,10 +57,20 @@ impl PinholeCamera {
     /// horizontal field of view (degrees); square pixels.
     pub fn from_hfov(width: u32, height: u32, hfov_deg: f64) -> Result<Self> {
         if !(hfov_deg > 0.0 && hfov_deg < 180.0) {
-            return Err(Error::invalid("hfov", format!("must be in (0, 180) degrees, got {hfov_deg}")));
+            return Err(Error::invalid(
+                "hfov",
+                format!("must be in (0, 180) degrees, got {hfov_deg}"),
+            ));
         }
         let f = 0.5 * width as f64 / (0.5 * hfov_deg.to_radians()).tan();
-        Self::try_new(f, f, 0.5 * (width as f64 - 1.0), 0.5 * (height as f64 - 1.0), width, height)
+        Self::try_new(
+            f,
+            f,
+            0.5 * (width as f64 - 1.0),
+            0.5 * (height as f64 - 1.0),
+            width,
+            height,
+        )
     }
 
     /// The point at `depth` along z that projects to pixel `(x, y)`:
@@ -74,6 +87,9 @@ impl PinholeCamera {
     /// Pixel coordinates of a camera-frame point (z must be > 0 to be in front).
     #[inline]
     pub fn project(&self, p: &[f64; 3]) -> [f64; 2] {
-        [self.fx * p[0] / p[2] + self.cx, self.fy * p[1] / p[2] + self.cy]
+        [
+            self.fx * p[0] / p[2] + self.cx,
+            self.fy * p[1] / p[2] + self.cy,
+        ]
     }
 }

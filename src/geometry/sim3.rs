@@ -77,12 +77,20 @@ impl Sim3 {
 
     /// From a rotation matrix, which must be orthonormal with determinant +1
     /// (to 1e-6); it is re-orthonormalised before use.
-    pub fn from_rotation_matrix(r: &Matrix3<f64>, translation: Vector3<f64>, scale: f64) -> Result<Self> {
+    pub fn from_rotation_matrix(
+        r: &Matrix3<f64>,
+        translation: Vector3<f64>,
+        scale: f64,
+    ) -> Result<Self> {
         Self::try_new(rotation_from_matrix(r)?, translation, scale)
     }
 
     /// From a quaternion `(x, y, z, w)`; it is normalised, and must not be zero.
-    pub fn from_quaternion_xyzw(q: [f64; 4], translation: Vector3<f64>, scale: f64) -> Result<Self> {
+    pub fn from_quaternion_xyzw(
+        q: [f64; 4],
+        translation: Vector3<f64>,
+        scale: f64,
+    ) -> Result<Self> {
         Self::try_new(unit_quaternion_xyzw(q)?, translation, scale)
     }
 
@@ -107,7 +115,7 @@ impl Sim3 {
         }
         let sr: Matrix3<f64> = m.fixed_view::<3, 3>(0, 0).into_owned();
         let det = sr.determinant();
-        if !(det > 0.0) {
+        if det.is_nan() || det <= 0.0 {
             return Err(Error::invalid(
                 "matrix",
                 format!("the 3x3 block must have a positive determinant (a scaled rotation), got {det:.6e}"),
@@ -122,7 +130,12 @@ impl Sim3 {
     /// quaternion is not unit: its norm is the scale (LSD-SLAM's bundled Sophus
     /// stores `s·q`), its direction the rotation.
     pub fn from_lsd_slam(cam_to_world: &[f64; 7]) -> Result<Self> {
-        let q = [cam_to_world[0], cam_to_world[1], cam_to_world[2], cam_to_world[3]];
+        let q = [
+            cam_to_world[0],
+            cam_to_world[1],
+            cam_to_world[2],
+            cam_to_world[3],
+        ];
         let norm = (q[0] * q[0] + q[1] * q[1] + q[2] * q[2] + q[3] * q[3]).sqrt();
         let rotation = unit_quaternion_xyzw(q)?;
         Self::try_new(
@@ -206,7 +219,9 @@ impl Sim3 {
         if src.len() <= chunk {
             kernel((src, dst));
         } else {
-            src.par_chunks(chunk).zip(dst.par_chunks_mut(chunk)).for_each(kernel);
+            src.par_chunks(chunk)
+                .zip(dst.par_chunks_mut(chunk))
+                .for_each(kernel);
         }
         Ok(())
     }
@@ -346,7 +361,8 @@ mod tests {
     use super::*;
 
     fn sample() -> Sim3 {
-        Sim3::from_quaternion_xyzw([0.1, -0.3, 0.2, 0.9], Vector3::new(1.0, -2.0, 3.0), 15.49).unwrap()
+        Sim3::from_quaternion_xyzw([0.1, -0.3, 0.2, 0.9], Vector3::new(1.0, -2.0, 3.0), 15.49)
+            .unwrap()
     }
 
     #[test]
@@ -362,7 +378,8 @@ mod tests {
     #[test]
     fn composition_matches_matrices() {
         let a = sample();
-        let b = Sim3::from_quaternion_xyzw([0.0, 0.0, 1.0, 1.0], Vector3::new(0.5, 0.0, 0.0), 0.25).unwrap();
+        let b = Sim3::from_quaternion_xyzw([0.0, 0.0, 1.0, 1.0], Vector3::new(0.5, 0.0, 0.0), 0.25)
+            .unwrap();
         assert!(((a * b).matrix() - a.matrix() * b.matrix()).amax() < 1e-12);
         let p = Vector3::new(0.3, -0.7, 2.0);
         let lhs = (a * b).transform_point(&p);
@@ -383,7 +400,9 @@ mod tests {
     fn points_f32_and_f64_agree_with_point_map() {
         let t = sample();
         let n = 3 * POINTS_PER_TASK + 17;
-        let pts: Vec<f64> = (0..3 * n).map(|i| ((i * 7919) % 1000) as f64 * 0.01 - 5.0).collect();
+        let pts: Vec<f64> = (0..3 * n)
+            .map(|i| ((i * 7919) % 1000) as f64 * 0.01 - 5.0)
+            .collect();
         let out = t.transform_points(&pts).unwrap();
         let pts32: Vec<f32> = pts.iter().map(|&v| v as f32).collect();
         let out32 = t.transform_points(&pts32).unwrap();
@@ -405,7 +424,9 @@ mod tests {
     fn rejects_bad_input() {
         assert!(Sim3::from_quaternion_xyzw([0.0; 4], Vector3::zeros(), 1.0).is_err());
         assert!(Sim3::from_quaternion_xyzw([0.0, 0.0, 0.0, 1.0], Vector3::zeros(), -1.0).is_err());
-        assert!(Sim3::from_quaternion_xyzw([f64::NAN, 0.0, 0.0, 1.0], Vector3::zeros(), 1.0).is_err());
+        assert!(
+            Sim3::from_quaternion_xyzw([f64::NAN, 0.0, 0.0, 1.0], Vector3::zeros(), 1.0).is_err()
+        );
         let mut m = Matrix4::identity();
         m[(0, 1)] = 0.5;
         assert!(Sim3::from_matrix(&m).is_err());

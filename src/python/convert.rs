@@ -3,7 +3,10 @@
 
 use nalgebra::{Matrix3, Matrix4, Vector3};
 use numpy::ndarray::Array2;
-use numpy::{AllowTypeChange, IntoPyArray, PyArray2, PyArrayLike1, PyArrayLike2, PyArrayMethods, PyUntypedArrayMethods};
+use numpy::{
+    AllowTypeChange, IntoPyArray, PyArray2, PyArrayLike1, PyArrayLike2, PyArrayMethods,
+    PyUntypedArrayMethods,
+};
 use pyo3::prelude::*;
 
 use crate::error::Error;
@@ -85,7 +88,7 @@ pub fn to_array2<'py, T: numpy::Element>(
     data: Vec<T>,
     cols: usize,
 ) -> PyResult<Bound<'py, PyArray2<T>>> {
-    let rows = if cols == 0 { 0 } else { data.len() / cols };
+    let rows = data.len().checked_div(cols).unwrap_or(0);
     let a = Array2::from_shape_vec((rows, cols), data)
         .map_err(|e| PyErr::from(Error::invalid("array", e.to_string())))?;
     Ok(a.into_pyarray(py))

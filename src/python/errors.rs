@@ -120,8 +120,3 @@ impl From<Error> for PyErr {
         })
     }
 }
-
-/// The base class, for errors raised directly by the bindings.
-pub fn invalid_input(msg: impl Into<String>) -> PyErr {
-    Error::invalid("argument", msg.into()).into()
-}

@@ -1,7 +1,7 @@
 //! `Sim3` for Python.
 
 use nalgebra::Vector3;
-use numpy::{PyArray1, PyArray2, PyArrayMethods, ToPyArray};
+use numpy::{PyArray1, PyArray2, ToPyArray};
 use pyo3::prelude::*;
 use pyo3::types::PyTuple;
 
@@ -9,7 +9,12 @@ use super::convert::{matrix3, matrix4, matrix_to_array, to_array2, vec_f64, vect
 use crate::geometry::{rotation_from_matrix, PointScalar, Sim3};
 
 /// A similarity transform `p ↦ s·R·p + t`; `T_a_b` maps frame-b coordinates into frame a.
-#[pyclass(name = "Sim3", module = "slam2world._slam2world", frozen)]
+#[pyclass(
+    name = "Sim3",
+    module = "slam2world._slam2world",
+    frozen,
+    from_py_object
+)]
 #[derive(Clone)]
 pub struct PySim3 {
     pub inner: Sim3,
@@ -166,12 +171,14 @@ impl PySim3 {
     fn __reduce__<'py>(slf: &Bound<'py, Self>) -> PyResult<Bound<'py, PyTuple>> {
         let py = slf.py();
         let this = slf.get();
-        let args = (
-            this.rotation(py)?,
-            this.translation(py),
-            this.inner.scale,
-        );
-        PyTuple::new(py, [slf.get_type().into_any(), args.into_pyobject(py)?.into_any()])
+        let args = (this.rotation(py)?, this.translation(py), this.inner.scale);
+        PyTuple::new(
+            py,
+            [
+                slf.get_type().into_any(),
+                args.into_pyobject(py)?.into_any(),
+            ],
+        )
     }
 }
 
