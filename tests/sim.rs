@@ -1,0 +1,147 @@
+//! The synthetic experiment: geometry of the keyframes, the SLAM estimate's
+//! stages and normalisation, reproducibility.
+
+use nalgebra::Vector3;
+use slam2world::sim::{simulate, SimConfig, Simulation};
+
+fn reduced(noisy: bool) -> Simulation {
+    let cfg = SimConfig::default().reduced(8);
+    let cfg = if noisy { cfg } else { cfg.noiseless() };
+    simulate(&cfg).unwrap()
+}
+
+/// World points of every keyframe pixel with depth, carried with the true `T_world_slam`.
+fn world_points(sim: &Simulation) -> Vec<Vector3<f64>> {
+    let t = sim.truth.t_world_slam;
+    let mut out = Vec::new();
+    for kf in &sim.keyframes {
+        let w = kf.camera.width as usize;
+        for (i, &d) in kf.idepth.iter().enumerate() {
+            if d > 0.0 {
+                let p = kf.camera.backproject((i % w) as f64, (i / w) as f64, 1.0 / d as f64);
+                out.push(t.transform_point(&kf.pose.transform_point(&Vector3::new(p[0], p[1], p[2]))));
+            }
+        }
+    }
+    out
+}
+
+#[test]
+fn noiseless_keyframes_lie_on_the_true_surfaces() {
+    let sim = reduced(false);
+    let pts = world_points(&sim);
+    assert!(pts.len() > 10_000, "too few points: {}", pts.len());
+    let worst = pts
+        .iter()
+        .step_by(7)
+        .map(|p| sim.truth.scene.distance(&[p.x, p.y, p.z]))
+        .fold(0.0, f64::max);
+    // f32 inverse depth, f32 mesh: float32 precision at a few metres.
+    assert!(worst < 2e-5, "worst distance {worst} m");
+    // The keyframe poses are the true camera poses in the SLAM frame.
+    for (kf, &k) in sim.keyframes.iter().zip(&sim.truth.keyframe_frames) {
+        let c = sim.truth.t_world_slam.transform_point(&kf.pose.translation);
+        assert!((c - sim.truth.camera.positions[k]).norm() < 1e-9);
+    }
+}
+
+#[test]
+fn keyframes_are_normalised_like_lsd_slam() {
+    let sim = reduced(true);
+    for kf in &sim.keyframes {
+        let valid: Vec<f64> = kf.idepth.iter().filter(|&&d| d > 0.0).map(|&d| d as f64).collect();
+        let mean = valid.iter().sum::<f64>() / valid.len() as f64;
+        assert!((mean - 1.0).abs() < 1e-5, "keyframe {} mean idepth {mean}", kf.id);
+        let var = kf.idepth_var.as_ref().unwrap();
+        assert!(kf.idepth.iter().zip(var).all(|(&d, &v)| (d > 0.0) == (v > 0.0)));
+        let share = valid.len() as f64 / kf.len() as f64;
+        // At the reduced 80x60 image the texture cells are a few pixels wide: dense-ish.
+        assert!(share > 0.02 && share < 0.9, "semi-dense share {share}");
+        // Scale of T_slam_cam times depth in SLAM units is metres / s.
+        assert!(kf.pose.scale > 0.0);
+    }
+}
+
+#[test]
+fn noisy_points_scatter_by_the_stated_depth_noise() {
+    let sim = reduced(true);
+    let pts = world_points(&sim);
+    let d: Vec<f64> = pts.iter().step_by(5).map(|p| sim.truth.scene.distance(&[p.x, p.y, p.z])).collect();
+    let mut s = d.clone();
+    s.sort_by(f64::total_cmp);
+    let median = s[s.len() / 2];
+    // 1 % of depths of a few metres, seen at all angles: millimetres to centimetres.
+    assert!(median > 1e-3 && median < 0.05, "median distance {median}");
+}
+
+#[test]
+fn slam_path_has_the_three_stages() {
+    let sim = reduced(true);
+    let cfg = &sim.config;
+    let slam = &sim.slam_frames.positions;
+    let world = &sim.truth.camera.positions;
+    let s = sim.truth.t_world_slam.scale;
+    // p_k = |Δ world|² / |Δ slam|², averaged over windows (≈ s² once stable).
+    let p = |a: usize, b: usize| {
+        let mut v: Vec<f64> = (a..b)
+            .map(|k| (world[k + 1] - world[k]).norm_squared() / (slam[k + 1] - slam[k]).norm_squared())
+            .collect();
+        v.sort_by(f64::total_cmp);
+        v[v.len() / 2] / (s * s)
+    };
+    let n = cfg.n_frames - 1;
+    let start = p(0, cfg.converge_start);
+    let stable = p(cfg.stable_start, n);
+    assert!((stable - 1.0).abs() < 0.1, "stable level {stable}");
+    assert!((start - 1.0).abs() > 0.3, "start stage should differ: {start}");
+    let len: f64 = slam.windows(2).map(|w| (w[1] - w[0]).norm()).sum();
+    assert!((len / cfg.slam_path_length - 1.0).abs() < 0.1, "SLAM path {len}");
+    let true_len = sim.truth.path.length(0.0, cfg.n_frames as f64 / cfg.fps);
+    assert!((true_len / cfg.path_length - 1.0).abs() < 0.01);
+}
+
+#[test]
+fn same_seed_same_run_other_seed_other_noise() {
+    let cfg = SimConfig { n_keyframes: 4, ..SimConfig::default().reduced(16) };
+    let a = simulate(&cfg).unwrap();
+    let b = simulate(&cfg).unwrap();
+    let c = simulate(&SimConfig { seed: 1, ..cfg.clone() }).unwrap();
+    for (x, y) in a.keyframes.iter().zip(&b.keyframes) {
+        assert_eq!(x.idepth, y.idepth);
+        assert_eq!(x.pose, y.pose);
+    }
+    assert_eq!(a.slam_frames.positions, b.slam_frames.positions);
+    assert_eq!(a.imu.accel, b.imu.accel);
+    assert_eq!(a.reference.positions, b.reference.positions);
+    assert_eq!(a.truth.t_world_slam, b.truth.t_world_slam);
+    assert_ne!(a.keyframes[1].idepth, c.keyframes[1].idepth);
+    assert_ne!(a.imu.accel, c.imu.accel);
+}
+
+#[test]
+fn reference_and_imu_cover_the_run() {
+    let sim = reduced(true);
+    let t_end = (sim.config.n_frames - 1) as f64 / sim.config.fps;
+    assert_eq!(sim.reference.len(), sim.imu.len());
+    assert!((sim.reference.timestamps.last().unwrap() - t_end).abs() < 1.0 / sim.config.imu_rate);
+    // The reference is the true camera path plus millimetre noise.
+    let e: f64 = sim
+        .reference
+        .timestamps
+        .iter()
+        .zip(&sim.reference.positions)
+        .map(|(&t, p)| (p - sim.truth.path.kinematics(t).0).norm())
+        .fold(0.0, f64::max);
+    assert!(e > 0.0 && e < 0.01, "reference noise {e}");
+    // At rest the accelerometer would read +g along world z; the mean specific force is near g.
+    let mean_norm = sim.imu.accel.iter().map(|a| a.norm()).sum::<f64>() / sim.imu.len() as f64;
+    assert!((mean_norm - 9.81).abs() < 1.0, "mean |accel| {mean_norm}");
+}
+
+#[test]
+fn bad_config_is_refused() {
+    let cfg = SimConfig { n_keyframes: 0, ..SimConfig::default() };
+    assert!(simulate(&cfg).is_err());
+    let cfg = SimConfig { stable_start: 7000, ..SimConfig::default() };
+    assert!(simulate(&cfg).is_err());
+}
