@@ -18,8 +18,12 @@ fn world_points(sim: &Simulation) -> Vec<Vector3<f64>> {
         let w = kf.camera.width as usize;
         for (i, &d) in kf.idepth.iter().enumerate() {
             if d > 0.0 {
-                let p = kf.camera.backproject((i % w) as f64, (i / w) as f64, 1.0 / d as f64);
-                out.push(t.transform_point(&kf.pose.transform_point(&Vector3::new(p[0], p[1], p[2]))));
+                let p = kf
+                    .camera
+                    .backproject((i % w) as f64, (i / w) as f64, 1.0 / d as f64);
+                out.push(
+                    t.transform_point(&kf.pose.transform_point(&Vector3::new(p[0], p[1], p[2]))),
+                );
             }
         }
     }
@@ -49,11 +53,24 @@ fn noiseless_keyframes_lie_on_the_true_surfaces() {
 fn keyframes_are_normalised_like_lsd_slam() {
     let sim = reduced(true);
     for kf in &sim.keyframes {
-        let valid: Vec<f64> = kf.idepth.iter().filter(|&&d| d > 0.0).map(|&d| d as f64).collect();
+        let valid: Vec<f64> = kf
+            .idepth
+            .iter()
+            .filter(|&&d| d > 0.0)
+            .map(|&d| d as f64)
+            .collect();
         let mean = valid.iter().sum::<f64>() / valid.len() as f64;
-        assert!((mean - 1.0).abs() < 1e-5, "keyframe {} mean idepth {mean}", kf.id);
+        assert!(
+            (mean - 1.0).abs() < 1e-5,
+            "keyframe {} mean idepth {mean}",
+            kf.id
+        );
         let var = kf.idepth_var.as_ref().unwrap();
-        assert!(kf.idepth.iter().zip(var).all(|(&d, &v)| (d > 0.0) == (v > 0.0)));
+        assert!(kf
+            .idepth
+            .iter()
+            .zip(var)
+            .all(|(&d, &v)| (d > 0.0) == (v > 0.0)));
         let share = valid.len() as f64 / kf.len() as f64;
         // At the reduced 80x60 image the texture cells are a few pixels wide: dense-ish.
         assert!(share > 0.02 && share < 0.9, "semi-dense share {share}");
@@ -66,7 +83,11 @@ fn keyframes_are_normalised_like_lsd_slam() {
 fn noisy_points_scatter_by_the_stated_depth_noise() {
     let sim = reduced(true);
     let pts = world_points(&sim);
-    let d: Vec<f64> = pts.iter().step_by(5).map(|p| sim.truth.scene.distance(&[p.x, p.y, p.z])).collect();
+    let d: Vec<f64> = pts
+        .iter()
+        .step_by(5)
+        .map(|p| sim.truth.scene.distance(&[p.x, p.y, p.z]))
+        .collect();
     let mut s = d.clone();
     s.sort_by(f64::total_cmp);
     let median = s[s.len() / 2];
@@ -84,7 +105,9 @@ fn slam_path_has_the_three_stages() {
     // p_k = |Δ world|² / |Δ slam|², averaged over windows (≈ s² once stable).
     let p = |a: usize, b: usize| {
         let mut v: Vec<f64> = (a..b)
-            .map(|k| (world[k + 1] - world[k]).norm_squared() / (slam[k + 1] - slam[k]).norm_squared())
+            .map(|k| {
+                (world[k + 1] - world[k]).norm_squared() / (slam[k + 1] - slam[k]).norm_squared()
+            })
             .collect();
         v.sort_by(f64::total_cmp);
         v[v.len() / 2] / (s * s)
@@ -93,19 +116,32 @@ fn slam_path_has_the_three_stages() {
     let start = p(0, cfg.converge_start);
     let stable = p(cfg.stable_start, n);
     assert!((stable - 1.0).abs() < 0.1, "stable level {stable}");
-    assert!((start - 1.0).abs() > 0.3, "start stage should differ: {start}");
+    assert!(
+        (start - 1.0).abs() > 0.3,
+        "start stage should differ: {start}"
+    );
     let len: f64 = slam.windows(2).map(|w| (w[1] - w[0]).norm()).sum();
-    assert!((len / cfg.slam_path_length - 1.0).abs() < 0.1, "SLAM path {len}");
+    assert!(
+        (len / cfg.slam_path_length - 1.0).abs() < 0.1,
+        "SLAM path {len}"
+    );
     let true_len = sim.truth.path.length(0.0, cfg.n_frames as f64 / cfg.fps);
     assert!((true_len / cfg.path_length - 1.0).abs() < 0.01);
 }
 
 #[test]
 fn same_seed_same_run_other_seed_other_noise() {
-    let cfg = SimConfig { n_keyframes: 4, ..SimConfig::default().reduced(16) };
+    let cfg = SimConfig {
+        n_keyframes: 4,
+        ..SimConfig::default().reduced(16)
+    };
     let a = simulate(&cfg).unwrap();
     let b = simulate(&cfg).unwrap();
-    let c = simulate(&SimConfig { seed: 1, ..cfg.clone() }).unwrap();
+    let c = simulate(&SimConfig {
+        seed: 1,
+        ..cfg.clone()
+    })
+    .unwrap();
     for (x, y) in a.keyframes.iter().zip(&b.keyframes) {
         assert_eq!(x.idepth, y.idepth);
         assert_eq!(x.pose, y.pose);
@@ -140,8 +176,14 @@ fn reference_and_imu_cover_the_run() {
 
 #[test]
 fn bad_config_is_refused() {
-    let cfg = SimConfig { n_keyframes: 0, ..SimConfig::default() };
+    let cfg = SimConfig {
+        n_keyframes: 0,
+        ..SimConfig::default()
+    };
     assert!(simulate(&cfg).is_err());
-    let cfg = SimConfig { stable_start: 7000, ..SimConfig::default() };
+    let cfg = SimConfig {
+        stable_start: 7000,
+        ..SimConfig::default()
+    };
     assert!(simulate(&cfg).is_err());
 }

@@ -10,8 +10,12 @@ from slam2world._slam2world import (
     FormatError,
     InvalidInputError,
     Sim3,
+    Simulation,
     Slam2WorldError,
     __version__,
+    evaluate,
+    point_distances,
+    simulate,
 )
 
 __all__ = [
@@ -20,6 +24,10 @@ __all__ = [
     "FormatError",
     "InvalidInputError",
     "Sim3",
+    "Simulation",
     "Slam2WorldError",
     "__version__",
+    "evaluate",
+    "point_distances",
+    "simulate",
 ]

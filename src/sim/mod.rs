@@ -181,6 +181,89 @@ impl SimConfig {
         self
     }
 
+    /// Sets one parameter by its field name (integers must be whole and ≥ 0;
+    /// `gyro_bias` / `accel_bias` set all three axes). The CLI's `--set` and
+    /// Python's `simulate(**params)` go through here.
+    pub fn set(&mut self, name: &str, value: f64) -> Result<()> {
+        let whole = |v: f64| -> Result<u64> {
+            if v.is_finite() && v >= 0.0 && v.fract() == 0.0 && v < 1e15 {
+                Ok(v as u64)
+            } else {
+                Err(Error::invalid(
+                    name,
+                    format!("must be a whole number ≥ 0, got {v}"),
+                ))
+            }
+        };
+        match name {
+            "seed" => self.seed = whole(value)?,
+            "n_frames" => self.n_frames = whole(value)? as usize,
+            "n_keyframes" => self.n_keyframes = whole(value)? as usize,
+            "width" => self.width = whole(value)?.min(u32::MAX as u64) as u32,
+            "height" => self.height = whole(value)?.min(u32::MAX as u64) as u32,
+            "converge_start" => self.converge_start = whole(value)? as usize,
+            "stable_start" => self.stable_start = whole(value)? as usize,
+            "fps" => self.fps = value,
+            "hfov_deg" => self.hfov_deg = value,
+            "path_length" => self.path_length = value,
+            "slam_path_length" => self.slam_path_length = value,
+            "min_gradient" => self.min_gradient = value as f32,
+            "idepth_rel_sigma" => self.idepth_rel_sigma = value,
+            "init_scale" => self.init_scale = value,
+            "init_wander" => self.init_wander = value,
+            "jump_prob" => self.jump_prob = value,
+            "jump_sigma" => self.jump_sigma = value,
+            "scale_drift" => self.scale_drift = value,
+            "frame_pos_sigma" => self.frame_pos_sigma = value,
+            "frame_rot_sigma" => self.frame_rot_sigma = value,
+            "burst_prob" => self.burst_prob = value,
+            "burst_sigma" => self.burst_sigma = value,
+            "keyframe_pos_sigma" => self.keyframe_pos_sigma = value,
+            "keyframe_rot_sigma" => self.keyframe_rot_sigma = value,
+            "imu_rate" => self.imu_rate = value,
+            "reference_pos_sigma" => self.reference_pos_sigma = value,
+            "reference_rot_sigma" => self.reference_rot_sigma = value,
+            "gyro_noise_density" => self.gyro_noise_density = value,
+            "gyro_random_walk" => self.gyro_random_walk = value,
+            "accel_noise_density" => self.accel_noise_density = value,
+            "accel_random_walk" => self.accel_random_walk = value,
+            "gyro_bias" => self.gyro_bias = [value; 3],
+            "accel_bias" => self.accel_bias = [value; 3],
+            _ => {
+                return Err(Error::invalid(
+                    "simulation parameter",
+                    format!("unknown name {name:?} (see SimConfig's fields)"),
+                ))
+            }
+        }
+        Ok(())
+    }
+
+    /// Every parameter as a JSON object keyed by field name (for reports and sidecars).
+    pub fn to_json(&self) -> serde_json::Value {
+        serde_json::json!({
+            "seed": self.seed, "n_frames": self.n_frames, "fps": self.fps,
+            "n_keyframes": self.n_keyframes, "width": self.width, "height": self.height,
+            "hfov_deg": self.hfov_deg, "path_length": self.path_length,
+            "slam_path_length": self.slam_path_length, "min_gradient": self.min_gradient,
+            "idepth_rel_sigma": self.idepth_rel_sigma, "converge_start": self.converge_start,
+            "stable_start": self.stable_start, "init_scale": self.init_scale,
+            "init_wander": self.init_wander, "jump_prob": self.jump_prob,
+            "jump_sigma": self.jump_sigma, "scale_drift": self.scale_drift,
+            "frame_pos_sigma": self.frame_pos_sigma, "frame_rot_sigma": self.frame_rot_sigma,
+            "burst_prob": self.burst_prob, "burst_sigma": self.burst_sigma,
+            "keyframe_pos_sigma": self.keyframe_pos_sigma,
+            "keyframe_rot_sigma": self.keyframe_rot_sigma, "imu_rate": self.imu_rate,
+            "reference_pos_sigma": self.reference_pos_sigma,
+            "reference_rot_sigma": self.reference_rot_sigma,
+            "gyro_noise_density": self.gyro_noise_density,
+            "gyro_random_walk": self.gyro_random_walk,
+            "accel_noise_density": self.accel_noise_density,
+            "accel_random_walk": self.accel_random_walk,
+            "gyro_bias": self.gyro_bias, "accel_bias": self.accel_bias,
+        })
+    }
+
     /// Checks sizes, stage order and that every noise level is finite and ≥ 0.
     pub fn validate(&self) -> Result<()> {
         if self.n_frames < 10 {
