@@ -84,11 +84,14 @@ pub struct TransformError {
 pub fn transform_error(est: &Sim3, truth: &Sim3) -> TransformError {
     let up_est = est.rotation.inverse() * Vector3::z();
     let up_true = truth.rotation.inverse() * Vector3::z();
-    let cos = up_est.dot(&up_true).clamp(-1.0, 1.0);
     TransformError {
         scale_error: est.scale / truth.scale - 1.0,
         rotation_error_deg: est.rotation.angle_to(&truth.rotation).to_degrees(),
-        gravity_error_deg: cos.acos().to_degrees(),
+        gravity_error_deg: up_est
+            .cross(&up_true)
+            .norm()
+            .atan2(up_est.dot(&up_true))
+            .to_degrees(),
         translation_error: (est.translation - truth.translation).norm(),
     }
 }
