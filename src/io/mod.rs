@@ -1,0 +1,3 @@
+//! File formats: trajectories as text (TUM, EuRoC ground truth).
+
+pub mod text;
