@@ -399,6 +399,8 @@ pub struct TrajectoryAlignment {
     pub pairs: Vec<(usize, usize)>,
     /// Error statistics over all matched pairs.
     pub ape: ApeStats,
+    /// Per pair `‖p_ref − T(p_slam)‖`, metres, in the order of `pairs`.
+    pub errors: Vec<f64>,
 }
 
 /// Associates `slam` with `reference` by time (as evo: `reference` first,
@@ -443,6 +445,7 @@ pub fn align_trajectories(
         alignment,
         pairs,
         ape,
+        errors,
     })
 }
 

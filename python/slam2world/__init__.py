@@ -5,21 +5,35 @@ Conventions: metres and seconds; ``T_a_b`` maps frame-b coordinates into frame a
 """
 
 from slam2world._slam2world import (
+    Alignment,
     DegenerateError,
     FileError,
     FormatError,
     InvalidInputError,
     Sim3,
     Slam2WorldError,
+    Trajectory,
+    TrajectoryAlignment,
     __version__,
+    align,
+    align_trajectories,
+    associate,
+    scale_factors,
 )
 
 __all__ = [
+    "Alignment",
     "DegenerateError",
     "FileError",
     "FormatError",
     "InvalidInputError",
     "Sim3",
     "Slam2WorldError",
+    "Trajectory",
+    "TrajectoryAlignment",
     "__version__",
+    "align",
+    "align_trajectories",
+    "associate",
+    "scale_factors",
 ]
