@@ -1,0 +1,3 @@
+//! File formats: point clouds (PLY, x y z text).
+
+pub mod ply;
