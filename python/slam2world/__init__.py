@@ -9,9 +9,16 @@ from slam2world._slam2world import (
     FileError,
     FormatError,
     InvalidInputError,
+    Keyframe,
+    PinholeCamera,
+    PointCloud,
+    PointFilter,
     Sim3,
     Slam2WorldError,
     __version__,
+    backproject,
+    read_ply,
+    read_xyz_text,
 )
 
 __all__ = [
@@ -19,7 +26,14 @@ __all__ = [
     "FileError",
     "FormatError",
     "InvalidInputError",
+    "Keyframe",
+    "PinholeCamera",
+    "PointCloud",
+    "PointFilter",
     "Sim3",
     "Slam2WorldError",
     "__version__",
+    "backproject",
+    "read_ply",
+    "read_xyz_text",
 ]

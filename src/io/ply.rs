@@ -28,9 +28,20 @@ const VERTICES_PER_TASK: usize = 1 << 14;
 /// Writes `cloud` as a binary little-endian PLY (`x y z` float, `red green blue`
 /// uchar when the cloud has colours). Atomic: temp file in the same folder, then rename.
 pub fn write_ply(path: impl AsRef<Path>, cloud: &PointCloud) -> Result<()> {
-    let path = path.as_ref();
-    let n = cloud.len();
-    if let Some(c) = &cloud.colors {
+    write_ply_parts(path.as_ref(), &cloud.points, cloud.colors.as_deref())
+}
+
+/// [`write_ply`] from the raw buffers: `points` row-major `(N, 3)`, `colors` `(N, 3)` bytes.
+pub fn write_ply_parts(path: &Path, points: &[f32], colors: Option<&[u8]>) -> Result<()> {
+    if points.len() % 3 != 0 {
+        return Err(Error::ShapeMismatch {
+            what: "points".into(),
+            expected: "(N, 3)".into(),
+            got: format!("{} values", points.len()),
+        });
+    }
+    let n = points.len() / 3;
+    if let Some(c) = colors {
         if c.len() != 3 * n {
             return Err(Error::ShapeMismatch {
                 what: "colors".into(),
@@ -43,11 +54,11 @@ pub fn write_ply(path: impl AsRef<Path>, cloud: &PointCloud) -> Result<()> {
         "ply\nformat binary_little_endian 1.0\ncomment slam2world point cloud\nelement vertex {n}\n\
          property float x\nproperty float y\nproperty float z\n"
     );
-    if cloud.colors.is_some() {
+    if colors.is_some() {
         header.push_str("property uchar red\nproperty uchar green\nproperty uchar blue\n");
     }
     header.push_str("end_header\n");
-    let stride = if cloud.colors.is_some() { 15 } else { 12 };
+    let stride = if colors.is_some() { 15 } else { 12 };
 
     let dir = match path.parent() {
         Some(d) if !d.as_os_str().is_empty() => d,
@@ -72,9 +83,9 @@ pub fn write_ply(path: impl AsRef<Path>, cloud: &PointCloud) -> Result<()> {
                 for (j, v) in out.chunks_exact_mut(stride).enumerate() {
                     let i = first + j;
                     for k in 0..3 {
-                        v[4 * k..4 * k + 4].copy_from_slice(&cloud.points[3 * i + k].to_le_bytes());
+                        v[4 * k..4 * k + 4].copy_from_slice(&points[3 * i + k].to_le_bytes());
                     }
-                    if let Some(c) = &cloud.colors {
+                    if let Some(c) = colors {
                         v[12..15].copy_from_slice(&c[3 * i..3 * i + 3]);
                     }
                 }

@@ -4,6 +4,7 @@
 use pyo3::prelude::*;
 
 mod cli;
+mod cloud;
 mod convert;
 mod errors;
 mod geometry;
@@ -13,6 +14,7 @@ fn _slam2world(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add("__version__", env!("CARGO_PKG_VERSION"))?;
     errors::register(m)?;
     geometry::register(m)?;
+    cloud::register(m)?;
     cli::register(m)?;
     Ok(())
 }
