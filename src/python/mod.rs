@@ -4,6 +4,7 @@
 use pyo3::prelude::*;
 
 mod cli;
+mod cloud;
 mod convert;
 mod core;
 mod errors;
@@ -15,6 +16,7 @@ fn _slam2world(m: &Bound<'_, PyModule>) -> PyResult<()> {
     errors::register(m)?;
     geometry::register(m)?;
     core::register(m)?;
+    cloud::register(m)?;
     cli::register(m)?;
     Ok(())
 }
