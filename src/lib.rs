@@ -16,6 +16,7 @@ pub mod cli;
 pub mod error;
 pub mod geometry;
 pub mod imu;
+pub mod io;
 pub mod keyframe;
 pub mod trajectory;
 

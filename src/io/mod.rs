@@ -1,0 +1,3 @@
+//! File formats: MCAP logs in and out.
+
+pub mod mcap;
