@@ -9,9 +9,13 @@ from slam2world._slam2world import (
     FileError,
     FormatError,
     InvalidInputError,
+    Log,
+    LogKeyframe,
     Sim3,
     Slam2WorldError,
     __version__,
+    read_mcap,
+    write_world_mcap,
 )
 
 __all__ = [
@@ -19,7 +23,11 @@ __all__ = [
     "FileError",
     "FormatError",
     "InvalidInputError",
+    "Log",
+    "LogKeyframe",
     "Sim3",
     "Slam2WorldError",
     "__version__",
+    "read_mcap",
+    "write_world_mcap",
 ]

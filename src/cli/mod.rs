@@ -9,6 +9,8 @@ use clap::{Parser, Subcommand};
 
 use crate::error::Result;
 
+pub mod inspect;
+
 /// Metric, gravity-aligned 3-D worlds from monocular SLAM maps.
 #[derive(Parser, Debug)]
 #[command(name = "slam2world", version, about, long_about = None)]
@@ -18,10 +20,15 @@ pub struct Cli {
 }
 
 #[derive(Subcommand, Debug)]
-enum Command {}
+enum Command {
+    /// List the topics of an MCAP log and what slam2world can use.
+    Inspect(inspect::InspectArgs),
+}
 
 fn run(cli: Cli) -> Result<()> {
-    match cli.command {}
+    match cli.command {
+        Command::Inspect(args) => inspect::run(&args),
+    }
 }
 
 /// Parses `args` (the program name first) and runs the command; returns the

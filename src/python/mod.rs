@@ -7,6 +7,7 @@ mod cli;
 mod convert;
 mod errors;
 mod geometry;
+mod mcap;
 
 #[pymodule]
 fn _slam2world(m: &Bound<'_, PyModule>) -> PyResult<()> {
@@ -14,5 +15,6 @@ fn _slam2world(m: &Bound<'_, PyModule>) -> PyResult<()> {
     errors::register(m)?;
     geometry::register(m)?;
     cli::register(m)?;
+    mcap::register(m)?;
     Ok(())
 }

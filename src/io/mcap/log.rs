@@ -91,6 +91,16 @@ fn mcap_err(path: &Path, reason: String) -> Error {
     }
 }
 
+/// Reference pose kinds in the order they are preferred.
+const POSE_KINDS: [MessageKind; 6] = [
+    MessageKind::PoseStamped,
+    MessageKind::PoseWithCovarianceStamped,
+    MessageKind::Odometry,
+    MessageKind::PoseInFrame,
+    MessageKind::PosesInFrame,
+    MessageKind::Tf,
+];
+
 fn kind_of(c: &ChannelInfo) -> Option<MessageKind> {
     MessageKind::from_schema(&c.schema_name)
 }
@@ -138,10 +148,16 @@ fn choose<'c>(
             .values()
             .filter(|c| kind_of(c) == Some(*k))
             .collect();
+        // LSD-SLAM also publishes live frames (pose only) as keyframeMsg, more often
+        // than keyframes: a topic named like that comes last.
+        let live = |c: &ChannelInfo| c.topic.contains("liveframe");
         cands.sort_by(|a, b| {
             let ca = counts.get(&a.id).copied().unwrap_or(0);
             let cb = counts.get(&b.id).copied().unwrap_or(0);
-            cb.cmp(&ca).then_with(|| a.topic.cmp(&b.topic))
+            live(a)
+                .cmp(&live(b))
+                .then(cb.cmp(&ca))
+                .then_with(|| a.topic.cmp(&b.topic))
         });
         if let Some(c) = cands.first() {
             return Ok(Some(c));
@@ -548,4 +564,67 @@ fn read_imu(path: &Path, messages: &[RawMessage<'_>], c: &ChannelInfo) -> Result
         samples.iter().map(|s| Vector3::from(s.accel)).collect(),
     )
     .map_err(|e| mcap_err(path, format!("topic {}: {e}", c.topic)))
+}
+
+/// What `slam2world inspect` shows: every topic with its counts, and the
+/// topics [`read_mcap`] would use by default.
+#[derive(Clone, Debug)]
+pub struct Inventory {
+    /// The Header record's profile (`ros1`, `ros2`, …).
+    pub profile: String,
+    /// Indexed or linear reading.
+    pub mode: ReadMode,
+    /// Every topic, with all its messages counted.
+    pub topics: Vec<TopicInfo>,
+    /// `(role, topic)` for keyframe, graph, pose and imu, where one is found.
+    pub picks: Vec<(&'static str, String)>,
+}
+
+/// Reads every message of `path` (without decoding) and lists its topics.
+pub fn inspect_mcap(path: impl AsRef<Path>) -> Result<Inventory> {
+    let path = path.as_ref();
+    let file = McapFile::open(path)?;
+    let scan = file.scan(|_| true)?;
+    let mut counts: HashMap<u16, u64> = HashMap::new();
+    let mut ranges: HashMap<u16, (u64, u64)> = HashMap::new();
+    for m in &scan.messages {
+        *counts.entry(m.channel_id).or_default() += 1;
+        let r = ranges
+            .entry(m.channel_id)
+            .or_insert((m.log_time, m.log_time));
+        r.0 = r.0.min(m.log_time);
+        r.1 = r.1.max(m.log_time);
+    }
+    let topics = scan
+        .channels
+        .values()
+        .map(|c| TopicInfo {
+            topic: c.topic.clone(),
+            schema_name: c.schema_name.clone(),
+            schema_encoding: c.schema_encoding.clone(),
+            message_encoding: c.message_encoding.clone(),
+            count: counts.get(&c.id).copied().unwrap_or(0),
+            time_range: ranges.get(&c.id).copied(),
+            kind: kind_of(c),
+        })
+        .collect();
+    use MessageKind as K;
+    let roles: [(&'static str, &[MessageKind]); 4] = [
+        ("keyframes", &[K::Keyframe]),
+        ("graph", &[K::KeyframeGraph]),
+        ("reference", &POSE_KINDS),
+        ("imu", &[K::Imu]),
+    ];
+    let mut picks = Vec::new();
+    for (role, kinds) in roles {
+        if let Some(c) = choose(path, role, None, kinds, &scan.channels, &counts)? {
+            picks.push((role, c.topic.clone()));
+        }
+    }
+    Ok(Inventory {
+        profile: scan.profile,
+        mode: scan.mode,
+        topics,
+        picks,
+    })
 }

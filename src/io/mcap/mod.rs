@@ -17,6 +17,6 @@ pub mod wire;
 pub mod write;
 
 pub use decode::MessageKind;
-pub use log::{read_mcap, Log, ReadOptions, TopicInfo};
+pub use log::{inspect_mcap, read_mcap, Inventory, Log, ReadOptions, TopicInfo};
 pub use reader::{ChannelInfo, McapFile, RawMessage, ReadMode, Scan};
 pub use write::{write_slam_log, write_world_mcap, SlamLogOptions, WorldFlavor, WorldScene};
