@@ -11,6 +11,8 @@ from slam2world._slam2world import (
     FormatError,
     InvalidInputError,
     Keyframe,
+    Log,
+    LogKeyframe,
     PinholeCamera,
     PointCloud,
     PointFilter,
@@ -23,9 +25,11 @@ from slam2world._slam2world import (
     align_trajectories,
     associate,
     backproject,
+    read_mcap,
     read_ply,
     read_xyz_text,
     scale_factors,
+    write_world_mcap,
 )
 
 __all__ = [
@@ -38,6 +42,8 @@ __all__ = [
     "PinholeCamera",
     "PointCloud",
     "PointFilter",
+    "Log",
+    "LogKeyframe",
     "Sim3",
     "Slam2WorldError",
     "Trajectory",
@@ -50,4 +56,6 @@ __all__ = [
     "backproject",
     "read_ply",
     "read_xyz_text",
+    "read_mcap",
+    "write_world_mcap",
 ]

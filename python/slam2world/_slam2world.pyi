@@ -1,6 +1,7 @@
 """Type stubs of the native module (checked against it by mypy.stubtest)."""
 
 import os
+import pathlib
 from collections.abc import Iterable, Sequence
 from typing import Any, final, overload
 
@@ -263,3 +264,67 @@ def read_xyz_text(path: _Path) -> PointCloud: ...
 # ---------------------------------------------------------------- cli
 
 def run_cli(argv: list[str]) -> int: ...
+
+# ---------------------------------------------------------------- mcap
+
+_Series = tuple[npt.NDArray[np.float64], npt.NDArray[np.float64], npt.NDArray[np.float64]]
+
+@final
+class LogKeyframe:
+    @property
+    def id(self) -> int: ...
+    @property
+    def timestamp(self) -> float: ...
+    @property
+    def pose(self) -> Sim3: ...
+    @property
+    def camera(self) -> tuple[float, float, float, float, int, int]: ...
+    @property
+    def idepth(self) -> npt.NDArray[np.float32]: ...
+    @property
+    def idepth_var(self) -> npt.NDArray[np.float32] | None: ...
+    @property
+    def color(self) -> npt.NDArray[np.uint8] | None: ...
+
+@final
+class Log:
+    @property
+    def path(self) -> pathlib.Path: ...
+    @property
+    def keyframes(self) -> list[LogKeyframe]: ...
+    @property
+    def reference(self) -> _Series | None: ...
+    @property
+    def imu(self) -> _Series | None: ...
+    @property
+    def keyframe_topic(self) -> str | None: ...
+    @property
+    def graph_topic(self) -> str | None: ...
+    @property
+    def reference_topic(self) -> str | None: ...
+    @property
+    def imu_topic(self) -> str | None: ...
+    @property
+    def graph_updates(self) -> int: ...
+    @property
+    def topics(self) -> list[tuple[str, str, str, int]]: ...
+
+def read_mcap(
+    path: str | os.PathLike[str],
+    *,
+    keyframe_topic: str | None = None,
+    graph_topic: str | None = None,
+    pose_topic: str | None = None,
+    imu_topic: str | None = None,
+    tf_parent: str | None = None,
+    tf_child: str | None = None,
+) -> Log: ...
+def write_world_mcap(
+    path: str | os.PathLike[str],
+    points: _ArrayLike,
+    colors: npt.NDArray[np.uint8] | None = None,
+    *,
+    transform: Sim3 | None = None,
+    stamp: float = 0.0,
+    ros2: bool = False,
+) -> None: ...

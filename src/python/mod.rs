@@ -9,6 +9,7 @@ mod convert;
 mod core;
 mod errors;
 mod geometry;
+mod mcap;
 
 #[pymodule]
 fn _slam2world(m: &Bound<'_, PyModule>) -> PyResult<()> {
@@ -18,5 +19,6 @@ fn _slam2world(m: &Bound<'_, PyModule>) -> PyResult<()> {
     core::register(m)?;
     cloud::register(m)?;
     cli::register(m)?;
+    mcap::register(m)?;
     Ok(())
 }
