@@ -99,6 +99,13 @@ def _path_axes(fig: Figure, pos: int, p: FloatArray, title: str, unit: str) -> N
         d = np.zeros(3)
         d[k] = span
         ax.quiver(*o, *d, color=c, lw=1.5)
+    # Equal scale on the three axes, so that the shapes compare.
+    mid = 0.5 * (p.min(axis=0) + p.max(axis=0))
+    half = 0.5 * float(np.max(np.ptp(p, axis=0))) or 1.0
+    ax.set_xlim(mid[0] - half, mid[0] + half)
+    ax.set_ylim(mid[1] - half, mid[1] + half)
+    ax.set_zlim(mid[2] - half, mid[2] + half)
+    ax.set_box_aspect((1.0, 1.0, 1.0))
     ax.set_xlabel(f"x [{unit}]")
     ax.set_ylabel(f"y [{unit}]")
     ax.set_zlabel(f"z [{unit}]")

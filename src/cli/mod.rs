@@ -7,6 +7,10 @@ use std::ffi::OsString;
 
 use clap::{Parser, Subcommand};
 
+pub mod align;
+pub mod inspect;
+pub mod sim;
+
 use crate::error::Result;
 
 /// Metric, gravity-aligned 3-D worlds from monocular SLAM maps.
@@ -18,10 +22,27 @@ pub struct Cli {
 }
 
 #[derive(Subcommand, Debug)]
-enum Command {}
+enum Command {
+    /// Fit the Sim(3) between two trajectory files and print the error statistics.
+    Align(align::AlignArgs),
+    /// List the topics of an MCAP log and what slam2world can use.
+    Inspect(inspect::InspectArgs),
+    /// Simulate the paper's experiment and write the LSD-SLAM log (MCAP) and its truth.
+    Simulate(sim::SimulateArgs),
+    /// Score a converted cloud and T_world_slam against a simulation's truth.
+    Evaluate(sim::EvaluateArgs),
+    /// Simulate the paper-size run, convert, score, write outputs and figures.
+    Demo(sim::DemoArgs),
+}
 
 fn run(cli: Cli) -> Result<()> {
-    match cli.command {}
+    match cli.command {
+        Command::Align(args) => align::run(args),
+        Command::Inspect(args) => inspect::run(&args),
+        Command::Simulate(args) => sim::run_simulate(&args),
+        Command::Evaluate(args) => sim::run_evaluate(&args),
+        Command::Demo(args) => sim::run_demo(&args),
+    }
 }
 
 /// Parses `args` (the program name first) and runs the command; returns the

@@ -4,9 +4,12 @@
 use pyo3::prelude::*;
 
 mod cli;
+mod cloud;
 mod convert;
+mod core;
 mod errors;
 mod geometry;
+mod mcap;
 mod sim;
 
 #[pymodule]
@@ -15,6 +18,9 @@ fn _slam2world(m: &Bound<'_, PyModule>) -> PyResult<()> {
     errors::register(m)?;
     geometry::register(m)?;
     sim::register(m)?;
+    core::register(m)?;
+    cloud::register(m)?;
     cli::register(m)?;
+    mcap::register(m)?;
     Ok(())
 }

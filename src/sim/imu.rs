@@ -40,9 +40,10 @@ pub struct ImuNoise {
     pub accel_bias: [f64; 3],
 }
 
-/// Sample times `j / rate` over `[0, t_end]`, seconds.
+/// Sample times `j / rate` from 0 until the first at or after `t_end`, seconds
+/// (so that every camera frame lies between two samples).
 pub fn sample_times(rate: f64, t_end: f64) -> Vec<f64> {
-    let n = (t_end * rate + 1e-9).floor() as usize + 1;
+    let n = (t_end * rate - 1e-9).ceil().max(0.0) as usize + 1;
     (0..n).map(|j| j as f64 / rate).collect()
 }
 

@@ -79,3 +79,14 @@ def test_bad_input_is_refused(tmp_path: Path) -> None:
 def test_demo_folder_missing_is_an_error(tmp_path: Path) -> None:
     assert plot.main([str(tmp_path)]) == 1
     assert plot.main([]) == 2
+
+
+def test_demo_writes_its_figures(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    import sys
+
+    monkeypatch.setenv("SLAM2WORLD_PYTHON", sys.executable)
+    out = tmp_path / "demo"
+    assert s2w._slam2world.run_cli(["slam2world", "demo", "-o", str(out), "--reduced", "8"]) == 0
+    for name in ("paths.png", "scale_factors.png", "cloud.png", "error_histogram.png"):
+        check_png(out / name)
+    assert (out / "demo.json").stat().st_size > 1000
