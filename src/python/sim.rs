@@ -9,7 +9,9 @@ use numpy::{IntoPyArray, PyArray1, PyArray2, PyArray3};
 use pyo3::prelude::*;
 use pyo3::types::PyDict;
 
+use super::cloud::PyKeyframe;
 use super::convert::{rows_f64, to_array2, vec_f64, Points};
+use super::core::PyTrajectory;
 use super::geometry::PySim3;
 use crate::error::Error;
 use crate::sim::{self, SimConfig, Simulation};
@@ -97,6 +99,48 @@ impl PySimulation {
     #[getter]
     fn t_world_slam(&self) -> PySim3 {
         self.inner.truth.t_world_slam.into()
+    }
+
+    /// The keyframes as `Keyframe` objects (a copy of every per-pixel array).
+    #[getter]
+    fn keyframes(&self) -> Vec<PyKeyframe> {
+        self.inner
+            .keyframes
+            .iter()
+            .map(|k| PyKeyframe { inner: k.clone() })
+            .collect()
+    }
+
+    /// Keyframe poses `T_slam_cam` as a trajectory (SLAM frame, seconds).
+    #[getter]
+    fn keyframe_trajectory(&self) -> PyResult<PyTrajectory> {
+        Ok(PyTrajectory {
+            inner: self.inner.keyframe_trajectory()?,
+        })
+    }
+
+    /// Tracked `T_slam_cam` of every frame (60 Hz) as a trajectory.
+    #[getter]
+    fn slam_trajectory(&self) -> PyTrajectory {
+        PyTrajectory {
+            inner: self.inner.slam_frames.clone(),
+        }
+    }
+
+    /// Reference `T_world_body` (body = camera) as a trajectory.
+    #[getter]
+    fn reference(&self) -> PyTrajectory {
+        PyTrajectory {
+            inner: self.inner.reference.clone(),
+        }
+    }
+
+    /// True `T_world_cam` at the frame times as a trajectory.
+    #[getter]
+    fn true_trajectory(&self) -> PyTrajectory {
+        PyTrajectory {
+            inner: self.inner.truth.camera.clone(),
+        }
     }
 
     /// Keyframe ids (= frame index), shape (K,).

@@ -120,3 +120,18 @@ def test_bad_arguments() -> None:
         s2w.point_distances(sim, np.zeros((4, 2)))
     with pytest.raises(s2w.InvalidInputError):
         s2w.evaluate(sim, np.zeros((4, 3)), sim.t_world_slam, timestamps=np.zeros(3))
+
+
+def test_convert_with_the_core(sim: s2w.Simulation) -> None:
+    """The whole experiment in Python: align, backproject, score."""
+    fit = s2w.align_trajectories(sim.keyframe_trajectory, sim.reference)
+    est = fit.transform
+    cloud = s2w.backproject(sim.keyframes, s2w.PointFilter(), transform=est)
+    truth = s2w.backproject(sim.keyframes, s2w.PointFilter(), transform=sim.t_world_slam)
+    ev = s2w.evaluate(sim, cloud.points, est)
+    ev_true = s2w.evaluate(sim, truth.points, sim.t_world_slam)
+    assert abs(ev["transform"]["scale_error"]) < 5e-3
+    assert ev["transform"]["gravity_error_deg"] < 0.5
+    assert ev["cloud"]["rmse"] <= 1.1 * ev_true["cloud"]["rmse"]
+    assert len(sim.slam_trajectory) == sim.config["n_frames"]
+    assert len(sim.true_trajectory) == sim.config["n_frames"]
