@@ -49,6 +49,10 @@ def _save(fig: Figure, path: str | os.PathLike[str]) -> Path:
     os.close(fd)
     try:
         fig.savefig(tmp, dpi=110, format="png")
+        # mkstemp makes a private file; the figure is an ordinary one (umask applies).
+        mask = os.umask(0)
+        os.umask(mask)
+        os.chmod(tmp, 0o666 & ~mask)
         os.replace(tmp, out)
     finally:
         plt.close(fig)
