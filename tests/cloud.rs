@@ -2,10 +2,12 @@
 
 use std::path::{Path, PathBuf};
 
-use nalgebra::{UnitQuaternion, Vector3};
+use nalgebra::{Matrix3, UnitQuaternion, Vector3};
+use slam2world::cli::main_with_args;
 use slam2world::cloud::{backproject, backproject_per_keyframe, PointCloud, PointFilter};
 use slam2world::io::ply::{read_ply, read_xyz_text, write_ply};
-use slam2world::{Keyframe, PinholeCamera, Sim3};
+use slam2world::trajectory::{align_trajectories, TrajectoryAlignOptions};
+use slam2world::{Keyframe, PinholeCamera, Sim3, Trajectory};
 
 fn data_dir(folder: &str) -> Option<PathBuf> {
     let p = Path::new(env!("CARGO_MANIFEST_DIR"))
@@ -125,4 +127,157 @@ fn orbslam2_map_points_read() {
         assert!((na - nb).abs() < 1e-5 * na.max(1.0));
         assert!((a[2] - b[2]).abs() < 1e-5 * na.max(1.0));
     }
+}
+
+/// The floor of a metric, gravity-aligned cloud: a plane fitted to the lowest 40 %
+/// of the points, refitted five times on the points within 5 cm of it. Returns the
+/// unit normal (z ≥ 0), the offset `n · p` and the inlier count.
+fn floor_plane(points: &[Vector3<f64>]) -> (Vector3<f64>, f64, usize) {
+    let mut z: Vec<f64> = points.iter().map(|p| p.z).collect();
+    z.sort_by(f64::total_cmp);
+    let cut = z[z.len() * 2 / 5];
+    let mut set: Vec<Vector3<f64>> = points.iter().filter(|p| p.z <= cut).copied().collect();
+    let (mut n, mut d) = (Vector3::z(), 0.0);
+    for _ in 0..6 {
+        let c = set.iter().sum::<Vector3<f64>>() / set.len() as f64;
+        let cov: Matrix3<f64> = set.iter().map(|p| (p - c) * (p - c).transpose()).sum();
+        let eig = cov.symmetric_eigen();
+        let k = eig.eigenvalues.imin();
+        n = eig.eigenvectors.column(k).into_owned();
+        if n.z < 0.0 {
+            n = -n;
+        }
+        d = n.dot(&c);
+        set = points
+            .iter()
+            .filter(|p| (n.dot(p) - d).abs() < 0.05)
+            .copied()
+            .collect();
+    }
+    (n, d, set.len())
+}
+
+/// ORB-SLAM2's 6300 map points of EuRoC V1_01, carried into the Vicon frame by the
+/// Sim(3) of the keyframe trajectory onto the ground truth: the floor must come out
+/// horizontal at z ≈ 0 and the points inside the room around the flight.
+#[test]
+fn orbslam2_map_points_land_in_the_vicon_room() {
+    let Some(dir) = data_dir("euroc_v101_orbslam2_map") else {
+        return;
+    };
+    let est = Trajectory::read_tum(dir.join("KeyFrameTrajectory_TUM_Format.txt")).unwrap();
+    let gt = Trajectory::read_tum(dir.join("V1_01_easy_original.txt")).unwrap();
+    let fit = align_trajectories(&est, &gt, &TrajectoryAlignOptions::default()).unwrap();
+    let t = fit.alignment.transform;
+    // evo 1.38.1 (PROVENANCE.md): 73 pairs, scale 1.00813, rmse 0.110870 m.
+    assert_eq!(fit.pairs.len(), 73);
+    assert!((t.scale - 1.0081319980644732).abs() < 1e-6);
+    assert!((fit.ape.rmse - 0.110870).abs() < 1e-5);
+
+    let cloud = read_xyz_text(dir.join("MapPoints.txt")).unwrap();
+    let world = cloud.transformed(&t).unwrap();
+    let pts: Vec<Vector3<f64>> = world
+        .points
+        .chunks_exact(3)
+        .map(|p| Vector3::new(p[0] as f64, p[1] as f64, p[2] as f64))
+        .collect();
+    assert_eq!(pts.len(), 6300);
+
+    let (n, d, inliers) = floor_plane(&pts);
+    let tilt = n.angle(&Vector3::z()).to_degrees();
+    eprintln!("floor: normal {n:?}, tilt {tilt:.2} deg, z {d:.3} m, {inliers} points");
+    assert!(tilt < 3.0, "floor tilted by {tilt:.2} deg");
+    assert!(d.abs() < 0.1, "floor at z = {d:.3} m");
+    assert!(inliers > 1500, "{inliers} floor points");
+
+    // The room: above the floor and below 3 m for 99 % of the points, and
+    // horizontally within 3 m of the ground-truth flight area.
+    let (mut lo, mut hi) = (
+        Vector3::repeat(f64::INFINITY),
+        Vector3::repeat(f64::NEG_INFINITY),
+    );
+    for p in &gt.positions {
+        lo = lo.inf(p);
+        hi = hi.sup(p);
+    }
+    let inside_height = pts.iter().filter(|p| p.z > -0.3 && p.z < 3.0).count();
+    assert!(
+        inside_height as f64 >= 0.99 * pts.len() as f64,
+        "{inside_height} of 6300"
+    );
+    for p in &pts {
+        for k in 0..2 {
+            assert!(
+                p[k] > lo[k] - 3.0 && p[k] < hi[k] + 3.0,
+                "{p:?} outside the room"
+            );
+        }
+    }
+
+    // The check can fail: a 5° error in the alignment's rotation tilts the floor.
+    let tilt5 = Sim3::try_new(
+        UnitQuaternion::from_axis_angle(&Vector3::x_axis(), 5f64.to_radians()),
+        Vector3::zeros(),
+        1.0,
+    )
+    .unwrap();
+    let wrong = cloud.transformed(&(tilt5 * t)).unwrap();
+    let wrong: Vec<Vector3<f64>> = wrong
+        .points
+        .chunks_exact(3)
+        .map(|p| Vector3::new(p[0] as f64, p[1] as f64, p[2] as f64))
+        .collect();
+    let (n5, _, _) = floor_plane(&wrong);
+    assert!(n5.angle(&Vector3::z()).to_degrees() > 3.0);
+}
+
+/// `slam2world transform-cloud` writes the same points as the library.
+#[test]
+fn cli_transform_cloud_on_real_data() {
+    let Some(dir) = data_dir("euroc_v101_orbslam2_map") else {
+        return;
+    };
+    let out = tempfile::tempdir().unwrap();
+    let ply = out.path().join("world.ply");
+    let s = |p: PathBuf| p.display().to_string();
+    let args = [
+        "slam2world".to_string(),
+        "transform-cloud".into(),
+        s(dir.join("MapPoints.txt")),
+        "--align".into(),
+        s(dir.join("KeyFrameTrajectory_TUM_Format.txt")),
+        s(dir.join("V1_01_easy_original.txt")),
+        "-o".into(),
+        s(ply.clone()),
+    ];
+    assert_eq!(main_with_args(args.clone()), 0);
+    let written = read_ply(&ply).unwrap();
+    let est = Trajectory::read_tum(dir.join("KeyFrameTrajectory_TUM_Format.txt")).unwrap();
+    let gt = Trajectory::read_tum(dir.join("V1_01_easy_original.txt")).unwrap();
+    let t = align_trajectories(&est, &gt, &TrajectoryAlignOptions::default())
+        .unwrap()
+        .alignment
+        .transform;
+    let want = read_xyz_text(dir.join("MapPoints.txt"))
+        .unwrap()
+        .transformed(&t)
+        .unwrap();
+    assert_eq!(written.points, want.points);
+
+    // A PLY file is accepted as IN too (recognised by its magic line).
+    let again = out.path().join("again.ply");
+    let mut args2 = args.clone();
+    args2[2] = s(ply.clone());
+    args2[7] = s(again.clone());
+    assert_eq!(main_with_args(args2), 0);
+    assert_eq!(read_ply(&again).unwrap().len(), 6300);
+
+    // Bad input: exit 1, and no output file left behind.
+    let bad = out.path().join("bad.txt");
+    std::fs::write(&bad, "1 2 3\n4 5\n").unwrap();
+    let mut args3 = args;
+    args3[2] = s(bad);
+    args3[7] = s(out.path().join("never.ply"));
+    assert_eq!(main_with_args(args3), 1);
+    assert!(!out.path().join("never.ply").exists());
 }

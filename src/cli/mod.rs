@@ -9,6 +9,7 @@ use clap::{Parser, Subcommand};
 
 pub mod align;
 pub mod inspect;
+pub mod transform_cloud;
 
 use crate::error::Result;
 
@@ -26,12 +27,15 @@ enum Command {
     Align(align::AlignArgs),
     /// List the topics of an MCAP log and what slam2world can use.
     Inspect(inspect::InspectArgs),
+    /// Align EST to REF and carry a SLAM-frame point cloud (PLY or x y z text) into the world frame.
+    TransformCloud(transform_cloud::TransformCloudArgs),
 }
 
 fn run(cli: Cli) -> Result<()> {
     match cli.command {
         Command::Align(args) => align::run(args),
         Command::Inspect(args) => inspect::run(&args),
+        Command::TransformCloud(args) => transform_cloud::run(args),
     }
 }
 
