@@ -209,6 +209,7 @@ pub fn transform_points_f32(t: &Sim3, src: &[f32]) -> Result<Vec<f32>> {
     }
     let (m, tr) = affine(t);
     let mut out: Vec<f32> = Vec::with_capacity(src.len());
+    advise_huge_pages(out.spare_capacity_mut());
     let chunk = 3 * POINTS_PER_TASK;
     out.spare_capacity_mut()[..src.len()]
         .par_chunks_mut(chunk)
@@ -226,6 +227,35 @@ pub fn transform_points_f32(t: &Sim3, src: &[f32]) -> Result<Vec<f32>> {
     // elements (the chunks of `d` and `s` pair up exactly, both of length src.len()).
     unsafe { out.set_len(src.len()) };
     Ok(out)
+}
+
+/// Buffers from this size on are backed by transparent huge pages where the
+/// system allows it (Linux `madvise`): a fresh 120 MB output otherwise costs
+/// 30 000 page faults, more than the arithmetic that fills it.
+const HUGE_PAGE_MIN_BYTES: usize = 8 << 20;
+
+/// Asks the kernel to back `buf` (not yet touched) with huge pages; a hint only.
+fn advise_huge_pages<T>(buf: &mut [T]) {
+    let bytes = std::mem::size_of_val(buf);
+    if bytes < HUGE_PAGE_MIN_BYTES {
+        return;
+    }
+    #[cfg(target_os = "linux")]
+    {
+        // madvise needs a page-aligned start: advise the aligned part of the buffer.
+        const PAGE: usize = 4096;
+        let start = buf.as_mut_ptr() as usize;
+        let aligned = start.next_multiple_of(PAGE);
+        let len = (start + bytes).saturating_sub(aligned) / PAGE * PAGE;
+        if len > 0 {
+            // SAFETY: [aligned, aligned + len) lies inside `buf`, memory this process
+            // owns; MADV_HUGEPAGE changes how pages are backed, never their content.
+            // The result is ignored: without huge pages the buffer works the same.
+            unsafe {
+                libc::madvise(aligned as *mut libc::c_void, len, libc::MADV_HUGEPAGE);
+            }
+        }
+    }
 }
 
 /// `s·R` (row-major) and `t` of a transform.
@@ -583,13 +613,17 @@ fn near_support(block: &[f32], id: f32, two_var: f32) -> u32 {
 /// Concatenates the blocks in order, copying in parallel into buffers of the final size.
 fn concat(blocks: Vec<Block>, with_color: bool) -> PointCloud {
     let total: usize = blocks.iter().map(|b| b.points.len() / 3).sum();
+    // Zeroed by calloc (fresh pages for large sizes): untouched until the copy below.
     let mut points = vec![0f32; 3 * total];
+    advise_huge_pages(&mut points);
     let mut colors = if with_color {
         vec![0u8; 3 * total]
     } else {
         Vec::new()
     };
+    advise_huge_pages(&mut colors);
     let mut ids = vec![0i32; total];
+    advise_huge_pages(&mut ids);
     {
         let mut jobs = Vec::with_capacity(blocks.len());
         let (mut pr, mut cr, mut ir) = (&mut points[..], &mut colors[..], &mut ids[..]);
