@@ -186,8 +186,8 @@ impl PointCloud {
     pub fn transformed(&self, t: &Sim3) -> Result<PointCloud> {
         Ok(PointCloud {
             points: transform_points_f32(t, &self.points)?,
-            colors: self.colors.clone(),
-            keyframe_ids: self.keyframe_ids.clone(),
+            colors: self.colors.as_deref().map(copy_advised),
+            keyframe_ids: copy_advised(&self.keyframe_ids),
         })
     }
 
@@ -256,6 +256,14 @@ fn advise_huge_pages<T>(buf: &mut [T]) {
             }
         }
     }
+}
+
+/// A copy of `src` in a buffer advised to use huge pages.
+fn copy_advised<T: Copy>(src: &[T]) -> Vec<T> {
+    let mut v = Vec::with_capacity(src.len());
+    advise_huge_pages(v.spare_capacity_mut());
+    v.extend_from_slice(src);
+    v
 }
 
 /// `s·R` (row-major) and `t` of a transform.
