@@ -281,3 +281,65 @@ fn cli_transform_cloud_on_real_data() {
     assert_eq!(main_with_args(args3), 1);
     assert!(!out.path().join("never.ply").exists());
 }
+
+/// `transform-cloud` on files made here: EST is REF mapped by a known Sim(3)
+/// inverse, so the cloud must come out mapped by that Sim(3).
+#[test]
+fn cli_transform_cloud_on_synthetic_files() {
+    let dir = tempfile::tempdir().unwrap();
+    let t = Sim3::try_new(
+        UnitQuaternion::from_axis_angle(&Vector3::z_axis(), std::f64::consts::FRAC_PI_2),
+        Vector3::new(1.0, 2.0, 3.0),
+        4.0,
+    )
+    .unwrap();
+    let inv = t.inverse();
+    let (mut est, mut reference) = (String::new(), String::new());
+    for i in 0..30 {
+        let s = i as f64 * 0.1;
+        let r = Vector3::new(s.sin() * 3.0, (2.0 * s).cos(), 0.5 * s);
+        let e = inv.transform_point(&r);
+        reference += &format!("{s:.3} {} {} {} 0 0 0 1\n", r.x, r.y, r.z);
+        est += &format!("{s:.3} {} {} {} 0 0 0 1\n", e.x, e.y, e.z);
+    }
+    let p = |name: &str| dir.path().join(name).display().to_string();
+    std::fs::write(p("est.txt"), est).unwrap();
+    std::fs::write(p("ref.txt"), reference).unwrap();
+    std::fs::write(p("cloud.txt"), "# x y z\n0 0 0\n1 0 0\n0.5 -2 7\n").unwrap();
+    let run = |input: &str, output: &str| {
+        main_with_args([
+            "slam2world",
+            "transform-cloud",
+            &p(input),
+            "--align",
+            &p("est.txt"),
+            &p("ref.txt"),
+            "-o",
+            &p(output),
+        ])
+    };
+    assert_eq!(run("cloud.txt", "world.ply"), 0);
+    let world = read_ply(p("world.ply")).unwrap();
+    let want = [[1.0, 2.0, 3.0], [1.0, 6.0, 3.0], [9.0, 4.0, 31.0]];
+    for (got, want) in world.points.chunks_exact(3).zip(want) {
+        for k in 0..3 {
+            assert!(
+                (got[k] as f64 - want[k]).abs() < 1e-5,
+                "{got:?} vs {want:?}"
+            );
+        }
+    }
+    // Missing files and usage errors: exit 1 and 2, nothing written.
+    assert_eq!(run("absent.txt", "x.ply"), 1);
+    assert_eq!(
+        main_with_args([
+            "slam2world",
+            "transform-cloud",
+            &p("cloud.txt"),
+            "-o",
+            &p("x.ply")
+        ]),
+        2
+    );
+    assert!(!dir.path().join("x.ply").exists());
+}
