@@ -296,8 +296,8 @@ pub fn sparsify_keeps(seed: u64, id: i32, pixel: usize, factor: u32) -> bool {
     splitmix64(key ^ seed) % factor as u64 == 0
 }
 
-/// One keyframe prepared for the pixel loop: its image and `T_world_cam` folded
-/// with the intrinsics.
+/// One keyframe prepared for the pixel loop: its image and `T_world_cam`
+/// (`T_world_slam · T_slam_cam`) as an affine map.
 struct Prepared<'a> {
     kf: &'a Keyframe,
     /// `s·R` of `T_world_cam`, row-major.
@@ -309,7 +309,6 @@ struct Prepared<'a> {
 }
 
 /// Output of one work item (a block of rows of one keyframe).
-#[derive(Default)]
 struct Block {
     points: Vec<f32>,
     colors: Vec<u8>,
