@@ -10,6 +10,7 @@ use clap::{Parser, Subcommand};
 pub mod align;
 pub mod inspect;
 pub mod sim;
+pub mod transform_cloud;
 
 use crate::error::Result;
 
@@ -33,6 +34,8 @@ enum Command {
     Evaluate(sim::EvaluateArgs),
     /// Simulate the paper-size run, convert, score, write outputs and figures.
     Demo(sim::DemoArgs),
+    /// Align EST to REF and carry a SLAM-frame point cloud (PLY or x y z text) into the world frame.
+    TransformCloud(transform_cloud::TransformCloudArgs),
 }
 
 fn run(cli: Cli) -> Result<()> {
@@ -42,6 +45,7 @@ fn run(cli: Cli) -> Result<()> {
         Command::Simulate(args) => sim::run_simulate(&args),
         Command::Evaluate(args) => sim::run_evaluate(&args),
         Command::Demo(args) => sim::run_demo(&args),
+        Command::TransformCloud(args) => transform_cloud::run(args),
     }
 }
 
