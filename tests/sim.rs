@@ -273,3 +273,39 @@ fn default_noise_alignment_adds_almost_nothing() {
     let e_all = transform_error(&all.alignment.transform, &sim.truth.t_world_slam);
     assert!(e_all.scale_error.abs() > 10.0 * e.scale_error.abs().max(1e-4));
 }
+
+#[test]
+fn scale_drift_degrades_a_single_transform() {
+    // The paper's conclusion: the scale is not constant, and one Sim(3) cannot follow it.
+    let rmse = |drift: f64| {
+        let sim = simulate(&SimConfig {
+            scale_drift: drift,
+            ..SimConfig::default().reduced(4)
+        })
+        .unwrap();
+        let fit = align_trajectories(
+            &sim.keyframe_trajectory().unwrap(),
+            &sim.reference,
+            &TrajectoryAlignOptions::default(),
+        )
+        .unwrap();
+        let cloud = backproject(
+            &sim.keyframes,
+            &PointFilter::default(),
+            Some(&fit.alignment.transform),
+        )
+        .unwrap();
+        let d = point_distances(&sim.truth.scene, &cloud.points).unwrap();
+        (ErrorStats::from_values("d", &d).unwrap().rmse, fit.ape.rmse)
+    };
+    let (still, ape_still) = rmse(0.0);
+    let (drifting, ape_drifting) = rmse(0.01);
+    assert!(
+        drifting > 1.5 * still,
+        "cloud rmse {drifting} with drift vs {still} without"
+    );
+    assert!(
+        ape_drifting > 3.0 * ape_still,
+        "APE {ape_drifting} vs {ape_still}"
+    );
+}
