@@ -273,6 +273,24 @@ impl SimConfig {
                 got: self.n_frames,
             });
         }
+        // Upper bounds keep a typo from asking for terabytes.
+        let pixels = self.width as u64 * self.height as u64;
+        let samples = self.n_frames as f64 / self.fps * self.imu_rate;
+        if self.n_frames > 10_000_000 || pixels > 4096 * 4096 || self.n_keyframes > 100_000 {
+            return Err(Error::invalid(
+                "size",
+                format!(
+                    "at most 1e7 frames, 4096x4096 pixels and 1e5 keyframes, got {} frames, {}x{}, {} keyframes",
+                    self.n_frames, self.width, self.height, self.n_keyframes
+                ),
+            ));
+        }
+        if samples.is_finite() && samples > 1e8 {
+            return Err(Error::invalid(
+                "imu_rate",
+                format!("{samples:.3e} samples is too many (at most 1e8)"),
+            ));
+        }
         if self.n_keyframes < 1 || self.n_keyframes > self.n_frames {
             return Err(Error::invalid(
                 "n_keyframes",
