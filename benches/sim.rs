@@ -12,7 +12,7 @@ use slam2world::sim::Scene;
 use slam2world::PinholeCamera;
 
 fn bench(c: &mut Criterion) {
-    let scene = Scene::paper();
+    let scene = Scene::paper().unwrap();
     let cam = PinholeCamera::from_hfov(640, 480, 75.0).unwrap();
     let path = CameraPath::paper(7000.0 / 60.0, 195.12).unwrap();
     let s = path.state(30.0);

@@ -264,7 +264,7 @@ pub fn run_evaluate(args: &EvaluateArgs) -> Result<()> {
     let t_true = sim3_from_json(&truth["t_world_slam"], &args.truth)?;
     let est = parse_transform(&args.transform)?;
     let cloud = crate::io::ply::read_ply(&args.cloud)?;
-    let scene = Scene::paper();
+    let scene = Scene::paper()?;
     let d = point_distances(&scene, &cloud.points)?;
     let mut out = json!({
         "cloud": stats_json(&ErrorStats::from_values("points", &d)?),

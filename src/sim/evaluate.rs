@@ -209,7 +209,7 @@ mod tests {
 
     #[test]
     fn distances_of_known_points() {
-        let scene = Scene::paper();
+        let scene = Scene::paper().unwrap();
         let d = point_distances(&scene, &[0.0, 0.0, 0.25, 4.0, -2.0, 0.0]).unwrap();
         assert!((d[0] - 0.25).abs() < 1e-6 && d[1] < 1e-6);
         assert!(point_distances(&scene, &[0.0, 1.0]).is_err());

@@ -423,7 +423,7 @@ pub struct Simulation {
 pub fn simulate(cfg: &SimConfig) -> Result<Simulation> {
     cfg.validate()?;
     let camera = PinholeCamera::from_hfov(cfg.width, cfg.height, cfg.hfov_deg)?;
-    let scene = Scene::paper();
+    let scene = Scene::paper()?;
     let duration = cfg.n_frames as f64 / cfg.fps;
     let path = CameraPath::paper(duration, cfg.path_length)?;
     let times = cfg.frame_times();

@@ -185,7 +185,7 @@ mod tests {
 
     #[test]
     fn depth_is_consistent_with_the_scene() {
-        let scene = Scene::paper();
+        let scene = Scene::paper().unwrap();
         let (w, h) = (640usize, 480usize);
         let cam = PinholeCamera::from_hfov(w as u32, h as u32, 75.0).unwrap();
         // Camera at 3 m looking straight down: x right = +x, y down = −y.

@@ -72,17 +72,14 @@ const CUBE_CENTRES: [[f64; 2]; 8] = [
 ];
 
 impl Scene {
-    /// The paper's scene: a 10×5 m plane and eight 1 m cubes.
-    pub fn paper() -> Self {
+    /// The paper's scene: a 10×5 m plane and eight 1 m cubes. (A fixed, valid
+    /// layout; the `Result` is that of building the parry mesh.)
+    pub fn paper() -> Result<Self> {
         let cubes = CUBE_CENTRES
             .iter()
             .map(|c| Vector3::new(c[0] - 0.5, c[1] - 0.5, 0.0))
             .collect();
-        // A valid, fixed layout: cannot fail.
-        match Self::try_new([5.0, 2.5], cubes, 1.0) {
-            Ok(s) => s,
-            Err(_) => unreachable!("the built-in scene is valid"),
-        }
+        Self::try_new([5.0, 2.5], cubes, 1.0)
     }
 
     /// A plane of half sizes `plane_half` (metres) with cubes of edge `cube_size`
@@ -318,7 +315,7 @@ mod tests {
 
     #[test]
     fn analytic_ray_cast_matches_parry() {
-        let scene = Scene::paper();
+        let scene = Scene::paper().unwrap();
         let mut rng = ChaCha8Rng::seed_from_u64(7);
         let mut hits = 0;
         let mut n = 0;
@@ -362,7 +359,7 @@ mod tests {
 
     #[test]
     fn normals_and_faces() {
-        let scene = Scene::paper();
+        let scene = Scene::paper().unwrap();
         let lo = scene.cube_min[2];
         let o = Vector3::new(lo.x + 0.5, lo.y + 0.5, 3.0);
         let h = scene
@@ -384,7 +381,7 @@ mod tests {
 
     #[test]
     fn texture_has_contrast() {
-        let scene = Scene::paper();
+        let scene = Scene::paper().unwrap();
         let mut seen = std::collections::BTreeSet::new();
         for i in 0..40 {
             let p = Vector3::new(-4.0 + 0.25 * i as f64 + 0.1, -2.0, 0.0);
