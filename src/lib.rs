@@ -17,6 +17,7 @@ pub mod error;
 pub mod geometry;
 pub mod imu;
 pub mod keyframe;
+pub mod map;
 pub mod trajectory;
 
 #[cfg(feature = "python")]

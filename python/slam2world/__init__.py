@@ -9,9 +9,11 @@ from slam2world._slam2world import (
     FileError,
     FormatError,
     InvalidInputError,
+    OccupancyMap,
     Sim3,
     Slam2WorldError,
     __version__,
+    read_bt,
 )
 
 __all__ = [
@@ -19,7 +21,9 @@ __all__ = [
     "FileError",
     "FormatError",
     "InvalidInputError",
+    "OccupancyMap",
     "Sim3",
     "Slam2WorldError",
     "__version__",
+    "read_bt",
 ]

@@ -7,12 +7,14 @@ mod cli;
 mod convert;
 mod errors;
 mod geometry;
+mod map;
 
 #[pymodule]
 fn _slam2world(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add("__version__", env!("CARGO_PKG_VERSION"))?;
     errors::register(m)?;
     geometry::register(m)?;
+    map::register(m)?;
     cli::register(m)?;
     Ok(())
 }
