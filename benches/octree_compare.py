@@ -106,13 +106,17 @@ def main() -> None:
 
     leaves_ours, leaves_ref = ours.num_leaf_nodes, ref.getNumLeafNodes()
     rate_ours, rate_ref = n_points / t_ours, n_points / t_ref
-    print(f"points: {n_points} in {args.scans} scans, resolution {args.resolution} m, "
-          f"max range {args.max_range} m, rayon threads {os.cpu_count()}")
+    print(
+        f"points: {n_points} in {args.scans} scans, resolution {args.resolution} m, "
+        f"max range {args.max_range} m, rayon threads {os.cpu_count()}"
+    )
     print(f"octomap    insertPointCloud: {rate_ref:12.0f} points/s ({t_ref:.3f} s, one thread)")
     print(f"slam2world insert:           {rate_ours:12.0f} points/s ({t_ours:.3f} s)")
     print(f"ratio: {rate_ours / rate_ref:.1f}x")
-    print(f"memory per leaf: octomap {ref.memoryUsage() / leaves_ref:.1f} B (memoryUsage), "
-          f"slam2world {ours.memory_bytes / leaves_ours:.1f} B (allocated)")
+    print(
+        f"memory per leaf: octomap {ref.memoryUsage() / leaves_ref:.1f} B (memoryUsage), "
+        f"slam2world {ours.memory_bytes / leaves_ours:.1f} B (allocated)"
+    )
     print(f"leaves: octomap {leaves_ref}, slam2world {leaves_ours}; identical .ot: {same}")
 
 

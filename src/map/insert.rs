@@ -296,9 +296,9 @@ impl KeyBox {
     };
 
     fn add(&mut self, k: Key) {
-        for i in 0..3 {
-            self.lo[i] = self.lo[i].min(k[i] as i32);
-            self.hi[i] = self.hi[i].max(k[i] as i32);
+        for (i, &v) in k.iter().enumerate() {
+            self.lo[i] = self.lo[i].min(v as i32);
+            self.hi[i] = self.hi[i].max(v as i32);
         }
     }
 
@@ -612,4 +612,60 @@ pub(crate) fn check_points(what: &str, points: &[f32]) -> Result<()> {
         });
     }
     Ok(())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use rand::{Rng, SeedableRng};
+
+    /// The grid-specialised tracer visits exactly OctoMap's ray keys.
+    #[test]
+    fn grid_tracer_matches_reference_ray_keys() {
+        let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(5);
+        let (res, rf) = (0.1, 1.0 / 0.1);
+        for _ in 0..2000 {
+            let o = [0, 1, 2].map(|_| rng.random_range(-2.0f32..2.0));
+            let mut e = [0, 1, 2].map(|_| rng.random_range(-6.0f32..6.0));
+            if rng.random_bool(0.2) {
+                e[1] = o[1]; // axis-parallel components
+            }
+            let mut reference = Vec::new();
+            ray_keys(o, e, res, rf, |k| reference.push(morton(k) << 1));
+            reference.sort_unstable();
+            reference.dedup();
+
+            let mut bx = KeyBox::EMPTY;
+            bx.add(point_to_key(o, rf).unwrap());
+            bx.add(point_to_key(e, rf).unwrap());
+            let lo = bx.lo.map(|v| v - 1);
+            let dim = [0, 1, 2].map(|i| (bx.hi[i] + 1 - lo[i] + 1) as usize);
+            let words = (dim[0] * dim[1] * dim[2]).div_ceil(64);
+            let grid = Grid {
+                lo,
+                dim,
+                free: (0..words).map(|_| AtomicU64::new(0)).collect(),
+                occ: Vec::new(),
+            };
+            let mut outside = Vec::new();
+            ray_into_grid(o, e, res, rf, &grid, &mut outside);
+            let mut got = outside;
+            for (w, word) in grid.free.iter().enumerate() {
+                let mut m = word.load(Ordering::Relaxed);
+                while m != 0 {
+                    let j = (w << 6) | m.trailing_zeros() as usize;
+                    m &= m - 1;
+                    let k = [
+                        (lo[0] + (j % dim[0]) as i32) as u16,
+                        (lo[1] + (j / dim[0] % dim[1]) as i32) as u16,
+                        (lo[2] + (j / dim[0] / dim[1]) as i32) as u16,
+                    ];
+                    got.push(morton(k) << 1);
+                }
+            }
+            got.sort_unstable();
+            got.dedup();
+            assert_eq!(got, reference, "ray {o:?} -> {e:?}");
+        }
+    }
 }

@@ -54,7 +54,7 @@ fn fmt_g(x: f64) -> String {
             m.to_string()
         }
     };
-    if e < -4 || e >= 6 {
+    if !(-4..6).contains(&e) {
         let sign = if e < 0 { '-' } else { '+' };
         format!("{}e{}{:02}", trim(mant), sign, e.abs())
     } else {
