@@ -14,11 +14,14 @@ pub type Key = [u16; 3];
 /// `resolution_factor = 1 / resolution` in `f64`).
 #[inline]
 pub fn coord_to_key(coord: f64, resolution_factor: f64) -> Option<u16> {
-    let scaled = (resolution_factor * coord).floor();
+    let scaled = resolution_factor * coord;
     if !(scaled >= -(TREE_MAX_VAL as f64) && scaled < TREE_MAX_VAL as f64) {
         return None;
     }
-    Some((scaled as i32 + TREE_MAX_VAL) as u16)
+    // floor() without a libm call: truncate, then step down for negative fractions.
+    let t = scaled as i32;
+    let f = if (t as f64) > scaled { t - 1 } else { t };
+    Some((f + TREE_MAX_VAL) as u16)
 }
 
 /// The key of a point given in `f32` (as OctoMap's `point3d`), or `None` when
