@@ -164,6 +164,41 @@ fn ray_into_grid(
         ],
         t_delta,
     );
+    // While the current voxel is at least two voxels (Chebyshev) from the end
+    // voxel, the end can be neither reached nor passed: the exit distance is
+    // then at least one voxel short of `length`, far beyond rounding. Those
+    // checks start once fewer steps remain.
+    let cheb = (0..3)
+        .map(|i| (ke[i] as i64 - ko[i] as i64).abs())
+        .max()
+        .unwrap_or(0);
+    let mut safe = (cheb - 2).max(0);
+    while safe > 0 {
+        let dim = if tx < ty {
+            if tx < tz {
+                0
+            } else {
+                2
+            }
+        } else if ty < tz {
+            1
+        } else {
+            2
+        };
+        let r = rel[dim] + step[dim];
+        if (r as u64) >= dims[dim] as u64 {
+            break;
+        }
+        match dim {
+            0 => tx += dd[0],
+            1 => ty += dd[1],
+            _ => tz += dd[2],
+        }
+        rel[dim] = r;
+        sidx += ds[dim];
+        Grid::set(&grid.free, sidx as usize);
+        safe -= 1;
+    }
     loop {
         // OctoMap's axis choice (ties go to the later axis).
         let dim = if tx < ty {

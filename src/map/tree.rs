@@ -197,10 +197,8 @@ impl Tree {
         let mut i = 0;
         while i < items.len() {
             let c = ((items[i] >> shift) & 7) as usize;
-            let mut j = i + 1;
-            while j < items.len() && ((items[j] >> shift) & 7) as usize == c {
-                j += 1;
-            }
+            // Items share every bit above this level, so child indices ascend.
+            let j = i + items[i..].partition_point(|&it| ((it >> shift) & 7) as usize <= c);
             let mut child = self.blocks[b][c];
             let created = !child.exists();
             if created {
