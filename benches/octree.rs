@@ -2,7 +2,9 @@
 //! seen from inside, resolution 0.1 m, max range 10 m; parallel (rayon) and
 //! sequential. OctoMap's figure on the same points: `benches/octree_compare.py`.
 
-use criterion::{black_box, criterion_group, criterion_main, Criterion, Throughput};
+use std::hint::black_box;
+
+use criterion::{criterion_group, criterion_main, Criterion, Throughput};
 use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 use slam2world::map::{MapParams, OccupancyMap};
