@@ -151,7 +151,7 @@ fn ray_into_grid(
     let Some(end_idx) = grid.index(ke) else {
         return;
     };
-    let stride = [1i64, grid.dim[0] as i64, (grid.dim[0] * grid.dim[1]) as i64];
+    let stride = [1i64, grid.row as i64, (grid.row * grid.dim[1]) as i64];
     let dims = [grid.dim[0] as i64, grid.dim[1] as i64, grid.dim[2] as i64];
     let (mut tx, mut ty, mut tz) = (t_max[0], t_max[1], t_max[2]);
     let mut sidx = idx as i64;
@@ -350,6 +350,9 @@ impl KeyBox {
 struct Grid {
     lo: [i32; 3],
     dim: [usize; 3],
+    /// Bits per x row: `dim[0]` rounded up to whole words, so that no word
+    /// spans two rows.
+    row: usize,
     free: Vec<AtomicU64>,
     occ: Vec<AtomicU64>,
 }
@@ -367,7 +370,7 @@ impl Grid {
         if x >= self.dim[0] || y >= self.dim[1] || z >= self.dim[2] {
             return None;
         }
-        Some(x + self.dim[0] * (y + self.dim[1] * z))
+        Some(x + self.row * (y + self.dim[1] * z))
     }
 
     #[inline]
@@ -521,13 +524,15 @@ impl OccupancyMap {
             (hi[1] - lo[1] + 1) as usize,
             (hi[2] - lo[2] + 1) as usize,
         ];
-        let bits = dim[0] as u64 * dim[1] as u64 * dim[2] as u64;
+        let row = dim[0].div_ceil(64) * 64;
+        let bits = row as u64 * dim[1] as u64 * dim[2] as u64;
 
         let mut items = if bits <= MAX_GRID_BITS {
-            let words = bits.div_ceil(64) as usize;
+            let words = (bits / 64) as usize;
             let grid = Grid {
                 lo,
                 dim,
+                row,
                 free: (0..words).map(|_| AtomicU64::new(0)).collect(),
                 occ: (0..words).map(|_| AtomicU64::new(0)).collect(),
             };
@@ -552,24 +557,27 @@ impl OccupancyMap {
             } else {
                 ranges.iter().map(|r| trace(r.clone())).collect()
             };
+            let words_per_row = row / 64;
             let extract = |w0: usize, w1: usize| -> Vec<u64> {
                 let mut out = Vec::new();
                 for w in w0..w1 {
                     let o = grid.occ[w].load(Ordering::Relaxed);
                     let f = grid.free[w].load(Ordering::Relaxed) & !o;
+                    if f | o == 0 {
+                        continue;
+                    }
+                    // One row per word: y, z and their Morton bits once per word.
+                    let r = w / words_per_row;
+                    let y = (lo[1] + (r % dim[1]) as i32) as u16;
+                    let z = (lo[2] + (r / dim[1]) as i32) as u16;
+                    let yz = morton([0, y, z]);
+                    let x0 = lo[0] + ((w % words_per_row) * 64) as i32;
                     for (mut m, flag) in [(f, 0u64), (o, 1u64)] {
                         while m != 0 {
-                            let b = m.trailing_zeros() as usize;
+                            let b = m.trailing_zeros() as i32;
                             m &= m - 1;
-                            let j = (w << 6) | b;
-                            let x = j % dim[0];
-                            let yz = j / dim[0];
-                            let k = [
-                                (lo[0] + x as i32) as u16,
-                                (lo[1] + (yz % dim[1]) as i32) as u16,
-                                (lo[2] + (yz / dim[1]) as i32) as u16,
-                            ];
-                            out.push((morton(k) << 1) | flag);
+                            let x = (x0 + b) as u16;
+                            out.push(((morton([x, 0, 0]) | yz) << 1) | flag);
                         }
                     }
                 }
@@ -675,10 +683,12 @@ mod tests {
             bx.add(point_to_key(e, rf).unwrap());
             let lo = bx.lo.map(|v| v - 1);
             let dim = [0, 1, 2].map(|i| (bx.hi[i] + 1 - lo[i] + 1) as usize);
-            let words = (dim[0] * dim[1] * dim[2]).div_ceil(64);
+            let row = dim[0].div_ceil(64) * 64;
+            let words = row * dim[1] * dim[2] / 64;
             let grid = Grid {
                 lo,
                 dim,
+                row,
                 free: (0..words).map(|_| AtomicU64::new(0)).collect(),
                 occ: Vec::new(),
             };
@@ -691,9 +701,9 @@ mod tests {
                     let j = (w << 6) | m.trailing_zeros() as usize;
                     m &= m - 1;
                     let k = [
-                        (lo[0] + (j % dim[0]) as i32) as u16,
-                        (lo[1] + (j / dim[0] % dim[1]) as i32) as u16,
-                        (lo[2] + (j / dim[0] / dim[1]) as i32) as u16,
+                        (lo[0] + (j % row) as i32) as u16,
+                        (lo[1] + (j / row % dim[1]) as i32) as u16,
+                        (lo[2] + (j / row / dim[1]) as i32) as u16,
                     ];
                     got.push(morton(k) << 1);
                 }

@@ -57,15 +57,25 @@ pub fn key_to_coord_at_depth(k: u16, depth: u32, resolution: f64) -> f64 {
     (((k as f64) - TREE_MAX_VAL as f64) / f64::from(1u32 << shift)).floor() * size + 0.5 * size
 }
 
+/// Every third bit for each byte value (bit `i` of the byte to bit `3i`).
+const SPREAD8: [u64; 256] = {
+    let mut t = [0u64; 256];
+    let mut v = 0;
+    while v < 256 {
+        let mut i = 0;
+        while i < 8 {
+            t[v] |= (((v >> i) & 1) as u64) << (3 * i);
+            i += 1;
+        }
+        v += 1;
+    }
+    t
+};
+
 /// Spreads the 16 bits of `v` to every third bit of a 48-bit word.
 #[inline]
 fn spread(v: u16) -> u64 {
-    let mut x = v as u64;
-    x = (x | (x << 16)) & 0x0000_FF00_00FF;
-    x = (x | (x << 8)) & 0x00F0_0F00_F00F;
-    x = (x | (x << 4)) & 0x0C30_C30C_30C3;
-    x = (x | (x << 2)) & 0x2492_4924_9249;
-    x
+    SPREAD8[(v & 0xFF) as usize] | (SPREAD8[(v >> 8) as usize] << 24)
 }
 
 /// Gathers every third bit of `x` (the inverse of [`spread`]).
