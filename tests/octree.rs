@@ -345,3 +345,16 @@ fn scene_of_cubes_marks_cubes_occupied_and_space_in_front_free() {
         .unwrap();
     assert_eq!(miss, None);
 }
+
+#[test]
+fn points_outside_the_tree_and_huge_ranges_are_skipped_like_octomap() {
+    let mut p = MapParams::new(0.1);
+    p.max_range = Some(1e30);
+    let mut m = OccupancyMap::try_new(p).unwrap();
+    // 1e5 m lies outside a 0.1 m tree (±3276.8 m): no ray, no endpoint.
+    m.insert_scan(&[1e5, 0.0, 0.0, 1.05, 0.05, 0.05], [0.05, 0.05, 0.05])
+        .unwrap();
+    assert_eq!(m.state([1.05, 0.05, 0.05]), VoxelState::Occupied);
+    assert_eq!(m.state([2.05, 0.05, 0.05]), VoxelState::Unknown);
+    m.check_invariants().unwrap();
+}
