@@ -499,23 +499,7 @@ impl OccupancyMap {
             .step_by(CHUNK)
             .map(|s| s..(s + CHUNK).min(n))
             .collect();
-        // With a max range the scan lies in the cube of that half-width around
-        // the origin (plus rounding): no pass over the points is needed.
-        let range_box = max_range.and_then(|m| {
-            let ko = point_to_key(origin, rf)?;
-            let side = 2.0 * ((m * rf).ceil() + 2.0) + 1.0;
-            if side.powi(3) > (MAX_GRID_BITS / 2) as f64 {
-                return None;
-            }
-            let half = (m * rf).ceil() as i64 + 2;
-            Some(KeyBox {
-                lo: ko.map(|k| (k as i64 - half).max(0) as i32),
-                hi: ko.map(|k| (k as i64 + half).min(65535) as i32),
-            })
-        });
-        let mut bx = if let Some(b) = range_box {
-            b
-        } else if parallel {
+        let mut bx = if parallel {
             ranges
                 .par_iter()
                 .map(|r| box_of(r.clone()))
