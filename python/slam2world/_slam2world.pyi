@@ -75,7 +75,7 @@ class OccupancyMap:
     def insert_keyframes(
         self,
         points: _ArrayLike,
-        keyframe_ids: npt.NDArray[np.int32],
+        keyframe_ids: _ArrayLike,
         origins: dict[int, _ArrayLike],
     ) -> tuple[int, int]: ...
     def state(self, points: _ArrayLike) -> npt.NDArray[np.int8]: ...

@@ -4,7 +4,7 @@
 use std::collections::BTreeMap;
 use std::path::PathBuf;
 
-use numpy::{IntoPyArray, PyArray1, PyArray2, PyReadonlyArray1};
+use numpy::{AllowTypeChange, IntoPyArray, PyArray1, PyArray2, PyArrayLike1};
 use pyo3::prelude::*;
 use pyo3::types::PyDict;
 
@@ -100,11 +100,24 @@ impl PyOccupancyMap {
         &mut self,
         py: Python<'_>,
         points: &Bound<'_, PyAny>,
-        keyframe_ids: PyReadonlyArray1<'_, i32>,
+        keyframe_ids: &Bound<'_, PyAny>,
         origins: &Bound<'_, PyDict>,
     ) -> PyResult<(usize, usize)> {
         let pts = points_f32(points, "points")?;
-        let ids: Vec<i32> = keyframe_ids.as_array().iter().copied().collect();
+        let ids: PyArrayLike1<'_, i64, AllowTypeChange> = keyframe_ids.extract().map_err(|_| {
+            PyErr::from(Error::invalid(
+                "keyframe_ids",
+                "expected a 1-D integer array",
+            ))
+        })?;
+        let ids: Vec<i32> = ids
+            .as_array()
+            .iter()
+            .map(|&v| {
+                i32::try_from(v)
+                    .map_err(|_| Error::invalid("keyframe_ids", format!("{v} is out of range")))
+            })
+            .collect::<Result<_, _>>()?;
         let mut o = BTreeMap::new();
         for (k, v) in origins.iter() {
             let id: i32 = k.extract()?;

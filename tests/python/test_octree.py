@@ -191,7 +191,7 @@ def test_keyframe_insertion_equals_scan_by_scan() -> None:
         a.insert(pts, origin)
     b = OccupancyMap(0.1)
     points = np.concatenate([p for _, p in scans])
-    ids = np.concatenate([np.full(len(p), k, dtype=np.int32) for k, (_, p) in enumerate(scans)])
+    ids = np.concatenate([np.full(len(p), k) for k, (_, p) in enumerate(scans)])  # int64
     b.insert_keyframes(points, ids, {k: o for k, (o, _) in enumerate(scans)})
     np.testing.assert_array_equal(a.occupied_centers(), b.occupied_centers())
     assert a.num_nodes == b.num_nodes
