@@ -13,9 +13,11 @@
 
 pub mod align;
 pub mod cli;
+pub mod cloud;
 pub mod error;
 pub mod geometry;
 pub mod imu;
+pub mod io;
 pub mod keyframe;
 pub mod map;
 pub mod trajectory;

@@ -7,6 +7,10 @@ use std::ffi::OsString;
 
 use clap::{Parser, Subcommand};
 
+pub mod align;
+pub mod inspect;
+pub mod transform_cloud;
+
 use crate::error::Result;
 
 /// Metric, gravity-aligned 3-D worlds from monocular SLAM maps.
@@ -18,10 +22,21 @@ pub struct Cli {
 }
 
 #[derive(Subcommand, Debug)]
-enum Command {}
+enum Command {
+    /// Fit the Sim(3) between two trajectory files and print the error statistics.
+    Align(align::AlignArgs),
+    /// List the topics of an MCAP log and what slam2world can use.
+    Inspect(inspect::InspectArgs),
+    /// Align EST to REF and carry a SLAM-frame point cloud (PLY or x y z text) into the world frame.
+    TransformCloud(transform_cloud::TransformCloudArgs),
+}
 
 fn run(cli: Cli) -> Result<()> {
-    match cli.command {}
+    match cli.command {
+        Command::Align(args) => align::run(args),
+        Command::Inspect(args) => inspect::run(&args),
+        Command::TransformCloud(args) => transform_cloud::run(args),
+    }
 }
 
 /// Parses `args` (the program name first) and runs the command; returns the

@@ -4,10 +4,13 @@
 use pyo3::prelude::*;
 
 mod cli;
+mod cloud;
 mod convert;
+mod core;
 mod errors;
 mod geometry;
 mod map;
+mod mcap;
 
 #[pymodule]
 fn _slam2world(m: &Bound<'_, PyModule>) -> PyResult<()> {
@@ -15,6 +18,9 @@ fn _slam2world(m: &Bound<'_, PyModule>) -> PyResult<()> {
     errors::register(m)?;
     geometry::register(m)?;
     map::register(m)?;
+    core::register(m)?;
+    cloud::register(m)?;
     cli::register(m)?;
+    mcap::register(m)?;
     Ok(())
 }

@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+from pathlib import Path
+
 import numpy as np
 import numpy.typing as npt
 
@@ -34,3 +36,40 @@ def occupancy(points: npt.NDArray[np.float64]) -> npt.NDArray[np.int8]:
 def test_occupancy_typing_example() -> None:
     pts = np.array([[1.05, 0.05, 0.05], [0.05, 2.05, 0.05]])
     np.testing.assert_array_equal(occupancy(pts), [1, 1])
+
+
+def fit(slam: npt.NDArray[np.float64], world: npt.NDArray[np.float64]) -> tuple[float, float]:
+    a: s2w.Alignment = s2w.align(slam, world, scale=True, method="horn")
+    traj = s2w.Trajectory(np.arange(len(slam), dtype=np.float64), slam)
+    ref = s2w.Trajectory(np.arange(len(world), dtype=np.float64), world)
+    r: s2w.TrajectoryAlignment = s2w.align_trajectories(traj, ref, max_diff=0.01, first_n=None)
+    idx_slam, idx_ref = s2w.associate(traj, ref)
+    p: npt.NDArray[np.float64] = s2w.scale_factors(slam[idx_slam], world[idx_ref])
+    return a.transform.scale, float(r.rmse + p.mean() * 0.0)
+
+
+def test_typed_alignment() -> None:
+    rng = np.random.default_rng(0)
+    slam = rng.normal(size=(10, 3))
+    world = s2w.Sim3.from_quaternion([0.0, 0.0, 0.0, 1.0], [1.0, 0.0, 0.0], 2.0).apply(slam)
+    s, rmse = fit(slam, world)
+    assert abs(s - 2.0) < 1e-12 and rmse < 1e-12
+
+
+def world_cloud(path: str) -> int:
+    cam = s2w.PinholeCamera(100.0, 100.0, 15.5, 11.5, 32, 24)
+    idepth = np.full((24, 32), 0.5, dtype=np.float32)
+    var = np.full((24, 32), 1e-6, dtype=np.float32)
+    kf = s2w.Keyframe(0, 0.0, s2w.Sim3(), cam, idepth, var, None)
+    f = s2w.PointFilter(cut_first_keyframes=None)
+    world = s2w.Sim3.from_quaternion([0.0, 0.0, 0.0, 1.0], [0.0, 0.0, 1.0], 2.0)
+    cloud: s2w.PointCloud = s2w.backproject([kf], f, transform=world)
+    pts: npt.NDArray[np.float32] = cloud.points
+    cloud.transformed(world.inverse()).write_ply(path)
+    back: s2w.PointCloud = s2w.read_ply(path)
+    assert back.colors is None and pts.dtype == np.float32
+    return len(back)
+
+
+def test_typed_cloud(tmp_path: Path) -> None:
+    assert world_cloud(str(tmp_path / "c.ply")) == 30 * 22
