@@ -8,6 +8,7 @@ use std::ffi::OsString;
 use clap::{Parser, Subcommand};
 
 pub mod align;
+pub mod inspect;
 
 use crate::error::Result;
 
@@ -23,11 +24,14 @@ pub struct Cli {
 enum Command {
     /// Fit the Sim(3) between two trajectory files and print the error statistics.
     Align(align::AlignArgs),
+    /// List the topics of an MCAP log and what slam2world can use.
+    Inspect(inspect::InspectArgs),
 }
 
 fn run(cli: Cli) -> Result<()> {
     match cli.command {
         Command::Align(args) => align::run(args),
+        Command::Inspect(args) => inspect::run(&args),
     }
 }
 

@@ -4,10 +4,12 @@
 use pyo3::prelude::*;
 
 mod cli;
+mod cloud;
 mod convert;
 mod core;
 mod errors;
 mod geometry;
+mod mcap;
 
 #[pymodule]
 fn _slam2world(m: &Bound<'_, PyModule>) -> PyResult<()> {
@@ -15,6 +17,8 @@ fn _slam2world(m: &Bound<'_, PyModule>) -> PyResult<()> {
     errors::register(m)?;
     geometry::register(m)?;
     core::register(m)?;
+    cloud::register(m)?;
     cli::register(m)?;
+    mcap::register(m)?;
     Ok(())
 }

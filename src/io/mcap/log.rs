@@ -1,0 +1,630 @@
+//! [`read_mcap`]: a SLAM log (keyframes, graph updates, reference poses, IMU)
+//! read into the crate's types.
+
+use std::collections::{BTreeMap, HashMap};
+use std::path::{Path, PathBuf};
+
+use nalgebra::{Quaternion, UnitQuaternion, Vector3};
+use rayon::prelude::*;
+
+use super::decode::{self, KeyframeMsg, MessageKind, StampedPose};
+use super::reader::{ChannelInfo, McapFile, RawMessage, ReadMode};
+use crate::error::{Error, Result};
+use crate::geometry::{PinholeCamera, Sim3};
+use crate::imu::ImuSamples;
+use crate::keyframe::Keyframe;
+use crate::trajectory::Trajectory;
+
+/// Which topics to read. `None` finds the topic by its schema name.
+#[derive(Clone, Debug, Default)]
+pub struct ReadOptions {
+    /// Topic of `lsd_slam_viewer/keyframeMsg`.
+    pub keyframe_topic: Option<String>,
+    /// Topic of `lsd_slam_viewer/keyframeGraphMsg`.
+    pub graph_topic: Option<String>,
+    /// Topic of the reference poses (any supported pose schema).
+    pub pose_topic: Option<String>,
+    /// Topic of `sensor_msgs/Imu`.
+    pub imu_topic: Option<String>,
+    /// For `tf2_msgs/TFMessage` references: the parent frame (the world side).
+    pub tf_parent: Option<String>,
+    /// For `tf2_msgs/TFMessage` references: the child frame (the body).
+    pub tf_child: Option<String>,
+}
+
+/// One topic of the log, as [`read_mcap`] and `slam2world inspect` list it.
+#[derive(Clone, Debug, PartialEq)]
+pub struct TopicInfo {
+    /// Topic name.
+    pub topic: String,
+    /// Schema name (empty when schemaless).
+    pub schema_name: String,
+    /// Schema encoding.
+    pub schema_encoding: String,
+    /// Message encoding.
+    pub message_encoding: String,
+    /// Messages read on the topic (0 when its chunks were skipped by the index).
+    pub count: u64,
+    /// First and last log time, nanoseconds, of the messages read.
+    pub time_range: Option<(u64, u64)>,
+    /// What slam2world makes of the schema, when anything.
+    pub kind: Option<MessageKind>,
+}
+
+/// A SLAM log: keyframes, reference poses, IMU and the topic inventory.
+#[derive(Clone, Debug, Default)]
+pub struct Log {
+    /// The file read.
+    pub path: PathBuf,
+    /// Keyframes, the latest version of each id, in order of first arrival; each
+    /// pose is the latest of the keyframe message and the graph messages after it.
+    /// Timestamps are the messages' own `time`.
+    pub keyframes: Vec<Keyframe>,
+    /// Reference poses `T_world_body`, sorted by time.
+    pub reference: Option<Trajectory>,
+    /// Raw IMU samples, sorted by time (samples with a repeated time dropped).
+    pub imu: Option<ImuSamples>,
+    /// Topic the keyframes came from.
+    pub keyframe_topic: Option<String>,
+    /// Topic the graph updates came from.
+    pub graph_topic: Option<String>,
+    /// Topic the reference came from.
+    pub reference_topic: Option<String>,
+    /// Topic the IMU came from.
+    pub imu_topic: Option<String>,
+    /// Keyframe messages read (all versions) and graph messages applied.
+    pub keyframe_messages: usize,
+    /// Graph messages read.
+    pub graph_messages: usize,
+    /// Keyframe poses overwritten by graph messages.
+    pub graph_updates: usize,
+    /// Every topic of the log.
+    pub topics: Vec<TopicInfo>,
+    /// How the file was read.
+    pub indexed: bool,
+}
+
+fn mcap_err(path: &Path, reason: String) -> Error {
+    Error::Mcap {
+        path: path.to_path_buf(),
+        reason,
+    }
+}
+
+/// Reference pose kinds in the order they are preferred.
+const POSE_KINDS: [MessageKind; 6] = [
+    MessageKind::PoseStamped,
+    MessageKind::PoseWithCovarianceStamped,
+    MessageKind::Odometry,
+    MessageKind::PoseInFrame,
+    MessageKind::PosesInFrame,
+    MessageKind::Tf,
+];
+
+fn kind_of(c: &ChannelInfo) -> Option<MessageKind> {
+    MessageKind::from_schema(&c.schema_name)
+}
+
+/// Picks the channel for a role: the named topic (which must exist and carry
+/// one of `kinds`), else the channel of the first kind in `kinds` present (most
+/// messages first, then topic name).
+fn choose<'c>(
+    path: &Path,
+    role: &str,
+    named: Option<&str>,
+    kinds: &[MessageKind],
+    channels: &'c BTreeMap<u16, ChannelInfo>,
+    counts: &HashMap<u16, u64>,
+) -> Result<Option<&'c ChannelInfo>> {
+    if let Some(topic) = named {
+        let Some(c) = channels.values().find(|c| c.topic == topic) else {
+            let all: Vec<&str> = channels.values().map(|c| c.topic.as_str()).collect();
+            return Err(mcap_err(
+                path,
+                format!(
+                    "{role} topic {topic:?} is not in the log (topics: {})",
+                    all.join(", ")
+                ),
+            ));
+        };
+        return match kind_of(c) {
+            Some(k) if kinds.contains(&k) => Ok(Some(c)),
+            _ => Err(mcap_err(
+                path,
+                format!(
+                    "topic {topic}: schema {:?} cannot be read as {role} (expected {})",
+                    c.schema_name,
+                    kinds
+                        .iter()
+                        .map(|k| format!("{k:?}"))
+                        .collect::<Vec<_>>()
+                        .join(", ")
+                ),
+            )),
+        };
+    }
+    for k in kinds {
+        let mut cands: Vec<&ChannelInfo> = channels
+            .values()
+            .filter(|c| kind_of(c) == Some(*k))
+            .collect();
+        // LSD-SLAM also publishes live frames (pose only) as keyframeMsg, more often
+        // than keyframes: a topic named like that comes last.
+        let live = |c: &ChannelInfo| c.topic.contains("liveframe");
+        cands.sort_by(|a, b| {
+            let ca = counts.get(&a.id).copied().unwrap_or(0);
+            let cb = counts.get(&b.id).copied().unwrap_or(0);
+            live(a)
+                .cmp(&live(b))
+                .then(cb.cmp(&ca))
+                .then_with(|| a.topic.cmp(&b.topic))
+        });
+        if let Some(c) = cands.first() {
+            return Ok(Some(c));
+        }
+    }
+    Ok(None)
+}
+
+fn check_encoding(path: &Path, c: &ChannelInfo, kind: MessageKind) -> Result<()> {
+    if kind.encodings().contains(&c.message_encoding.as_str()) {
+        Ok(())
+    } else {
+        Err(mcap_err(
+            path,
+            format!(
+                "topic {}: schema {} in message encoding {:?} is not supported (expected {})",
+                c.topic,
+                c.schema_name,
+                c.message_encoding,
+                kind.encodings().join(" or ")
+            ),
+        ))
+    }
+}
+
+/// Reads a log. Keyframes come from `lsd_slam_viewer/keyframeMsg` (+ graph
+/// updates), the reference from the first pose schema present in the order
+/// PoseStamped, PoseWithCovarianceStamped, Odometry, PoseInFrame, PosesInFrame,
+/// TFMessage (unless a topic is named), the IMU from `sensor_msgs/Imu`.
+///
+/// Errors ([`Error::Mcap`], naming the file, the topic and the message) on a
+/// damaged file, a named topic that is missing or has the wrong schema, a
+/// message that does not decode, or a non-finite pose.
+pub fn read_mcap(path: impl AsRef<Path>, options: &ReadOptions) -> Result<Log> {
+    let path = path.as_ref();
+    let file = McapFile::open(path)?;
+    let named: Vec<&str> = [
+        &options.keyframe_topic,
+        &options.graph_topic,
+        &options.pose_topic,
+        &options.imu_topic,
+    ]
+    .into_iter()
+    .flatten()
+    .map(String::as_str)
+    .collect();
+    let scan = file.scan(|c| kind_of(c).is_some() || named.contains(&c.topic.as_str()))?;
+
+    let mut counts: HashMap<u16, u64> = HashMap::new();
+    let mut ranges: HashMap<u16, (u64, u64)> = HashMap::new();
+    for m in &scan.messages {
+        *counts.entry(m.channel_id).or_default() += 1;
+        let r = ranges
+            .entry(m.channel_id)
+            .or_insert((m.log_time, m.log_time));
+        r.0 = r.0.min(m.log_time);
+        r.1 = r.1.max(m.log_time);
+    }
+    let topics = scan
+        .channels
+        .values()
+        .map(|c| TopicInfo {
+            topic: c.topic.clone(),
+            schema_name: c.schema_name.clone(),
+            schema_encoding: c.schema_encoding.clone(),
+            message_encoding: c.message_encoding.clone(),
+            count: counts.get(&c.id).copied().unwrap_or(0),
+            time_range: ranges.get(&c.id).copied(),
+            kind: kind_of(c),
+        })
+        .collect();
+
+    use MessageKind as K;
+    let ch = &scan.channels;
+    let kf = choose(
+        path,
+        "keyframe",
+        options.keyframe_topic.as_deref(),
+        &[K::Keyframe],
+        ch,
+        &counts,
+    )?;
+    let graph = choose(
+        path,
+        "graph",
+        options.graph_topic.as_deref(),
+        &[K::KeyframeGraph],
+        ch,
+        &counts,
+    )?;
+    let pose_kinds = [
+        K::PoseStamped,
+        K::PoseWithCovarianceStamped,
+        K::Odometry,
+        K::PoseInFrame,
+        K::PosesInFrame,
+        K::Tf,
+    ];
+    let pose = choose(
+        path,
+        "pose",
+        options.pose_topic.as_deref(),
+        &pose_kinds,
+        ch,
+        &counts,
+    )?;
+    let imu_ch = choose(
+        path,
+        "imu",
+        options.imu_topic.as_deref(),
+        &[K::Imu],
+        ch,
+        &counts,
+    )?;
+    for c in [kf, graph, pose, imu_ch].into_iter().flatten() {
+        if let Some(k) = kind_of(c) {
+            check_encoding(path, c, k)?;
+        }
+    }
+
+    let mut log = Log {
+        path: path.to_path_buf(),
+        keyframe_topic: kf.map(|c| c.topic.clone()),
+        graph_topic: graph.map(|c| c.topic.clone()),
+        reference_topic: pose.map(|c| c.topic.clone()),
+        imu_topic: imu_ch.map(|c| c.topic.clone()),
+        topics,
+        indexed: scan.mode == ReadMode::Indexed,
+        ..Log::default()
+    };
+
+    if let Some(kf) = kf {
+        read_keyframes(path, &scan.messages, kf, graph, &mut log)?;
+    }
+    if let Some(pc) = pose {
+        log.reference = Some(read_reference(path, &scan.messages, pc, options)?);
+    }
+    if let Some(ic) = imu_ch {
+        log.imu = Some(read_imu(path, &scan.messages, ic)?);
+    }
+    Ok(log)
+}
+
+struct Entry<'a> {
+    msg: KeyframeMsg<'a>,
+    topic_index: usize,
+    pose: [f64; 7],
+    pose_source: String,
+}
+
+fn read_keyframes(
+    path: &Path,
+    messages: &[RawMessage<'_>],
+    kf: &ChannelInfo,
+    graph: Option<&ChannelInfo>,
+    log: &mut Log,
+) -> Result<()> {
+    let graph_id = graph.map(|g| g.id);
+    let mut order: Vec<i32> = Vec::new();
+    let mut latest: HashMap<i32, Entry<'_>> = HashMap::new();
+    let mut kf_index = 0usize;
+    let mut graph_index = 0usize;
+    for m in messages {
+        if m.channel_id == kf.id {
+            let i = kf_index;
+            kf_index += 1;
+            let msg = decode::keyframe_ros1(&m.data).map_err(|e| {
+                mcap_err(
+                    path,
+                    format!(
+                        "topic {}: message {i} (log time {} ns): {e}",
+                        kf.topic, m.log_time
+                    ),
+                )
+            })?;
+            if !msg.is_keyframe {
+                continue;
+            }
+            if !latest.contains_key(&msg.id) {
+                order.push(msg.id);
+            }
+            let pose = msg.cam_to_world;
+            latest.insert(
+                msg.id,
+                Entry {
+                    msg,
+                    topic_index: i,
+                    pose,
+                    pose_source: format!("topic {}: message {i}", kf.topic),
+                },
+            );
+        } else if Some(m.channel_id) == graph_id {
+            let i = graph_index;
+            graph_index += 1;
+            let topic = graph.map(|g| g.topic.as_str()).unwrap_or_default();
+            let frames = decode::graph_ros1(&m.data).map_err(|e| {
+                mcap_err(
+                    path,
+                    format!(
+                        "topic {topic}: message {i} (log time {} ns): {e}",
+                        m.log_time
+                    ),
+                )
+            })?;
+            for (id, c2w) in frames {
+                if let Some(e) = latest.get_mut(&id) {
+                    e.pose = c2w;
+                    e.pose_source = format!("topic {topic}: message {i}");
+                    log.graph_updates += 1;
+                }
+            }
+        }
+    }
+    log.keyframe_messages = kf_index;
+    log.graph_messages = graph_index;
+    let entries: Vec<&Entry<'_>> = order.iter().filter_map(|id| latest.get(id)).collect();
+    let keyframes: Result<Vec<Keyframe>> = entries
+        .par_iter()
+        .map(|e| to_keyframe(path, &kf.topic, e))
+        .collect();
+    log.keyframes = keyframes?;
+    Ok(())
+}
+
+fn to_keyframe(path: &Path, topic: &str, e: &Entry<'_>) -> Result<Keyframe> {
+    let m = &e.msg;
+    let what = |reason: String| {
+        mcap_err(
+            path,
+            format!(
+                "topic {topic}: message {} (keyframe {}): {reason}",
+                e.topic_index, m.id
+            ),
+        )
+    };
+    if e.pose.iter().any(|v| !v.is_finite()) {
+        return Err(what(format!(
+            "non-finite camToWorld {:?} (from {})",
+            e.pose, e.pose_source
+        )));
+    }
+    let pose = Sim3::from_lsd_slam(&e.pose)
+        .map_err(|err| what(format!("camToWorld {:?}: {err}", e.pose)))?;
+    let camera = PinholeCamera::try_new(m.fx, m.fy, m.cx, m.cy, m.width, m.height)
+        .map_err(|err| what(format!("camera: {err}")))?;
+    let (idepth, var, color) = decode::split_pointcloud(m.pointcloud);
+    Keyframe::try_new(m.id, m.time, pose, camera, idepth, Some(var), Some(color))
+        .map_err(|err| what(err.to_string()))
+}
+
+/// The pose samples of a reference channel, with TF narrowed to one frame pair.
+fn read_reference(
+    path: &Path,
+    messages: &[RawMessage<'_>],
+    c: &ChannelInfo,
+    options: &ReadOptions,
+) -> Result<Trajectory> {
+    let Some(kind) = kind_of(c) else {
+        return Err(mcap_err(
+            path,
+            format!("topic {}: not a pose schema", c.topic),
+        ));
+    };
+    let mine: Vec<&RawMessage<'_>> = messages.iter().filter(|m| m.channel_id == c.id).collect();
+    let decoded: Result<Vec<Vec<StampedPose>>> = mine
+        .par_iter()
+        .enumerate()
+        .map(|(i, m)| {
+            decode::poses(kind, &c.message_encoding, &m.data).map_err(|e| {
+                mcap_err(
+                    path,
+                    format!(
+                        "topic {}: message {i} (log time {} ns): {e}",
+                        c.topic, m.log_time
+                    ),
+                )
+            })
+        })
+        .collect();
+    let decoded = decoded?;
+    let mut samples: Vec<(usize, StampedPose)> = Vec::new();
+    if kind == MessageKind::Tf {
+        let pair = match (&options.tf_parent, &options.tf_child) {
+            (Some(p), Some(ch)) => (p.clone(), ch.clone()),
+            (p, ch) => {
+                let mut freq: BTreeMap<(String, String), usize> = BTreeMap::new();
+                for s in decoded.iter().flatten() {
+                    let ok_p = p.as_ref().is_none_or(|p| *p == s.frame_id);
+                    let ok_c = ch.as_ref().is_none_or(|ch| *ch == s.child_frame_id);
+                    if ok_p && ok_c {
+                        *freq
+                            .entry((s.frame_id.clone(), s.child_frame_id.clone()))
+                            .or_default() += 1;
+                    }
+                }
+                match freq
+                    .into_iter()
+                    .max_by(|a, b| a.1.cmp(&b.1).then_with(|| b.0.cmp(&a.0)))
+                {
+                    Some((pair, _)) => pair,
+                    None => {
+                        return Err(mcap_err(
+                            path,
+                            format!(
+                                "topic {}: no transform with parent {:?} and child {:?}",
+                                c.topic, p, ch
+                            ),
+                        ))
+                    }
+                }
+            }
+        };
+        for (i, v) in decoded.into_iter().enumerate() {
+            for s in v {
+                if s.frame_id == pair.0 && s.child_frame_id == pair.1 {
+                    samples.push((i, s));
+                }
+            }
+        }
+        if samples.is_empty() {
+            return Err(mcap_err(
+                path,
+                format!(
+                    "topic {}: no transform from {:?} to {:?}",
+                    c.topic, pair.0, pair.1
+                ),
+            ));
+        }
+    } else {
+        for (i, v) in decoded.into_iter().enumerate() {
+            samples.extend(v.into_iter().map(|s| (i, s)));
+        }
+    }
+    samples.sort_by(|a, b| a.1.time.total_cmp(&b.1.time));
+    let mut times = Vec::with_capacity(samples.len());
+    let mut positions = Vec::with_capacity(samples.len());
+    let mut orientations = Vec::with_capacity(samples.len());
+    for (i, s) in &samples {
+        let finite = s.time.is_finite()
+            && s.position
+                .iter()
+                .chain(s.orientation.iter())
+                .all(|v| v.is_finite());
+        let [x, y, z, w] = s.orientation;
+        let norm = (x * x + y * y + z * z + w * w).sqrt();
+        if !finite || norm < 1e-9 {
+            return Err(mcap_err(
+                path,
+                format!(
+                    "topic {}: message {i}: {} pose (time {}, position {:?}, orientation {:?})",
+                    c.topic,
+                    if finite {
+                        "zero-quaternion"
+                    } else {
+                        "non-finite"
+                    },
+                    s.time,
+                    s.position,
+                    s.orientation
+                ),
+            ));
+        }
+        times.push(s.time);
+        positions.push(Vector3::from(s.position));
+        orientations.push(UnitQuaternion::from_quaternion(Quaternion::new(w, x, y, z)));
+    }
+    Trajectory::try_new(times, positions, Some(orientations))
+        .map_err(|e| mcap_err(path, format!("topic {}: {e}", c.topic)))
+}
+
+fn read_imu(path: &Path, messages: &[RawMessage<'_>], c: &ChannelInfo) -> Result<ImuSamples> {
+    let mine: Vec<&RawMessage<'_>> = messages.iter().filter(|m| m.channel_id == c.id).collect();
+    let decoded: Result<Vec<decode::ImuMsg>> = mine
+        .par_iter()
+        .enumerate()
+        .map(|(i, m)| {
+            let s = decode::imu(&c.message_encoding, &m.data).map_err(|e| {
+                mcap_err(
+                    path,
+                    format!(
+                        "topic {}: message {i} (log time {} ns): {e}",
+                        c.topic, m.log_time
+                    ),
+                )
+            })?;
+            if !s.time.is_finite() || s.gyro.iter().chain(s.accel.iter()).any(|v| !v.is_finite()) {
+                return Err(mcap_err(
+                    path,
+                    format!(
+                        "topic {}: message {i}: non-finite IMU sample {s:?}",
+                        c.topic
+                    ),
+                ));
+            }
+            Ok(s)
+        })
+        .collect();
+    let mut samples = decoded?;
+    samples.sort_by(|a, b| a.time.total_cmp(&b.time));
+    samples.dedup_by(|b, a| a.time == b.time);
+    ImuSamples::try_new(
+        samples.iter().map(|s| s.time).collect(),
+        samples.iter().map(|s| Vector3::from(s.gyro)).collect(),
+        samples.iter().map(|s| Vector3::from(s.accel)).collect(),
+    )
+    .map_err(|e| mcap_err(path, format!("topic {}: {e}", c.topic)))
+}
+
+/// What `slam2world inspect` shows: every topic with its counts, and the
+/// topics [`read_mcap`] would use by default.
+#[derive(Clone, Debug)]
+pub struct Inventory {
+    /// The Header record's profile (`ros1`, `ros2`, …).
+    pub profile: String,
+    /// Indexed or linear reading.
+    pub mode: ReadMode,
+    /// Every topic, with all its messages counted.
+    pub topics: Vec<TopicInfo>,
+    /// `(role, topic)` for keyframe, graph, pose and imu, where one is found.
+    pub picks: Vec<(&'static str, String)>,
+}
+
+/// Reads every message of `path` (without decoding) and lists its topics.
+pub fn inspect_mcap(path: impl AsRef<Path>) -> Result<Inventory> {
+    let path = path.as_ref();
+    let file = McapFile::open(path)?;
+    let scan = file.scan(|_| true)?;
+    let mut counts: HashMap<u16, u64> = HashMap::new();
+    let mut ranges: HashMap<u16, (u64, u64)> = HashMap::new();
+    for m in &scan.messages {
+        *counts.entry(m.channel_id).or_default() += 1;
+        let r = ranges
+            .entry(m.channel_id)
+            .or_insert((m.log_time, m.log_time));
+        r.0 = r.0.min(m.log_time);
+        r.1 = r.1.max(m.log_time);
+    }
+    let topics = scan
+        .channels
+        .values()
+        .map(|c| TopicInfo {
+            topic: c.topic.clone(),
+            schema_name: c.schema_name.clone(),
+            schema_encoding: c.schema_encoding.clone(),
+            message_encoding: c.message_encoding.clone(),
+            count: counts.get(&c.id).copied().unwrap_or(0),
+            time_range: ranges.get(&c.id).copied(),
+            kind: kind_of(c),
+        })
+        .collect();
+    use MessageKind as K;
+    let roles: [(&'static str, &[MessageKind]); 4] = [
+        ("keyframes", &[K::Keyframe]),
+        ("graph", &[K::KeyframeGraph]),
+        ("reference", &POSE_KINDS),
+        ("imu", &[K::Imu]),
+    ];
+    let mut picks = Vec::new();
+    for (role, kinds) in roles {
+        if let Some(c) = choose(path, role, None, kinds, &scan.channels, &counts)? {
+            picks.push((role, c.topic.clone()));
+        }
+    }
+    Ok(Inventory {
+        profile: scan.profile,
+        mode: scan.mode,
+        topics,
+        picks,
+    })
+}

@@ -1,0 +1,707 @@
+//! MCAP writing: the world output that Foxglove (or RViz 2) shows, and the
+//! SLAM-side log a LSD-SLAM user records (used by the simulation to produce
+//! test logs). Files are written to a temporary name beside the destination
+//! and renamed when complete.
+
+use std::collections::BTreeMap;
+use std::io::{BufWriter, Write};
+use std::path::Path;
+
+use super::schemas;
+use super::wire::PbWriter;
+use crate::error::{Error, Result};
+use crate::geometry::Sim3;
+use crate::imu::ImuSamples;
+use crate::keyframe::Keyframe;
+use crate::trajectory::Trajectory;
+
+/// Which message set the world output uses.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub enum WorldFlavor {
+    /// `foxglove.PointCloud`, `foxglove.PosesInFrame`, `foxglove.FrameTransform` (protobuf).
+    #[default]
+    Foxglove,
+    /// `sensor_msgs/msg/PointCloud2` and `tf2_msgs/msg/TFMessage` (ROS 2 CDR), for RViz 2.
+    Ros2,
+}
+
+/// What goes into `world.mcap`. Everything is in the world frame (metres)
+/// except `t_world_slam`, which maps the SLAM frame into it.
+#[derive(Clone, Debug)]
+pub struct WorldScene<'a> {
+    /// Points, `(N, 3)` row-major, world frame, metres.
+    pub points: &'a [f32],
+    /// Colours, `(N, 3)` RGB bytes, or `None` (written white).
+    pub colors: Option<&'a [u8]>,
+    /// `T_world_slam`; the transform messages carry its rotation and translation
+    /// (a transform message has no scale; the points are already scaled).
+    pub t_world_slam: Sim3,
+    /// The SLAM trajectory mapped into the world frame.
+    pub slam_trajectory: Option<&'a Trajectory>,
+    /// The reference trajectory (world frame).
+    pub reference: Option<&'a Trajectory>,
+    /// Stamp of the cloud and transform messages, seconds.
+    pub stamp: f64,
+    /// Frame name of the world (`world` by default in the CLI).
+    pub world_frame: &'a str,
+    /// Frame name of the SLAM map (`slam`).
+    pub slam_frame: &'a str,
+}
+
+/// Topic names of the world output.
+pub mod topics {
+    /// The world point cloud.
+    pub const CLOUD: &str = "/world/cloud";
+    /// The SLAM trajectory in the world frame.
+    pub const SLAM_TRAJECTORY: &str = "/world/slam_trajectory";
+    /// The reference trajectory.
+    pub const REFERENCE: &str = "/world/reference";
+    /// `world → slam` transform.
+    pub const TF: &str = "/tf";
+}
+
+fn mcap_err(path: &Path, what: &str, e: impl std::fmt::Display) -> Error {
+    Error::Mcap {
+        path: path.to_path_buf(),
+        reason: format!("{what}: {e}"),
+    }
+}
+
+fn nanos(path: &Path, what: &str, t: f64) -> Result<u64> {
+    if !(0.0..=1.8e10).contains(&t) {
+        return Err(mcap_err(
+            path,
+            what,
+            format!("time {t} s cannot be an MCAP log time (0 ≤ t < 1.8e10 s)"),
+        ));
+    }
+    Ok((t * 1e9).round() as u64)
+}
+
+/// Writes an MCAP through a temporary file in the destination folder, renamed on success.
+fn write_atomic(
+    path: &Path,
+    options: mcap::WriteOptions,
+    body: impl FnOnce(&mut mcap::Writer<BufWriter<&std::fs::File>>) -> Result<()>,
+) -> Result<()> {
+    let dir = match path.parent() {
+        Some(d) if !d.as_os_str().is_empty() => d,
+        _ => Path::new("."),
+    };
+    let tmp = tempfile::NamedTempFile::new_in(dir).map_err(|e| Error::io(path, e))?;
+    {
+        let mut w = options
+            .create(BufWriter::new(tmp.as_file()))
+            .map_err(|e| mcap_err(path, "create", e))?;
+        body(&mut w)?;
+        w.finish().map_err(|e| mcap_err(path, "finish", e))?;
+        let mut inner = w.into_inner();
+        inner.flush().map_err(|e| Error::io(path, e))?;
+    }
+    tmp.persist(path).map_err(|e| Error::io(path, e.error))?;
+    Ok(())
+}
+
+struct Chan {
+    id: u16,
+    seq: u32,
+}
+
+fn add_channel(
+    w: &mut mcap::Writer<BufWriter<&std::fs::File>>,
+    path: &Path,
+    topic: &str,
+    schema: (&str, &str, &[u8]),
+    message_encoding: &str,
+) -> Result<Chan> {
+    let sid = w
+        .add_schema(schema.0, schema.1, schema.2)
+        .map_err(|e| mcap_err(path, topic, e))?;
+    let id = w
+        .add_channel(sid, topic, message_encoding, &BTreeMap::new())
+        .map_err(|e| mcap_err(path, topic, e))?;
+    Ok(Chan { id, seq: 0 })
+}
+
+fn put(
+    w: &mut mcap::Writer<BufWriter<&std::fs::File>>,
+    path: &Path,
+    ch: &mut Chan,
+    t: u64,
+    data: &[u8],
+) -> Result<()> {
+    let header = mcap::records::MessageHeader {
+        channel_id: ch.id,
+        sequence: ch.seq,
+        log_time: t,
+        publish_time: t,
+    };
+    ch.seq = ch.seq.wrapping_add(1);
+    w.write_to_known_channel(&header, data)
+        .map_err(|e| mcap_err(path, "write message", e))
+}
+
+fn pb_time(t: f64) -> PbWriter {
+    let mut m = PbWriter::new();
+    let sec = t.floor();
+    m.int(1, sec as i64);
+    m.int(2, ((t - sec) * 1e9).round().min(999_999_999.0) as i64);
+    m
+}
+
+fn pb_vec3(v: [f64; 3]) -> PbWriter {
+    let mut m = PbWriter::new();
+    for (i, x) in v.iter().enumerate() {
+        m.double(i as u32 + 1, *x);
+    }
+    m
+}
+
+fn pb_quat(q: [f64; 4]) -> PbWriter {
+    let mut m = PbWriter::new();
+    for (i, x) in q.iter().enumerate() {
+        m.double(i as u32 + 1, *x);
+    }
+    m
+}
+
+fn pb_pose(p: [f64; 3], q: [f64; 4]) -> PbWriter {
+    let mut m = PbWriter::new();
+    m.message(1, &pb_vec3(p));
+    m.message(2, &pb_quat(q));
+    m
+}
+
+/// Foxglove `PackedElementField.NumericType` ids (not ROS PointField's).
+const FOXGLOVE_UINT8: i64 = 1;
+const FOXGLOVE_FLOAT32: i64 = 7;
+
+/// Packs points and colours as `x, y, z: f32` + `r, g, b, a: u8` (16 bytes a point).
+fn packed_points(points: &[f32], colors: Option<&[u8]>) -> Vec<u8> {
+    let n = points.len() / 3;
+    let mut data = Vec::with_capacity(16 * n);
+    for i in 0..n {
+        for v in &points[3 * i..3 * i + 3] {
+            data.extend_from_slice(&v.to_le_bytes());
+        }
+        match colors {
+            Some(c) => data.extend_from_slice(&[c[3 * i], c[3 * i + 1], c[3 * i + 2], 255]),
+            None => data.extend_from_slice(&[255, 255, 255, 255]),
+        }
+    }
+    data
+}
+
+/// The `foxglove.PointCloud` message of `points` (world frame, stride 16).
+pub fn foxglove_point_cloud(
+    stamp: f64,
+    frame: &str,
+    points: &[f32],
+    colors: Option<&[u8]>,
+) -> Vec<u8> {
+    let mut m = PbWriter::new();
+    m.message(1, &pb_time(stamp));
+    m.bytes(2, frame.as_bytes());
+    m.message(3, &pb_pose([0.0; 3], [0.0, 0.0, 0.0, 1.0]));
+    m.fixed32(4, 16);
+    for (name, offset, ty) in [
+        ("x", 0u32, FOXGLOVE_FLOAT32),
+        ("y", 4, FOXGLOVE_FLOAT32),
+        ("z", 8, FOXGLOVE_FLOAT32),
+        ("red", 12, FOXGLOVE_UINT8),
+        ("green", 13, FOXGLOVE_UINT8),
+        ("blue", 14, FOXGLOVE_UINT8),
+        ("alpha", 15, FOXGLOVE_UINT8),
+    ] {
+        let mut f = PbWriter::new();
+        f.bytes(1, name.as_bytes());
+        f.fixed32(2, offset);
+        f.int(3, ty);
+        m.message(5, &f);
+    }
+    m.bytes(6, &packed_points(points, colors));
+    m.buf
+}
+
+fn foxglove_poses(stamp: f64, frame: &str, traj: &Trajectory) -> Vec<u8> {
+    let mut m = PbWriter::new();
+    m.message(1, &pb_time(stamp));
+    m.bytes(2, frame.as_bytes());
+    for i in 0..traj.len() {
+        let p = traj.positions[i];
+        let q = match &traj.orientations {
+            Some(o) => {
+                let c = o[i].coords;
+                [c[0], c[1], c[2], c[3]]
+            }
+            None => [0.0, 0.0, 0.0, 1.0],
+        };
+        m.message(3, &pb_pose([p.x, p.y, p.z], q));
+    }
+    m.buf
+}
+
+fn foxglove_frame_transform(stamp: f64, parent: &str, child: &str, t: &Sim3) -> Vec<u8> {
+    let mut m = PbWriter::new();
+    m.message(1, &pb_time(stamp));
+    m.bytes(2, parent.as_bytes());
+    m.bytes(3, child.as_bytes());
+    m.message(
+        4,
+        &pb_vec3([t.translation.x, t.translation.y, t.translation.z]),
+    );
+    m.message(5, &pb_quat(t.quaternion_xyzw()));
+    m.buf
+}
+
+/// A little-endian CDR writer (XCDR1): alignment relative to the end of the header.
+struct CdrWriter {
+    buf: Vec<u8>,
+}
+
+impl CdrWriter {
+    fn new() -> Self {
+        CdrWriter {
+            buf: vec![0, 1, 0, 0],
+        }
+    }
+    fn align(&mut self, n: usize) {
+        while (self.buf.len() - 4) % n != 0 {
+            self.buf.push(0);
+        }
+    }
+    fn u8(&mut self, v: u8) {
+        self.buf.push(v);
+    }
+    fn u32(&mut self, v: u32) {
+        self.align(4);
+        self.buf.extend_from_slice(&v.to_le_bytes());
+    }
+    fn i32(&mut self, v: i32) {
+        self.align(4);
+        self.buf.extend_from_slice(&v.to_le_bytes());
+    }
+    fn f64(&mut self, v: f64) {
+        self.align(8);
+        self.buf.extend_from_slice(&v.to_le_bytes());
+    }
+    fn string(&mut self, s: &str) {
+        self.u32(s.len() as u32 + 1);
+        self.buf.extend_from_slice(s.as_bytes());
+        self.buf.push(0);
+    }
+    fn header(&mut self, t: f64, frame: &str) {
+        let sec = t.floor();
+        self.i32(sec as i32);
+        self.u32(((t - sec) * 1e9).round().min(999_999_999.0) as u32);
+        self.string(frame);
+    }
+}
+
+fn ros2_point_cloud(stamp: f64, frame: &str, points: &[f32], colors: Option<&[u8]>) -> Vec<u8> {
+    let n = points.len() / 3;
+    let mut w = CdrWriter::new();
+    w.header(stamp, frame);
+    w.u32(1); // height
+    w.u32(n as u32); // width
+    w.u32(4);
+    for (name, offset) in [("x", 0u32), ("y", 4), ("z", 8), ("rgb", 12)] {
+        w.string(name);
+        w.u32(offset);
+        w.u8(7); // PointField.FLOAT32
+        w.u32(1);
+    }
+    w.u8(0); // is_bigendian
+    w.u32(16);
+    w.u32(16 * n as u32);
+    let mut data = Vec::with_capacity(16 * n);
+    for i in 0..n {
+        for v in &points[3 * i..3 * i + 3] {
+            data.extend_from_slice(&v.to_le_bytes());
+        }
+        let (r, g, b) = match colors {
+            Some(c) => (c[3 * i], c[3 * i + 1], c[3 * i + 2]),
+            None => (255, 255, 255),
+        };
+        // PCL's packed float rgb: the bytes b, g, r, 0 of a little-endian u32.
+        data.extend_from_slice(&[b, g, r, 0]);
+    }
+    w.u32(data.len() as u32);
+    w.buf.extend_from_slice(&data);
+    w.u8(1); // is_dense
+    w.buf
+}
+
+fn ros2_tf(stamp: f64, parent: &str, child: &str, t: &Sim3) -> Vec<u8> {
+    let mut w = CdrWriter::new();
+    w.u32(1);
+    w.header(stamp, parent);
+    w.string(child);
+    for v in [t.translation.x, t.translation.y, t.translation.z] {
+        w.f64(v);
+    }
+    for v in t.quaternion_xyzw() {
+        w.f64(v);
+    }
+    w.buf
+}
+
+/// Writes the world output: the cloud, the trajectories and `world → slam`.
+pub fn write_world_mcap(
+    path: impl AsRef<Path>,
+    scene: &WorldScene<'_>,
+    flavor: WorldFlavor,
+) -> Result<()> {
+    let path = path.as_ref();
+    if scene.points.len() % 3 != 0 {
+        return Err(Error::ShapeMismatch {
+            what: "points".into(),
+            expected: "(N, 3)".into(),
+            got: format!("{} values", scene.points.len()),
+        });
+    }
+    if let Some(c) = scene.colors {
+        if c.len() != scene.points.len() {
+            return Err(Error::ShapeMismatch {
+                what: "colors".into(),
+                expected: format!("({}, 3)", scene.points.len() / 3),
+                got: format!("{} values", c.len()),
+            });
+        }
+    }
+    let t = nanos(path, "stamp", scene.stamp)?;
+    let options = mcap::WriteOptions::new()
+        .compression(Some(mcap::Compression::Zstd))
+        .profile(match flavor {
+            WorldFlavor::Foxglove => "",
+            WorldFlavor::Ros2 => "ros2",
+        })
+        .library(concat!("slam2world ", env!("CARGO_PKG_VERSION")));
+    write_atomic(path, options, |w| {
+        match flavor {
+            WorldFlavor::Foxglove => {
+                let mut cloud = add_channel(
+                    w,
+                    path,
+                    topics::CLOUD,
+                    schemas::FOXGLOVE_POINT_CLOUD,
+                    "protobuf",
+                )?;
+                let mut tf = add_channel(
+                    w,
+                    path,
+                    topics::TF,
+                    schemas::FOXGLOVE_FRAME_TRANSFORM,
+                    "protobuf",
+                )?;
+                let msg = foxglove_frame_transform(
+                    scene.stamp,
+                    scene.world_frame,
+                    scene.slam_frame,
+                    &scene.t_world_slam,
+                );
+                put(w, path, &mut tf, t, &msg)?;
+                let msg = foxglove_point_cloud(
+                    scene.stamp,
+                    scene.world_frame,
+                    scene.points,
+                    scene.colors,
+                );
+                put(w, path, &mut cloud, t, &msg)?;
+                for (topic, traj) in [
+                    (topics::SLAM_TRAJECTORY, scene.slam_trajectory),
+                    (topics::REFERENCE, scene.reference),
+                ] {
+                    if let Some(traj) = traj {
+                        let mut ch = add_channel(
+                            w,
+                            path,
+                            topic,
+                            schemas::FOXGLOVE_POSES_IN_FRAME,
+                            "protobuf",
+                        )?;
+                        put(
+                            w,
+                            path,
+                            &mut ch,
+                            t,
+                            &foxglove_poses(scene.stamp, scene.world_frame, traj),
+                        )?;
+                    }
+                }
+            }
+            WorldFlavor::Ros2 => {
+                let mut tf = add_channel(w, path, topics::TF, schemas::ROS2_TF_MESSAGE, "cdr")?;
+                let mut cloud =
+                    add_channel(w, path, topics::CLOUD, schemas::ROS2_POINT_CLOUD2, "cdr")?;
+                put(
+                    w,
+                    path,
+                    &mut tf,
+                    t,
+                    &ros2_tf(
+                        scene.stamp,
+                        scene.world_frame,
+                        scene.slam_frame,
+                        &scene.t_world_slam,
+                    ),
+                )?;
+                put(
+                    w,
+                    path,
+                    &mut cloud,
+                    t,
+                    &ros2_point_cloud(scene.stamp, scene.world_frame, scene.points, scene.colors),
+                )?;
+            }
+        }
+        Ok(())
+    })
+}
+
+/// Topics and options of [`write_slam_log`].
+#[derive(Clone, Debug)]
+pub struct SlamLogOptions {
+    /// Keyframe topic (`lsd_slam_viewer/keyframeMsg`).
+    pub keyframe_topic: String,
+    /// Graph topic (`lsd_slam_viewer/keyframeGraphMsg`); one graph message with
+    /// every keyframe's final pose is written after the last keyframe.
+    pub graph_topic: Option<String>,
+    /// Reference pose topic (`geometry_msgs/PoseStamped`).
+    pub pose_topic: String,
+    /// IMU topic (`sensor_msgs/Imu`).
+    pub imu_topic: String,
+    /// Frame id of the reference poses.
+    pub pose_frame: String,
+    /// Frame id of the IMU samples.
+    pub imu_frame: String,
+    /// Chunk compression.
+    pub compression: Option<mcap::Compression>,
+}
+
+impl Default for SlamLogOptions {
+    fn default() -> Self {
+        SlamLogOptions {
+            keyframe_topic: "/lsd_slam/keyframes".into(),
+            graph_topic: Some("/lsd_slam/graph".into()),
+            pose_topic: "/ground_truth/pose".into(),
+            imu_topic: "/imu0".into(),
+            pose_frame: "world".into(),
+            imu_frame: "imu".into(),
+            compression: Some(mcap::Compression::Zstd),
+        }
+    }
+}
+
+/// The ROS 1 `keyframeMsg` of a keyframe (colour 4th byte 255; variance 0 when absent).
+pub fn keyframe_msg_ros1(kf: &Keyframe) -> Vec<u8> {
+    let n = kf.len();
+    let mut m = Vec::with_capacity(69 + 12 * n);
+    m.extend_from_slice(&kf.id.to_le_bytes());
+    m.extend_from_slice(&kf.timestamp.to_le_bytes());
+    m.push(1);
+    for v in kf.pose.to_lsd_slam() {
+        m.extend_from_slice(&(v as f32).to_le_bytes());
+    }
+    let c = &kf.camera;
+    for v in [c.fx, c.fy, c.cx, c.cy] {
+        m.extend_from_slice(&(v as f32).to_le_bytes());
+    }
+    m.extend_from_slice(&c.height.to_le_bytes());
+    m.extend_from_slice(&c.width.to_le_bytes());
+    m.extend_from_slice(&((12 * n) as u32).to_le_bytes());
+    for i in 0..n {
+        m.extend_from_slice(&kf.idepth[i].to_le_bytes());
+        let var = kf.idepth_var.as_ref().map_or(0.0, |v| v[i]);
+        m.extend_from_slice(&var.to_le_bytes());
+        match &kf.color {
+            Some(col) => m.extend_from_slice(&[col[3 * i], col[3 * i + 1], col[3 * i + 2], 255]),
+            None => m.extend_from_slice(&[128, 128, 128, 255]),
+        }
+    }
+    m
+}
+
+/// The ROS 1 `keyframeGraphMsg` listing `(id, camToWorld)` of each keyframe (no constraints).
+pub fn graph_msg_ros1(keyframes: &[Keyframe]) -> Vec<u8> {
+    let mut frames = Vec::with_capacity(32 * keyframes.len());
+    for kf in keyframes {
+        frames.extend_from_slice(&kf.id.to_le_bytes());
+        for v in kf.pose.to_lsd_slam() {
+            frames.extend_from_slice(&(v as f32).to_le_bytes());
+        }
+    }
+    let mut m = Vec::with_capacity(16 + frames.len());
+    m.extend_from_slice(&(keyframes.len() as u32).to_le_bytes());
+    m.extend_from_slice(&(frames.len() as u32).to_le_bytes());
+    m.extend_from_slice(&frames);
+    m.extend_from_slice(&0u32.to_le_bytes());
+    m.extend_from_slice(&0u32.to_le_bytes());
+    m
+}
+
+fn ros1_header(m: &mut Vec<u8>, seq: u32, t: f64, frame: &str) {
+    let sec = t.floor();
+    m.extend_from_slice(&seq.to_le_bytes());
+    m.extend_from_slice(&(sec as u32).to_le_bytes());
+    m.extend_from_slice(&(((t - sec) * 1e9).round().min(999_999_999.0) as u32).to_le_bytes());
+    m.extend_from_slice(&(frame.len() as u32).to_le_bytes());
+    m.extend_from_slice(frame.as_bytes());
+}
+
+/// The ROS 1 `geometry_msgs/PoseStamped` of a pose (`q` is `(x, y, z, w)`).
+pub fn pose_stamped_ros1(seq: u32, t: f64, frame: &str, p: [f64; 3], q: [f64; 4]) -> Vec<u8> {
+    let mut m = Vec::with_capacity(80 + frame.len());
+    ros1_header(&mut m, seq, t, frame);
+    for v in p.iter().chain(q.iter()) {
+        m.extend_from_slice(&v.to_le_bytes());
+    }
+    m
+}
+
+/// The ROS 1 `sensor_msgs/Imu` of a sample (orientation unknown: covariance[0] = -1).
+pub fn imu_ros1(seq: u32, t: f64, frame: &str, gyro: [f64; 3], accel: [f64; 3]) -> Vec<u8> {
+    let mut m = Vec::with_capacity(340 + frame.len());
+    ros1_header(&mut m, seq, t, frame);
+    let mut put = |v: f64| m.extend_from_slice(&v.to_le_bytes());
+    for v in [0.0, 0.0, 0.0, 1.0] {
+        put(v);
+    }
+    put(-1.0);
+    (0..8).for_each(|_| put(0.0));
+    gyro.iter().for_each(|v| put(*v));
+    (0..9).for_each(|_| put(0.0));
+    accel.iter().for_each(|v| put(*v));
+    (0..9).for_each(|_| put(0.0));
+    m
+}
+
+/// Writes the log a LSD-SLAM user records: keyframes (ros1 `keyframeMsg`), one
+/// final graph message, reference poses (`PoseStamped`, `T_world_body`) and IMU
+/// samples, plus `metadata` as a Metadata record named `slam2world`. Log times
+/// are the messages' own stamps. Deterministic: the same input gives a
+/// byte-identical file (no wall-clock time; channels are not repeated in the
+/// summary, whose order the `mcap` writer does not fix).
+pub fn write_slam_log(
+    path: impl AsRef<Path>,
+    keyframes: &[Keyframe],
+    reference: Option<&Trajectory>,
+    imu: Option<&ImuSamples>,
+    metadata: &[(String, String)],
+    options: &SlamLogOptions,
+) -> Result<()> {
+    let path = path.as_ref();
+    // (log time, order within the same time, channel slot, payload)
+    let mut msgs: Vec<(u64, usize, usize, Vec<u8>)> = Vec::new();
+    for (i, kf) in keyframes.iter().enumerate() {
+        let t = nanos(path, &format!("keyframe {}", kf.id), kf.timestamp)?;
+        msgs.push((t, i, 0, keyframe_msg_ros1(kf)));
+    }
+    if let (Some(_), Some(last)) = (
+        &options.graph_topic,
+        keyframes.iter().map(|k| k.timestamp).reduce(f64::max),
+    ) {
+        let t = nanos(path, "graph", last)?;
+        msgs.push((t, usize::MAX, 1, graph_msg_ros1(keyframes)));
+    }
+    if let Some(r) = reference {
+        for i in 0..r.len() {
+            let t = nanos(path, "reference pose", r.timestamps[i])?;
+            let p = r.positions[i];
+            let q = match &r.orientations {
+                Some(o) => {
+                    let c = o[i].coords;
+                    [c[0], c[1], c[2], c[3]]
+                }
+                None => [0.0, 0.0, 0.0, 1.0],
+            };
+            let data = pose_stamped_ros1(
+                i as u32,
+                r.timestamps[i],
+                &options.pose_frame,
+                [p.x, p.y, p.z],
+                q,
+            );
+            msgs.push((t, i, 2, data));
+        }
+    }
+    if let Some(s) = imu {
+        for i in 0..s.len() {
+            let t = nanos(path, "imu sample", s.timestamps[i])?;
+            let g = s.gyro[i];
+            let a = s.accel[i];
+            let data = imu_ros1(
+                i as u32,
+                s.timestamps[i],
+                &options.imu_frame,
+                [g.x, g.y, g.z],
+                [a.x, a.y, a.z],
+            );
+            msgs.push((t, i, 3, data));
+        }
+    }
+    msgs.sort_by_key(|m| (m.0, m.2, m.1));
+    let wopts = mcap::WriteOptions::new()
+        .compression(options.compression)
+        .profile("ros1")
+        .library(concat!("slam2world ", env!("CARGO_PKG_VERSION")))
+        .repeat_channels(false)
+        .repeat_schemas(false)
+        .emit_chunk_indexes(false)
+        .emit_message_indexes(false);
+    write_atomic(path, wopts, |w| {
+        let mut chans = [
+            Some(add_channel(
+                w,
+                path,
+                &options.keyframe_topic,
+                schemas::ROS1_KEYFRAME,
+                "ros1",
+            )?),
+            match &options.graph_topic {
+                Some(g) => Some(add_channel(
+                    w,
+                    path,
+                    g,
+                    schemas::ROS1_KEYFRAME_GRAPH,
+                    "ros1",
+                )?),
+                None => None,
+            },
+            match reference {
+                Some(_) => Some(add_channel(
+                    w,
+                    path,
+                    &options.pose_topic,
+                    schemas::ROS1_POSE_STAMPED,
+                    "ros1",
+                )?),
+                None => None,
+            },
+            match imu {
+                Some(_) => Some(add_channel(
+                    w,
+                    path,
+                    &options.imu_topic,
+                    schemas::ROS1_IMU,
+                    "ros1",
+                )?),
+                None => None,
+            },
+        ];
+        for (t, _, slot, data) in &msgs {
+            if let Some(Some(ch)) = chans.get_mut(*slot) {
+                put(w, path, ch, *t, data)?;
+            }
+        }
+        if !metadata.is_empty() {
+            let md = mcap::records::Metadata {
+                name: "slam2world".into(),
+                metadata: metadata.iter().cloned().collect(),
+            };
+            w.write_metadata(&md)
+                .map_err(|e| mcap_err(path, "metadata", e))?;
+        }
+        Ok(())
+    })
+}

@@ -1,0 +1,538 @@
+//! MCAP reading and writing: the conformance suite, round trips through our
+//! writers, real logs, and bad input.
+
+use std::path::{Path, PathBuf};
+
+use nalgebra::{UnitQuaternion, Vector3};
+use slam2world::io::mcap::{
+    read_mcap, write_slam_log, write_world_mcap, McapFile, ReadMode, ReadOptions, SlamLogOptions,
+    WorldFlavor, WorldScene,
+};
+use slam2world::{Error, ImuSamples, Keyframe, PinholeCamera, Sim3, Trajectory};
+
+fn data_dir(folder: &str) -> Option<PathBuf> {
+    let p = Path::new(env!("CARGO_MANIFEST_DIR"))
+        .join("../shared/data")
+        .join(folder);
+    if p.exists() {
+        Some(p)
+    } else {
+        eprintln!("skipped: real data not present at {}", p.display());
+        None
+    }
+}
+
+fn json_u64(v: &serde_json::Value) -> u64 {
+    v.as_str().and_then(|s| s.parse().ok()).unwrap()
+}
+
+/// (channel_id, sequence, log_time, publish_time, data) of every Message record the JSON lists.
+fn expected_messages(json: &Path) -> Vec<(u16, u32, u64, u64, Vec<u8>)> {
+    let text = std::fs::read_to_string(json).unwrap();
+    let v: serde_json::Value = serde_json::from_str(&text).unwrap();
+    let mut out = Vec::new();
+    for r in v["records"].as_array().unwrap() {
+        if r["type"] != "Message" {
+            continue;
+        }
+        let mut m = (0u16, 0u32, 0u64, 0u64, Vec::new());
+        for f in r["fields"].as_array().unwrap() {
+            let name = f[0].as_str().unwrap();
+            let val = &f[1];
+            match name {
+                "channel_id" => m.0 = json_u64(val) as u16,
+                "sequence" => m.1 = json_u64(val) as u32,
+                "log_time" => m.2 = json_u64(val),
+                "publish_time" => m.3 = json_u64(val),
+                "data" => {
+                    m.4 = val
+                        .as_array()
+                        .unwrap()
+                        .iter()
+                        .map(|b| json_u64(b) as u8)
+                        .collect()
+                }
+                _ => {}
+            }
+        }
+        out.push(m);
+    }
+    out
+}
+
+#[test]
+fn conformance_suite_yields_exactly_the_listed_messages() {
+    let Some(root) = data_dir("mcap_conformance") else {
+        return;
+    };
+    let mut files = 0;
+    let mut indexed = 0;
+    let mut messages = 0;
+    for group in std::fs::read_dir(&root).unwrap() {
+        let group = group.unwrap().path();
+        if !group.is_dir() {
+            continue;
+        }
+        for entry in std::fs::read_dir(&group).unwrap() {
+            let path = entry.unwrap().path();
+            if path.extension().and_then(|e| e.to_str()) != Some("mcap") {
+                continue;
+            }
+            let expected = expected_messages(&path.with_extension("json"));
+            let file = McapFile::open(&path).unwrap();
+            let scan = file
+                .scan(|_| true)
+                .unwrap_or_else(|e| panic!("{}: {e}", path.display()));
+            let got: Vec<_> = scan
+                .messages
+                .iter()
+                .map(|m| {
+                    (
+                        m.channel_id,
+                        m.sequence,
+                        m.log_time,
+                        m.publish_time,
+                        m.data.to_vec(),
+                    )
+                })
+                .collect();
+            assert_eq!(got, expected, "{}", path.display());
+            files += 1;
+            messages += got.len();
+            if scan.mode == ReadMode::Indexed {
+                indexed += 1;
+            }
+        }
+    }
+    assert_eq!(files, 416);
+    assert!(messages > 0);
+    // Files with a chunk index and repeated channels are read through the index.
+    assert!(
+        indexed > 0 && indexed < files,
+        "indexed {indexed} of {files}"
+    );
+}
+
+fn test_keyframes(n: usize, w: u32, h: u32) -> Vec<Keyframe> {
+    let cam =
+        PinholeCamera::try_new(w as f64, w as f64, w as f64 / 2.0, h as f64 / 2.0, w, h).unwrap();
+    (0..n)
+        .map(|i| {
+            let pose = Sim3::try_new(
+                UnitQuaternion::from_euler_angles(0.1 * i as f64, 0.05, -0.02),
+                Vector3::new(i as f64 * 0.25, 0.5, -0.125),
+                1.0 + 0.125 * i as f64,
+            )
+            .unwrap();
+            let npx = (w * h) as usize;
+            let idepth = (0..npx).map(|p| 0.5 + (p % 7) as f32 * 0.125).collect();
+            let var = (0..npx).map(|p| 1e-4 * (p % 3) as f32).collect();
+            let color = (0..3 * npx).map(|p| (p % 251) as u8).collect();
+            Keyframe::try_new(
+                i as i32,
+                10.0 + i as f64,
+                pose,
+                cam,
+                idepth,
+                Some(var),
+                Some(color),
+            )
+            .unwrap()
+        })
+        .collect()
+}
+
+fn test_reference(n: usize) -> Trajectory {
+    let t = (0..n).map(|i| 10.0 + 0.01 * i as f64).collect();
+    let p = (0..n)
+        .map(|i| Vector3::new(i as f64 * 0.01, (i as f64 * 0.1).sin(), 1.5))
+        .collect();
+    let q = (0..n)
+        .map(|i| UnitQuaternion::from_euler_angles(0.0, 0.0, 0.01 * i as f64))
+        .collect();
+    Trajectory::try_new(t, p, Some(q)).unwrap()
+}
+
+fn test_imu(n: usize) -> ImuSamples {
+    ImuSamples::try_new(
+        (0..n).map(|i| 10.0 + 0.005 * i as f64).collect(),
+        (0..n)
+            .map(|i| Vector3::new(0.01 * i as f64, 0.0, -0.5))
+            .collect(),
+        (0..n).map(|_| Vector3::new(0.0, 0.1, 9.81)).collect(),
+    )
+    .unwrap()
+}
+
+fn round_trip(compression: Option<mcap::Compression>) {
+    let dir = tempfile::tempdir().unwrap();
+    let path = dir.path().join("slam.mcap");
+    let kfs = test_keyframes(4, 8, 6);
+    let reference = test_reference(50);
+    let imu = test_imu(80);
+    let options = SlamLogOptions {
+        compression,
+        ..SlamLogOptions::default()
+    };
+    let md = vec![("seed".to_string(), "7".to_string())];
+    write_slam_log(&path, &kfs, Some(&reference), Some(&imu), &md, &options).unwrap();
+    let log = read_mcap(&path, &ReadOptions::default()).unwrap();
+    assert_eq!(log.keyframes.len(), kfs.len());
+    for (a, b) in log.keyframes.iter().zip(&kfs) {
+        assert_eq!(a.id, b.id);
+        assert_eq!(a.timestamp, b.timestamp);
+        assert_eq!(a.idepth, b.idepth);
+        assert_eq!(a.idepth_var, b.idepth_var);
+        assert_eq!(a.color, b.color);
+        assert_eq!(a.camera, b.camera);
+        // camToWorld travels as f32
+        assert!((a.pose.translation - b.pose.translation).norm() < 1e-6);
+        assert!((a.pose.scale - b.pose.scale).abs() < 1e-6);
+        assert!(a.pose.rotation.angle_to(&b.pose.rotation) < 1e-6);
+    }
+    assert_eq!(log.graph_messages, 1);
+    assert_eq!(log.graph_updates, kfs.len());
+    let r = log.reference.unwrap();
+    assert_eq!(r.len(), reference.len());
+    for i in 0..r.len() {
+        assert!((r.timestamps[i] - reference.timestamps[i]).abs() < 1e-9);
+        assert_eq!(r.positions[i], reference.positions[i]);
+    }
+    let s = log.imu.unwrap();
+    assert_eq!(s.len(), imu.len());
+    assert_eq!(s.gyro, imu.gyro);
+    assert_eq!(s.accel, imu.accel);
+}
+
+#[test]
+fn zstd_round_trip() {
+    round_trip(Some(mcap::Compression::Zstd));
+}
+
+#[test]
+fn lz4_round_trip() {
+    round_trip(Some(mcap::Compression::Lz4));
+}
+
+#[test]
+fn uncompressed_round_trip() {
+    round_trip(None);
+}
+
+#[test]
+fn slam_log_is_deterministic() {
+    let dir = tempfile::tempdir().unwrap();
+    let kfs = test_keyframes(3, 4, 4);
+    let r = test_reference(20);
+    let imu = test_imu(20);
+    let md = vec![("a".to_string(), "b".to_string())];
+    let opts = SlamLogOptions::default();
+    let a = dir.path().join("a.mcap");
+    let b = dir.path().join("b.mcap");
+    write_slam_log(&a, &kfs, Some(&r), Some(&imu), &md, &opts).unwrap();
+    write_slam_log(&b, &kfs, Some(&r), Some(&imu), &md, &opts).unwrap();
+    assert_eq!(std::fs::read(&a).unwrap(), std::fs::read(&b).unwrap());
+}
+
+#[test]
+fn nav2_sim_yields_its_odometry() {
+    let Some(dir) = data_dir("mcap_nav2_sim") else {
+        return;
+    };
+    let path = dir.join("nav2_turtlebot.mcap");
+    let opts = ReadOptions {
+        pose_topic: Some("/odom".into()),
+        ..ReadOptions::default()
+    };
+    let log = read_mcap(&path, &opts).unwrap();
+    let r = log.reference.unwrap();
+    assert_eq!(r.len(), 2639);
+    let span = r.timestamps[r.len() - 1] - r.timestamps[0];
+    assert!(span > 90.0 && span < 100.0, "span {span}");
+    // The default pick is PoseWithCovarianceStamped (/amcl_pose), 135 messages.
+    let log = read_mcap(&path, &ReadOptions::default()).unwrap();
+    assert_eq!(log.reference_topic.as_deref(), Some("/amcl_pose"));
+    assert_eq!(log.reference.unwrap().len(), 135);
+    let odom = log.topics.iter().find(|t| t.topic == "/odom").unwrap();
+    assert_eq!(odom.count, 2639);
+    // TF: one parent/child pair, the most frequent unless named.
+    let opts = ReadOptions {
+        pose_topic: Some("/tf".into()),
+        tf_parent: Some("odom".into()),
+        tf_child: Some("base_link".into()),
+        ..ReadOptions::default()
+    };
+    let log = read_mcap(&path, &opts).unwrap();
+    assert_eq!(log.reference.unwrap().len(), 2639);
+    // Without frames, the most frequent pair (odom → base_link) is taken.
+    let opts = ReadOptions {
+        pose_topic: Some("/tf".into()),
+        ..ReadOptions::default()
+    };
+    assert_eq!(
+        read_mcap(&path, &opts).unwrap().reference.unwrap().len(),
+        2639
+    );
+}
+
+fn expect_mcap_error(r: slam2world::Result<impl std::fmt::Debug>, words: &[&str]) {
+    match r {
+        Err(e @ Error::Mcap { .. }) => {
+            let msg = e.to_string();
+            for w in words {
+                assert!(msg.contains(w), "{msg:?} lacks {w:?}");
+            }
+        }
+        other => panic!("expected an MCAP error with {words:?}, got {other:?}"),
+    }
+}
+
+fn written_log(dir: &Path, compression: Option<mcap::Compression>) -> PathBuf {
+    let path = dir.join("log.mcap");
+    let opts = SlamLogOptions {
+        compression,
+        ..SlamLogOptions::default()
+    };
+    write_slam_log(
+        &path,
+        &test_keyframes(2, 4, 4),
+        Some(&test_reference(10)),
+        None,
+        &[],
+        &opts,
+    )
+    .unwrap();
+    path
+}
+
+#[test]
+fn truncated_file_is_refused() {
+    let dir = tempfile::tempdir().unwrap();
+    let path = written_log(dir.path(), Some(mcap::Compression::Zstd));
+    let bytes = std::fs::read(&path).unwrap();
+    for cut in [bytes.len() - 3, bytes.len() / 2, 20] {
+        let p = dir.path().join("cut.mcap");
+        std::fs::write(&p, &bytes[..cut]).unwrap();
+        expect_mcap_error(
+            read_mcap(&p, &ReadOptions::default()),
+            &["cut.mcap", "truncated"],
+        );
+    }
+}
+
+#[test]
+fn bad_magic_is_refused() {
+    let dir = tempfile::tempdir().unwrap();
+    let p = dir.path().join("bad.mcap");
+    std::fs::write(&p, b"\x89MCAQ0\r\nxxxxxxxxxxxxxxxxxxxx").unwrap();
+    expect_mcap_error(
+        read_mcap(&p, &ReadOptions::default()),
+        &["bad.mcap", "magic"],
+    );
+    std::fs::write(&p, b"").unwrap();
+    expect_mcap_error(read_mcap(&p, &ReadOptions::default()), &["magic"]);
+}
+
+#[test]
+fn crc_mismatch_is_refused() {
+    let dir = tempfile::tempdir().unwrap();
+    let path = written_log(dir.path(), None);
+    let mut bytes = std::fs::read(&path).unwrap();
+    // Flip one byte inside the keyframe point cloud (inside the uncompressed chunk).
+    let i = bytes.len() / 3;
+    bytes[i] ^= 0x5a;
+    let p = dir.path().join("crc.mcap");
+    std::fs::write(&p, &bytes).unwrap();
+    expect_mcap_error(
+        read_mcap(&p, &ReadOptions::default()),
+        &["crc.mcap", "chunk"],
+    );
+    let msg = read_mcap(&p, &ReadOptions::default())
+        .unwrap_err()
+        .to_string();
+    assert!(msg.to_lowercase().contains("crc"), "{msg}");
+}
+
+#[test]
+fn unknown_or_mismatched_topic_is_refused() {
+    let dir = tempfile::tempdir().unwrap();
+    let path = written_log(dir.path(), None);
+    let opts = ReadOptions {
+        pose_topic: Some("/nope".into()),
+        ..ReadOptions::default()
+    };
+    expect_mcap_error(read_mcap(&path, &opts), &["/nope", "not in the log"]);
+    let opts = ReadOptions {
+        pose_topic: Some("/lsd_slam/keyframes".into()),
+        ..ReadOptions::default()
+    };
+    expect_mcap_error(
+        read_mcap(&path, &opts),
+        &["/lsd_slam/keyframes", "lsd_slam_viewer/keyframeMsg", "pose"],
+    );
+}
+
+/// A log with one channel carrying hand-made payloads.
+fn custom_log(
+    path: &Path,
+    schema: (&str, &str, &[u8]),
+    encoding: &str,
+    topic: &str,
+    payloads: &[Vec<u8>],
+) {
+    let f = std::fs::File::create(path).unwrap();
+    let mut w = mcap::WriteOptions::new()
+        .create(std::io::BufWriter::new(f))
+        .unwrap();
+    let sid = w.add_schema(schema.0, schema.1, schema.2).unwrap();
+    let cid = w
+        .add_channel(sid, topic, encoding, &Default::default())
+        .unwrap();
+    for (i, p) in payloads.iter().enumerate() {
+        let h = mcap::records::MessageHeader {
+            channel_id: cid,
+            sequence: i as u32,
+            log_time: i as u64,
+            publish_time: i as u64,
+        };
+        w.write_to_known_channel(&h, p).unwrap();
+    }
+    w.finish().unwrap();
+}
+
+#[test]
+fn keyframe_pointcloud_of_wrong_size_is_refused() {
+    let dir = tempfile::tempdir().unwrap();
+    let kf = &test_keyframes(1, 4, 4)[0];
+    let mut msg = slam2world::io::mcap::write::keyframe_msg_ros1(kf);
+    // Drop the last point but keep the length field consistent with the bytes.
+    msg.truncate(msg.len() - 12);
+    let len = (4 * 4 * 12 - 12) as u32;
+    msg[65..69].copy_from_slice(&len.to_le_bytes());
+    let p = dir.path().join("kf.mcap");
+    custom_log(
+        &p,
+        slam2world::io::mcap::schemas::ROS1_KEYFRAME,
+        "ros1",
+        "/lsd_slam/keyframes",
+        &[msg],
+    );
+    expect_mcap_error(
+        read_mcap(&p, &ReadOptions::default()),
+        &["kf.mcap", "/lsd_slam/keyframes", "180 bytes", "192"],
+    );
+}
+
+#[test]
+fn nan_poses_are_refused() {
+    let dir = tempfile::tempdir().unwrap();
+    let p = dir.path().join("nan.mcap");
+    let good =
+        slam2world::io::mcap::write::pose_stamped_ros1(0, 1.0, "w", [0.0; 3], [0.0, 0.0, 0.0, 1.0]);
+    let bad = slam2world::io::mcap::write::pose_stamped_ros1(
+        1,
+        2.0,
+        "w",
+        [f64::NAN, 0.0, 0.0],
+        [0.0, 0.0, 0.0, 1.0],
+    );
+    custom_log(
+        &p,
+        slam2world::io::mcap::schemas::ROS1_POSE_STAMPED,
+        "ros1",
+        "/gt",
+        &[good, bad],
+    );
+    expect_mcap_error(
+        read_mcap(&p, &ReadOptions::default()),
+        &["nan.mcap", "/gt", "message 1", "non-finite"],
+    );
+
+    // A keyframe with a NaN camToWorld.
+    let kf = &test_keyframes(1, 4, 4)[0];
+    let mut msg = slam2world::io::mcap::write::keyframe_msg_ros1(kf);
+    msg[13..17].copy_from_slice(&f32::NAN.to_le_bytes());
+    let p = dir.path().join("nankf.mcap");
+    custom_log(
+        &p,
+        slam2world::io::mcap::schemas::ROS1_KEYFRAME,
+        "ros1",
+        "/kf",
+        &[msg],
+    );
+    expect_mcap_error(
+        read_mcap(&p, &ReadOptions::default()),
+        &["nankf.mcap", "/kf", "keyframe 0", "non-finite"],
+    );
+}
+
+#[test]
+fn short_pose_message_is_refused() {
+    let dir = tempfile::tempdir().unwrap();
+    let p = dir.path().join("short.mcap");
+    custom_log(
+        &p,
+        slam2world::io::mcap::schemas::ROS1_POSE_STAMPED,
+        "ros1",
+        "/gt",
+        &[vec![1, 2, 3]],
+    );
+    expect_mcap_error(
+        read_mcap(&p, &ReadOptions::default()),
+        &["short.mcap", "/gt", "message 0", "too short"],
+    );
+}
+
+#[test]
+fn world_mcap_reads_back() {
+    let dir = tempfile::tempdir().unwrap();
+    let points: Vec<f32> = (0..30).map(|i| i as f32 * 0.5).collect();
+    let colors: Vec<u8> = (0..30).map(|i| i as u8).collect();
+    let r = test_reference(5);
+    for flavor in [WorldFlavor::Foxglove, WorldFlavor::Ros2] {
+        let path = dir.path().join(format!("world-{flavor:?}.mcap"));
+        let scene = WorldScene {
+            points: &points,
+            colors: Some(&colors),
+            t_world_slam: Sim3::identity(),
+            slam_trajectory: Some(&r),
+            reference: Some(&r),
+            stamp: 12.5,
+            world_frame: "world",
+            slam_frame: "slam",
+        };
+        write_world_mcap(&path, &scene, flavor).unwrap();
+        let file = McapFile::open(&path).unwrap();
+        let scan = file.scan(|_| true).unwrap();
+        let names: Vec<&str> = scan
+            .channels
+            .values()
+            .map(|c| c.schema_name.as_str())
+            .collect();
+        match flavor {
+            WorldFlavor::Foxglove => {
+                assert!(names.contains(&"foxglove.PointCloud"));
+                assert!(names.contains(&"foxglove.FrameTransform"));
+                assert!(names.contains(&"foxglove.PosesInFrame"));
+                // The reference comes back through the PosesInFrame decoder (last pose).
+                let log = read_mcap(
+                    &path,
+                    &ReadOptions {
+                        pose_topic: Some("/world/reference".into()),
+                        ..ReadOptions::default()
+                    },
+                )
+                .unwrap();
+                let back = log.reference.unwrap();
+                assert_eq!(back.positions[0], r.positions[r.len() - 1]);
+            }
+            WorldFlavor::Ros2 => {
+                assert!(names.contains(&"sensor_msgs/msg/PointCloud2"));
+                assert!(names.contains(&"tf2_msgs/msg/TFMessage"));
+            }
+        }
+    }
+    // No temporary file is left beside the outputs.
+    let left: Vec<_> = std::fs::read_dir(dir.path()).unwrap().collect();
+    assert_eq!(left.len(), 2);
+}
