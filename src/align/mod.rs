@@ -444,6 +444,7 @@ fn residuals_into<A: Rows + ?Sized, B: Rows + ?Sized>(
         block(0, out)
     } else {
         out.par_chunks_mut(RESIDUALS_PER_TASK)
+            .with_max_len(1)
             .enumerate()
             .map(|(c, dst)| block(c * RESIDUALS_PER_TASK, dst))
             .sum()

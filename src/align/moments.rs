@@ -231,8 +231,11 @@ fn reduce<F: Fn(usize, usize) -> Sums + Sync>(n: usize, f: F) -> Sums {
         return f(0, n);
     }
     let tasks = n.div_ceil(ROWS_PER_TASK);
+    // One task per leaf: a thread that is descheduled on a busy machine then
+    // holds back at most one block, the others are stolen.
     (0..tasks)
         .into_par_iter()
+        .with_max_len(1)
         .map(|t| f(t * ROWS_PER_TASK, ((t + 1) * ROWS_PER_TASK).min(n)))
         .reduce(Sums::default, Sums::add)
 }
