@@ -9,6 +9,7 @@ mod convert;
 mod core;
 mod errors;
 mod geometry;
+mod map;
 mod mcap;
 mod sim;
 
@@ -18,6 +19,7 @@ fn _slam2world(m: &Bound<'_, PyModule>) -> PyResult<()> {
     errors::register(m)?;
     geometry::register(m)?;
     sim::register(m)?;
+    map::register(m)?;
     core::register(m)?;
     cloud::register(m)?;
     cli::register(m)?;
