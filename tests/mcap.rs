@@ -84,7 +84,7 @@ fn conformance_suite_yields_exactly_the_listed_messages() {
                 .scan(|_| true)
                 .unwrap_or_else(|e| panic!("{}: {e}", path.display()));
             let got: Vec<_> = scan
-                .messages
+                .messages()
                 .iter()
                 .map(|m| {
                     (

@@ -105,6 +105,41 @@ fn kind_of(c: &ChannelInfo) -> Option<MessageKind> {
     MessageKind::from_schema(&c.schema_name)
 }
 
+/// Counts and time ranges per channel, as topics and as a count map.
+fn topic_inventory(
+    channels: &BTreeMap<u16, ChannelInfo>,
+    messages: &[RawMessage<'_>],
+) -> (Vec<TopicInfo>, HashMap<u16, u64>) {
+    // (count, first, last) per channel id
+    let mut stats = vec![(0u64, u64::MAX, 0u64); 1 << 16];
+    for m in messages {
+        let s = &mut stats[m.channel_id as usize];
+        s.0 += 1;
+        s.1 = s.1.min(m.log_time);
+        s.2 = s.2.max(m.log_time);
+    }
+    let topics = channels
+        .values()
+        .map(|c| {
+            let (count, first, last) = stats[c.id as usize];
+            TopicInfo {
+                topic: c.topic.clone(),
+                schema_name: c.schema_name.clone(),
+                schema_encoding: c.schema_encoding.clone(),
+                message_encoding: c.message_encoding.clone(),
+                count,
+                time_range: (count > 0).then_some((first, last)),
+                kind: kind_of(c),
+            }
+        })
+        .collect();
+    let counts = channels
+        .keys()
+        .map(|id| (*id, stats[*id as usize].0))
+        .collect();
+    (topics, counts)
+}
+
 /// Picks the channel for a role: the named topic (which must exist and carry
 /// one of `kinds`), else the channel of the first kind in `kinds` present (most
 /// messages first, then topic name).
@@ -205,30 +240,9 @@ pub fn read_mcap(path: impl AsRef<Path>, options: &ReadOptions) -> Result<Log> {
     .map(String::as_str)
     .collect();
     let scan = file.scan(|c| kind_of(c).is_some() || named.contains(&c.topic.as_str()))?;
+    let messages = scan.messages();
 
-    let mut counts: HashMap<u16, u64> = HashMap::new();
-    let mut ranges: HashMap<u16, (u64, u64)> = HashMap::new();
-    for m in &scan.messages {
-        *counts.entry(m.channel_id).or_default() += 1;
-        let r = ranges
-            .entry(m.channel_id)
-            .or_insert((m.log_time, m.log_time));
-        r.0 = r.0.min(m.log_time);
-        r.1 = r.1.max(m.log_time);
-    }
-    let topics = scan
-        .channels
-        .values()
-        .map(|c| TopicInfo {
-            topic: c.topic.clone(),
-            schema_name: c.schema_name.clone(),
-            schema_encoding: c.schema_encoding.clone(),
-            message_encoding: c.message_encoding.clone(),
-            count: counts.get(&c.id).copied().unwrap_or(0),
-            time_range: ranges.get(&c.id).copied(),
-            kind: kind_of(c),
-        })
-        .collect();
+    let (topics, counts) = topic_inventory(&scan.channels, &messages);
 
     use MessageKind as K;
     let ch = &scan.channels;
@@ -290,13 +304,13 @@ pub fn read_mcap(path: impl AsRef<Path>, options: &ReadOptions) -> Result<Log> {
     };
 
     if let Some(kf) = kf {
-        read_keyframes(path, &scan.messages, kf, graph, &mut log)?;
+        read_keyframes(path, &messages, kf, graph, &mut log)?;
     }
     if let Some(pc) = pose {
-        log.reference = Some(read_reference(path, &scan.messages, pc, options)?);
+        log.reference = Some(read_reference(path, &messages, pc, options)?);
     }
     if let Some(ic) = imu_ch {
-        log.imu = Some(read_imu(path, &scan.messages, ic)?);
+        log.imu = Some(read_imu(path, &messages, ic)?);
     }
     Ok(log)
 }
@@ -324,7 +338,7 @@ fn read_keyframes(
         if m.channel_id == kf.id {
             let i = kf_index;
             kf_index += 1;
-            let msg = decode::keyframe_ros1(&m.data).map_err(|e| {
+            let msg = decode::keyframe_ros1(m.data).map_err(|e| {
                 mcap_err(
                     path,
                     format!(
@@ -353,7 +367,7 @@ fn read_keyframes(
             let i = graph_index;
             graph_index += 1;
             let topic = graph.map(|g| g.topic.as_str()).unwrap_or_default();
-            let frames = decode::graph_ros1(&m.data).map_err(|e| {
+            let frames = decode::graph_ros1(m.data).map_err(|e| {
                 mcap_err(
                     path,
                     format!(
@@ -422,11 +436,48 @@ fn read_reference(
         ));
     };
     let mine: Vec<&RawMessage<'_>> = messages.iter().filter(|m| m.channel_id == c.id).collect();
+    let fail = |i: usize, m: &RawMessage<'_>, e: String| {
+        mcap_err(
+            path,
+            format!(
+                "topic {}: message {i} (log time {} ns): {e}",
+                c.topic, m.log_time
+            ),
+        )
+    };
+    if kind != MessageKind::Tf {
+        // Fast path: one pose a message, decoded in parallel blocks without allocation.
+        const BLOCK: usize = 8192;
+        let blocks: Result<Vec<Vec<(usize, decode::PoseSample)>>> = mine
+            .par_chunks(BLOCK)
+            .enumerate()
+            .map(|(b, block)| {
+                block
+                    .iter()
+                    .enumerate()
+                    .map(|(j, m)| {
+                        let i = b * BLOCK + j;
+                        decode::pose_sample(kind, &c.message_encoding, m.data)
+                            .map(|s| (i, s))
+                            .map_err(|e| fail(i, m, e))
+                    })
+                    .collect()
+            })
+            .collect();
+        let mut samples: Vec<(usize, decode::PoseSample)> = blocks?.into_iter().flatten().collect();
+        samples.sort_by(|a, b| a.1 .0.total_cmp(&b.1 .0));
+        return trajectory_of(
+            path,
+            &c.topic,
+            samples.iter().map(|(i, s)| (*i, s.0, s.1, s.2)),
+        );
+    }
+    let mine: Vec<&RawMessage<'_>> = messages.iter().filter(|m| m.channel_id == c.id).collect();
     let decoded: Result<Vec<Vec<StampedPose>>> = mine
         .par_iter()
         .enumerate()
         .map(|(i, m)| {
-            decode::poses(kind, &c.message_encoding, &m.data).map_err(|e| {
+            decode::poses(kind, &c.message_encoding, m.data).map_err(|e| {
                 mcap_err(
                     path,
                     format!(
@@ -492,40 +543,53 @@ fn read_reference(
         }
     }
     samples.sort_by(|a, b| a.1.time.total_cmp(&b.1.time));
-    let mut times = Vec::with_capacity(samples.len());
-    let mut positions = Vec::with_capacity(samples.len());
-    let mut orientations = Vec::with_capacity(samples.len());
-    for (i, s) in &samples {
-        let finite = s.time.is_finite()
-            && s.position
+    trajectory_of(
+        path,
+        &c.topic,
+        samples
+            .iter()
+            .map(|(i, s)| (*i, s.time, s.position, s.orientation)),
+    )
+}
+
+/// Checks and converts `(message index, time, position, orientation xyzw)` samples.
+fn trajectory_of(
+    path: &Path,
+    topic: &str,
+    samples: impl ExactSizeIterator<Item = (usize, f64, [f64; 3], [f64; 4])>,
+) -> Result<Trajectory> {
+    let n = samples.len();
+    let mut times = Vec::with_capacity(n);
+    let mut positions = Vec::with_capacity(n);
+    let mut orientations = Vec::with_capacity(n);
+    for (i, time, position, orientation) in samples {
+        let finite = time.is_finite()
+            && position
                 .iter()
-                .chain(s.orientation.iter())
+                .chain(orientation.iter())
                 .all(|v| v.is_finite());
-        let [x, y, z, w] = s.orientation;
+        let [x, y, z, w] = orientation;
         let norm = (x * x + y * y + z * z + w * w).sqrt();
         if !finite || norm < 1e-9 {
             return Err(mcap_err(
                 path,
                 format!(
-                    "topic {}: message {i}: {} pose (time {}, position {:?}, orientation {:?})",
-                    c.topic,
-                    if finite {
-                        "zero-quaternion"
-                    } else {
-                        "non-finite"
-                    },
-                    s.time,
-                    s.position,
-                    s.orientation
+                    "topic {topic}: message {i}: {} pose (time {time}, position {position:?}, orientation {orientation:?})",
+                    if finite { "zero-quaternion" } else { "non-finite" },
                 ),
             ));
         }
-        times.push(s.time);
-        positions.push(Vector3::from(s.position));
-        orientations.push(UnitQuaternion::from_quaternion(Quaternion::new(w, x, y, z)));
+        times.push(time);
+        positions.push(Vector3::from(position));
+        orientations.push(UnitQuaternion::new_unchecked(Quaternion::new(
+            w / norm,
+            x / norm,
+            y / norm,
+            z / norm,
+        )));
     }
     Trajectory::try_new(times, positions, Some(orientations))
-        .map_err(|e| mcap_err(path, format!("topic {}: {e}", c.topic)))
+        .map_err(|e| mcap_err(path, format!("topic {topic}: {e}")))
 }
 
 fn read_imu(path: &Path, messages: &[RawMessage<'_>], c: &ChannelInfo) -> Result<ImuSamples> {
@@ -534,7 +598,7 @@ fn read_imu(path: &Path, messages: &[RawMessage<'_>], c: &ChannelInfo) -> Result
         .par_iter()
         .enumerate()
         .map(|(i, m)| {
-            let s = decode::imu(&c.message_encoding, &m.data).map_err(|e| {
+            let s = decode::imu(&c.message_encoding, m.data).map_err(|e| {
                 mcap_err(
                     path,
                     format!(
@@ -585,29 +649,8 @@ pub fn inspect_mcap(path: impl AsRef<Path>) -> Result<Inventory> {
     let path = path.as_ref();
     let file = McapFile::open(path)?;
     let scan = file.scan(|_| true)?;
-    let mut counts: HashMap<u16, u64> = HashMap::new();
-    let mut ranges: HashMap<u16, (u64, u64)> = HashMap::new();
-    for m in &scan.messages {
-        *counts.entry(m.channel_id).or_default() += 1;
-        let r = ranges
-            .entry(m.channel_id)
-            .or_insert((m.log_time, m.log_time));
-        r.0 = r.0.min(m.log_time);
-        r.1 = r.1.max(m.log_time);
-    }
-    let topics = scan
-        .channels
-        .values()
-        .map(|c| TopicInfo {
-            topic: c.topic.clone(),
-            schema_name: c.schema_name.clone(),
-            schema_encoding: c.schema_encoding.clone(),
-            message_encoding: c.message_encoding.clone(),
-            count: counts.get(&c.id).copied().unwrap_or(0),
-            time_range: ranges.get(&c.id).copied(),
-            kind: kind_of(c),
-        })
-        .collect();
+    let messages = scan.messages();
+    let (topics, counts) = topic_inventory(&scan.channels, &messages);
     use MessageKind as K;
     let roles: [(&'static str, &[MessageKind]); 4] = [
         ("keyframes", &[K::Keyframe]),
