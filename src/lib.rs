@@ -13,6 +13,7 @@
 
 pub mod align;
 pub mod cli;
+pub mod cloud;
 pub mod error;
 pub mod geometry;
 pub mod imu;

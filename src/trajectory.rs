@@ -3,9 +3,13 @@
 //! A trajectory of SLAM keyframes holds `T_slam_cam`; a reference trajectory
 //! holds `T_world_body`. Timestamps are seconds.
 
+use std::path::Path;
+
 use nalgebra::{UnitQuaternion, Vector3};
 
+use crate::align::{align, AlignMethod, AlignOptions, Alignment};
 use crate::error::{Error, Result};
+use crate::geometry::Sim3;
 
 /// Timestamped positions with optional orientations.
 #[derive(Clone, Debug, Default)]
@@ -75,5 +79,499 @@ impl Trajectory {
     /// True when there are no poses.
     pub fn is_empty(&self) -> bool {
         self.timestamps.is_empty()
+    }
+}
+
+/// The result of [`Trajectory::interpolate_where_covered`].
+#[derive(Clone, Debug)]
+pub struct Interpolated {
+    /// The poses at the covered query times (in query order).
+    pub trajectory: Trajectory,
+    /// Indices into the query times that were interpolated.
+    pub kept: Vec<usize>,
+    /// Indices into the query times outside the covered range or inside a gap
+    /// longer than `max_gap`.
+    pub missing: Vec<usize>,
+}
+
+/// Where a query time falls: `(i, k, alpha)` with the pose `lerp(i, k, alpha)`.
+type Bracket = (usize, usize, f64);
+
+impl Trajectory {
+    /// Reads a TUM file (`timestamp tx ty tz qx qy qz qw`, seconds, metres,
+    /// quaternion `(x, y, z, w)`).
+    pub fn read_tum(path: impl AsRef<Path>) -> Result<Trajectory> {
+        crate::io::text::read_tum(path.as_ref())
+    }
+
+    /// Reads EuRoC ground truth CSV (`ns, x, y, z, qw, qx, qy, qz, …`): times
+    /// become seconds, quaternions `(x, y, z, w)`.
+    pub fn read_euroc(path: impl AsRef<Path>) -> Result<Trajectory> {
+        crate::io::text::read_euroc(path.as_ref())
+    }
+
+    /// Writes a TUM file atomically (identity orientation where none is known).
+    pub fn write_tum(&self, path: impl AsRef<Path>) -> Result<()> {
+        crate::io::text::write_tum(self, path.as_ref())
+    }
+
+    /// The poses at `times` (seconds, non-decreasing): positions interpolated
+    /// linearly, orientations by slerp. Errors ([`Error::OutOfRange`]) for a
+    /// time outside `[first, last]` or between two poses more than `max_gap`
+    /// seconds apart (a time equal to a pose's stamp is always answered).
+    pub fn interpolate(&self, times: &[f64], max_gap: f64) -> Result<Trajectory> {
+        check_times(times)?;
+        let mut brackets = Vec::with_capacity(times.len());
+        for &t in times {
+            let b = self
+                .bracket(t, max_gap)
+                .map_err(|reason| Error::OutOfRange {
+                    what: format!("interpolation at t = {t} s"),
+                    reason,
+                })?;
+            brackets.push(b);
+        }
+        self.build(times.to_vec(), &brackets)
+    }
+
+    /// Like [`Trajectory::interpolate`], but times that cannot be answered are
+    /// skipped and reported instead of refused.
+    pub fn interpolate_where_covered(&self, times: &[f64], max_gap: f64) -> Result<Interpolated> {
+        check_times(times)?;
+        let (mut kept, mut missing, mut brackets, mut stamps) =
+            (Vec::new(), Vec::new(), Vec::new(), Vec::new());
+        for (j, &t) in times.iter().enumerate() {
+            match self.bracket(t, max_gap) {
+                Ok(b) => {
+                    kept.push(j);
+                    brackets.push(b);
+                    stamps.push(t);
+                }
+                Err(_) => missing.push(j),
+            }
+        }
+        Ok(Interpolated {
+            trajectory: self.build(stamps, &brackets)?,
+            kept,
+            missing,
+        })
+    }
+
+    fn bracket(&self, t: f64, max_gap: f64) -> std::result::Result<Bracket, String> {
+        let ts = &self.timestamps;
+        let n = ts.len();
+        if n == 0 {
+            return Err("the trajectory is empty".into());
+        }
+        let k = ts.partition_point(|&x| x <= t);
+        if k == 0 {
+            return Err(format!("before the first pose ({} s)", ts[0]));
+        }
+        let i = k - 1;
+        if ts[i] == t {
+            return Ok((i, i, 0.0));
+        }
+        if k == n {
+            return Err(format!("after the last pose ({} s)", ts[n - 1]));
+        }
+        let gap = ts[k] - ts[i];
+        if max_gap.is_nan() || gap > max_gap {
+            return Err(format!(
+                "inside a gap of {gap} s between poses {i} and {k} (max_gap {max_gap} s)"
+            ));
+        }
+        Ok((i, k, (t - ts[i]) / gap))
+    }
+
+    fn build(&self, stamps: Vec<f64>, brackets: &[Bracket]) -> Result<Trajectory> {
+        let positions = brackets
+            .iter()
+            .map(|&(i, k, a)| self.positions[i].lerp(&self.positions[k], a))
+            .collect();
+        let orientations = self.orientations.as_ref().map(|o| {
+            brackets
+                .iter()
+                .map(|&(i, k, a)| slerp(&o[i], &o[k], a))
+                .collect()
+        });
+        Trajectory::try_new(stamps, positions, orientations)
+    }
+
+    /// The trajectory seen from another frame: with `t = T_world_slam` and poses
+    /// `T_slam_cam`, the poses `T_world_cam = T_world_slam · T_slam_cam`
+    /// (positions mapped by the full similarity, orientations rotated).
+    pub fn transformed(&self, t: &Sim3) -> Trajectory {
+        Trajectory {
+            timestamps: self.timestamps.clone(),
+            positions: self
+                .positions
+                .iter()
+                .map(|p| t.transform_point(p))
+                .collect(),
+            orientations: self
+                .orientations
+                .as_ref()
+                .map(|o| o.iter().map(|q| t.rotation * q).collect()),
+        }
+    }
+}
+
+fn check_times(times: &[f64]) -> Result<()> {
+    if let Some(i) = times.iter().position(|t| !t.is_finite()) {
+        return Err(Error::NonFinite {
+            what: "times".into(),
+            index: i,
+        });
+    }
+    if let Some(i) = (1..times.len()).find(|&i| times[i] < times[i - 1]) {
+        return Err(Error::invalid(
+            "times",
+            format!(
+                "must not decrease (time {i}: {} after {})",
+                times[i],
+                times[i - 1]
+            ),
+        ));
+    }
+    Ok(())
+}
+
+/// Shortest-path slerp; falls back to normalised lerp where the two rotations
+/// are (numerically) equal.
+fn slerp(a: &UnitQuaternion<f64>, b: &UnitQuaternion<f64>, t: f64) -> UnitQuaternion<f64> {
+    if t == 0.0 {
+        return *a;
+    }
+    a.try_slerp(b, t, 1e-12).unwrap_or_else(|| a.nlerp(b, t))
+}
+
+/// Pairs `(i, j)` of poses `a[i]`, `b[j]` whose times match, with evo's
+/// semantics (`evo.core.sync.associate_trajectories`, nearest time): the
+/// shorter trajectory's poses (`b` on a tie) are each matched at most once to
+/// the nearest stamp of the other within `max_diff` seconds; `offset` seconds
+/// are added to `b`'s stamps for the comparison. Pairs come in the order of
+/// the shorter trajectory.
+pub fn associate(
+    a: &Trajectory,
+    b: &Trajectory,
+    max_diff: f64,
+    offset: f64,
+) -> Vec<(usize, usize)> {
+    if a.is_empty() || b.is_empty() {
+        return Vec::new();
+    }
+    if b.len() > a.len() {
+        matching_time_indices(&a.timestamps, &b.timestamps, max_diff, offset)
+    } else {
+        matching_time_indices(&b.timestamps, &a.timestamps, max_diff, -offset)
+            .into_iter()
+            .map(|(j, i)| (i, j))
+            .collect()
+    }
+}
+
+/// evo's `matching_time_indices` for sorted `long` stamps: for each short
+/// stamp, the nearest long stamp (shifted by `offset`) within `max_diff`.
+fn matching_time_indices(
+    short: &[f64],
+    long: &[f64],
+    max_diff: f64,
+    offset: f64,
+) -> Vec<(usize, usize)> {
+    let long: Vec<f64> = long.iter().map(|t| t + offset).collect();
+    let (first, last) = (long[0], long[long.len() - 1]);
+    let mut out = Vec::new();
+    for (i, &t) in short.iter().enumerate() {
+        if t < first - max_diff || t > last + max_diff {
+            continue;
+        }
+        let k = long.partition_point(|&x| x <= t).min(long.len() - 1);
+        let diff_ub = long[k] - t;
+        let diff_lb = if k > 0 {
+            t - long[k - 1]
+        } else {
+            f64::INFINITY
+        };
+        if diff_ub <= max_diff && diff_ub < diff_lb {
+            out.push((i, k));
+        } else if diff_lb <= max_diff && diff_lb <= diff_ub {
+            out.push((i, k - 1));
+        }
+    }
+    out
+}
+
+/// Options of [`align_trajectories`].
+#[derive(Clone, Debug, PartialEq)]
+pub struct TrajectoryAlignOptions {
+    /// Largest time difference of a matched pair, seconds (default 0.01).
+    pub max_diff: f64,
+    /// Seconds added to the SLAM stamps before matching (default 0).
+    pub offset: f64,
+    /// Estimate the scale (Sim(3)); `false` for SE(3) (default true).
+    pub scale: bool,
+    /// Fit only the first `n` matched pairs (APE still over all pairs).
+    pub first_n: Option<usize>,
+    /// Rotation solver.
+    pub method: AlignMethod,
+}
+
+impl Default for TrajectoryAlignOptions {
+    fn default() -> Self {
+        TrajectoryAlignOptions {
+            max_diff: 0.01,
+            offset: 0.0,
+            scale: true,
+            first_n: None,
+            method: AlignMethod::Horn,
+        }
+    }
+}
+
+/// Statistics of the absolute position error `‖p_ref − T(p_slam)‖` over all
+/// matched pairs, metres (as evo's APE, translation part; `std` is the
+/// population standard deviation).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct ApeStats {
+    /// Root mean square.
+    pub rmse: f64,
+    /// Mean.
+    pub mean: f64,
+    /// Median (mean of the two middle values for an even count).
+    pub median: f64,
+    /// Population standard deviation.
+    pub std: f64,
+    /// Smallest error.
+    pub min: f64,
+    /// Largest error.
+    pub max: f64,
+    /// Number of pairs.
+    pub n_pairs: usize,
+}
+
+impl ApeStats {
+    /// Statistics of `errors` (at least one, all finite).
+    pub fn from_errors(errors: &[f64]) -> Result<ApeStats> {
+        if errors.is_empty() {
+            return Err(Error::TooFew {
+                what: "errors".into(),
+                need: 1,
+                got: 0,
+            });
+        }
+        if let Some(i) = errors.iter().position(|e| !e.is_finite()) {
+            return Err(Error::NonFinite {
+                what: "errors".into(),
+                index: i,
+            });
+        }
+        let n = errors.len() as f64;
+        let mean = errors.iter().sum::<f64>() / n;
+        let rmse = (errors.iter().map(|e| e * e).sum::<f64>() / n).sqrt();
+        let std = (errors.iter().map(|e| (e - mean) * (e - mean)).sum::<f64>() / n).sqrt();
+        let mut sorted = errors.to_vec();
+        sorted.sort_by(f64::total_cmp);
+        let m = sorted.len() / 2;
+        let median = if sorted.len() % 2 == 1 {
+            sorted[m]
+        } else {
+            (sorted[m - 1] + sorted[m]) / 2.0
+        };
+        Ok(ApeStats {
+            rmse,
+            mean,
+            median,
+            std,
+            min: sorted[0],
+            max: sorted[sorted.len() - 1],
+            n_pairs: errors.len(),
+        })
+    }
+}
+
+/// The result of [`align_trajectories`].
+#[derive(Clone, Debug)]
+pub struct TrajectoryAlignment {
+    /// The fit: `transform` is `T_world_slam` (maps SLAM positions onto the
+    /// reference); residuals over the fitted pairs.
+    pub alignment: Alignment,
+    /// Matched pairs `(slam index, reference index)`.
+    pub pairs: Vec<(usize, usize)>,
+    /// Error statistics over all matched pairs.
+    pub ape: ApeStats,
+    /// Per pair `‖p_ref − T(p_slam)‖`, metres, in the order of `pairs`.
+    pub errors: Vec<f64>,
+}
+
+/// Associates `slam` with `reference` by time (as evo: `reference` first,
+/// `offset` added to the SLAM stamps), fits `T_world_slam` on the positions of
+/// the (first `first_n`) pairs, and reports the APE over all pairs.
+pub fn align_trajectories(
+    slam: &Trajectory,
+    reference: &Trajectory,
+    opts: &TrajectoryAlignOptions,
+) -> Result<TrajectoryAlignment> {
+    let pairs: Vec<(usize, usize)> = associate(reference, slam, opts.max_diff, opts.offset)
+        .into_iter()
+        .map(|(r, s)| (s, r))
+        .collect();
+    if pairs.is_empty() {
+        return Err(Error::TooFew {
+            what: format!(
+                "pose pairs matched within max_diff {} s (offset {} s)",
+                opts.max_diff, opts.offset
+            ),
+            need: 3,
+            got: 0,
+        });
+    }
+    let n_fit = opts.first_n.map_or(pairs.len(), |n| n.min(pairs.len()));
+    let src: Vec<Vector3<f64>> = pairs.iter().map(|&(s, _)| slam.positions[s]).collect();
+    let dst: Vec<Vector3<f64>> = pairs.iter().map(|&(_, r)| reference.positions[r]).collect();
+    let align_opts = AlignOptions {
+        scale: opts.scale,
+        method: opts.method,
+        weights: None,
+    };
+    let alignment = align(&src[..n_fit], &dst[..n_fit], &align_opts)?;
+    let t = &alignment.transform;
+    let errors: Vec<f64> = src
+        .iter()
+        .zip(&dst)
+        .map(|(s, d)| (d - t.transform_point(s)).norm())
+        .collect();
+    let ape = ApeStats::from_errors(&errors)?;
+    Ok(TrajectoryAlignment {
+        alignment,
+        pairs,
+        ape,
+        errors,
+    })
+}
+
+/// The paper's frame-to-frame scale factors
+/// `p_k = ‖t'_{k+1} − t'_k‖² / ‖t_{k+1} − t_k‖²` (`t'` reference, metres;
+/// `t` SLAM), `k = 0 … N−2`; about `s²` once the SLAM scale has settled.
+/// Errors on unequal lengths, fewer than 2 positions, non-finite values, or a
+/// SLAM step of zero length (the factor would be infinite).
+pub fn scale_factors(slam: &[Vector3<f64>], reference: &[Vector3<f64>]) -> Result<Vec<f64>> {
+    if slam.len() != reference.len() {
+        return Err(Error::ShapeMismatch {
+            what: "reference positions".into(),
+            expected: format!("({}, 3), one per SLAM position", slam.len()),
+            got: format!("({}, 3)", reference.len()),
+        });
+    }
+    if slam.len() < 2 {
+        return Err(Error::TooFew {
+            what: "positions".into(),
+            need: 2,
+            got: slam.len(),
+        });
+    }
+    for (what, pts) in [("slam positions", slam), ("reference positions", reference)] {
+        if let Some(i) = pts.iter().position(|p| p.iter().any(|v| !v.is_finite())) {
+            return Err(Error::NonFinite {
+                what: what.into(),
+                index: i,
+            });
+        }
+    }
+    let mut out = Vec::with_capacity(slam.len() - 1);
+    for k in 0..slam.len() - 1 {
+        let ds = (slam[k + 1] - slam[k]).norm_squared();
+        if ds == 0.0 {
+            return Err(Error::Degenerate {
+                reason: format!("the SLAM position does not move from {k} to {}", k + 1),
+                value: 0.0,
+            });
+        }
+        out.push((reference[k + 1] - reference[k]).norm_squared() / ds);
+    }
+    Ok(out)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn line(times: &[f64]) -> Trajectory {
+        let p = times
+            .iter()
+            .map(|&t| Vector3::new(t, 2.0 * t, 0.0))
+            .collect();
+        let q = times
+            .iter()
+            .map(|&t| UnitQuaternion::from_euler_angles(0.0, 0.0, t))
+            .collect();
+        Trajectory::try_new(times.to_vec(), p, Some(q)).unwrap()
+    }
+
+    #[test]
+    fn associate_nearest_within_max_diff() {
+        let a = line(&[0.0, 1.0, 2.0, 3.0, 4.0]);
+        let b = line(&[0.004, 1.5, 2.995, 3.008]);
+        // b is shorter: each b stamp finds its nearest a stamp.
+        assert_eq!(associate(&a, &b, 0.01, 0.0), vec![(0, 0), (3, 2), (3, 3)]);
+        assert_eq!(associate(&a, &b, 0.001, 0.0), vec![]);
+        // The offset is added to b's stamps.
+        assert_eq!(associate(&a, &b, 0.01, 0.5), vec![(2, 1)]);
+    }
+
+    #[test]
+    fn interpolate_lerp_slerp_and_gaps() {
+        let t = line(&[0.0, 1.0, 2.0, 5.0]);
+        let r = t.interpolate(&[0.25, 1.0, 2.0], 1.5).unwrap();
+        assert!((r.positions[0] - Vector3::new(0.25, 0.5, 0.0)).norm() < 1e-15);
+        let q = r.orientations.as_ref().unwrap()[0];
+        assert!((q.angle() - 0.25).abs() < 1e-12);
+        assert!(matches!(
+            t.interpolate(&[3.0], 1.5),
+            Err(Error::OutOfRange { .. })
+        ));
+        assert!(t.interpolate(&[-0.1], 1.5).is_err());
+        assert!(t.interpolate(&[5.1], 10.0).is_err());
+        let w = t
+            .interpolate_where_covered(&[-1.0, 0.5, 3.0, 5.0], 1.5)
+            .unwrap();
+        assert_eq!(w.kept, vec![1, 3]);
+        assert_eq!(w.missing, vec![0, 2]);
+        assert_eq!(w.trajectory.len(), 2);
+    }
+
+    #[test]
+    fn scale_factors_are_squared_scale() {
+        let slam: Vec<_> = (0..5).map(|i| Vector3::new(i as f64, 0.0, 1.0)).collect();
+        let reference: Vec<_> = slam.iter().map(|p| p * 3.0).collect();
+        let p = scale_factors(&slam, &reference).unwrap();
+        assert_eq!(p.len(), 4);
+        assert!(p.iter().all(|v| (v - 9.0).abs() < 1e-12));
+        assert!(scale_factors(&slam, &reference[..4]).is_err());
+        let still = vec![Vector3::zeros(); 3];
+        assert!(matches!(
+            scale_factors(&still, &reference[..3]),
+            Err(Error::Degenerate { .. })
+        ));
+    }
+
+    #[test]
+    fn ape_stats_match_definitions() {
+        let s = ApeStats::from_errors(&[1.0, 2.0, 3.0, 4.0]).unwrap();
+        assert_eq!(s.median, 2.5);
+        assert!((s.rmse - 7.5f64.sqrt()).abs() < 1e-15);
+        assert!((s.std - 1.25f64.sqrt()).abs() < 1e-15);
+        assert_eq!((s.min, s.max, s.n_pairs), (1.0, 4.0, 4));
+        assert!(ApeStats::from_errors(&[]).is_err());
+    }
+
+    #[test]
+    fn transformed_maps_positions_and_rotates() {
+        let t = line(&[0.0, 1.0]);
+        let s = Sim3::from_quaternion_xyzw([0.0, 0.0, 1.0, 1.0], Vector3::new(1.0, 0.0, 0.0), 2.0)
+            .unwrap();
+        let u = t.transformed(&s);
+        assert!((u.positions[1] - s.transform_point(&t.positions[1])).norm() < 1e-15);
+        let q = u.orientations.unwrap()[1];
+        assert!((q.angle() - (1.0 + std::f64::consts::FRAC_PI_2)).abs() < 1e-12);
     }
 }

@@ -7,9 +7,10 @@ use std::ffi::OsString;
 
 use clap::{Parser, Subcommand};
 
-use crate::error::Result;
-
+pub mod align;
 pub mod inspect;
+
+use crate::error::Result;
 
 /// Metric, gravity-aligned 3-D worlds from monocular SLAM maps.
 #[derive(Parser, Debug)]
@@ -21,12 +22,15 @@ pub struct Cli {
 
 #[derive(Subcommand, Debug)]
 enum Command {
+    /// Fit the Sim(3) between two trajectory files and print the error statistics.
+    Align(align::AlignArgs),
     /// List the topics of an MCAP log and what slam2world can use.
     Inspect(inspect::InspectArgs),
 }
 
 fn run(cli: Cli) -> Result<()> {
     match cli.command {
+        Command::Align(args) => align::run(args),
         Command::Inspect(args) => inspect::run(&args),
     }
 }

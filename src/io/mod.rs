@@ -1,3 +1,6 @@
-//! File formats: MCAP logs in and out.
+//! File formats: trajectories as text (TUM, EuRoC ground truth), point clouds
+//! (PLY, x y z text), MCAP logs.
 
 pub mod mcap;
+pub mod ply;
+pub mod text;

@@ -4,7 +4,9 @@
 use pyo3::prelude::*;
 
 mod cli;
+mod cloud;
 mod convert;
+mod core;
 mod errors;
 mod geometry;
 mod mcap;
@@ -14,6 +16,8 @@ fn _slam2world(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add("__version__", env!("CARGO_PKG_VERSION"))?;
     errors::register(m)?;
     geometry::register(m)?;
+    core::register(m)?;
+    cloud::register(m)?;
     cli::register(m)?;
     mcap::register(m)?;
     Ok(())

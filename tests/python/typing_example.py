@@ -20,3 +20,21 @@ def test_typing_example() -> None:
     out = carry(pts)
     assert out.dtype == np.float32
     np.testing.assert_allclose(out, pts, rtol=1e-6)
+
+
+def fit(slam: npt.NDArray[np.float64], world: npt.NDArray[np.float64]) -> tuple[float, float]:
+    a: s2w.Alignment = s2w.align(slam, world, scale=True, method="horn")
+    traj = s2w.Trajectory(np.arange(len(slam), dtype=np.float64), slam)
+    ref = s2w.Trajectory(np.arange(len(world), dtype=np.float64), world)
+    r: s2w.TrajectoryAlignment = s2w.align_trajectories(traj, ref, max_diff=0.01, first_n=None)
+    idx_slam, idx_ref = s2w.associate(traj, ref)
+    p: npt.NDArray[np.float64] = s2w.scale_factors(slam[idx_slam], world[idx_ref])
+    return a.transform.scale, float(r.rmse + p.mean() * 0.0)
+
+
+def test_typed_alignment() -> None:
+    rng = np.random.default_rng(0)
+    slam = rng.normal(size=(10, 3))
+    world = s2w.Sim3.from_quaternion([0.0, 0.0, 0.0, 1.0], [1.0, 0.0, 0.0], 2.0).apply(slam)
+    s, rmse = fit(slam, world)
+    assert abs(s - 2.0) < 1e-12 and rmse < 1e-12

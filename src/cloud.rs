@@ -1,0 +1,620 @@
+//! Keyframes into 3-D points: backprojection with the LSD-SLAM viewer's filters,
+//! and point clouds carried between frames by a Sim(3).
+//!
+//! A keyframe pixel `(x, y)` (column, row) with inverse depth `idepth > 0` is the
+//! camera-frame point `p_cam = ((x − cx)/fx · d, (y − cy)/fy · d, d)` with
+//! `d = 1/idepth` along z (not a ray length), exactly as the viewer draws it. The
+//! point lands in the SLAM frame through the keyframe pose `T_slam_cam`, and in the
+//! world frame through `T_world_slam · T_slam_cam`, composed once per keyframe so
+//! that every pixel is mapped in one pass.
+//!
+//! The filters ([`PointFilter`]) are those of `lsd_slam_viewer` (`KeyFrameDisplay`)
+//! with the thresholds in effect at run time. Output order is deterministic:
+//! keyframes in the order given, pixels row-major within each keyframe.
+
+use std::borrow::Borrow;
+
+use rayon::prelude::*;
+
+use crate::error::{Error, Result};
+use crate::geometry::Sim3;
+use crate::keyframe::Keyframe;
+
+/// Image rows per parallel work item: small enough to balance a few keyframes
+/// over many cores, large enough that a task's buffers amortise their growth.
+const ROWS_PER_TASK: usize = 32;
+
+/// Points per parallel work item in [`PointCloud::transformed`].
+const POINTS_PER_TASK: usize = 1 << 15;
+
+/// Which pixels of a keyframe become points: the LSD-SLAM viewer's rules.
+///
+/// A pixel is kept when, in this order (as in the viewer):
+/// 1. it is not on the image border (`skip_border`);
+/// 2. its inverse depth is finite and `> 0`;
+/// 3. the sparsify draw keeps it (`sparsify`, seeded by `seed`);
+/// 4. `idepth_var · depth⁴ ≤ scaled_depth_var` (`depth = 1/idepth`, `f32` as in the viewer);
+/// 5. `idepth_var · depth⁴ · s² ≤ abs_depth_var`, `s` the scale of the keyframe's
+///    pose `T_slam_cam` (the viewer's `camToWorld.scale()`);
+/// 6. when `min_near_support > 1`: at least that many pixels of its 3×3 block (itself
+///    included, only pixels inside the image) have `idepth_n > 0` and
+///    `(idepth_n − idepth)² < 2 · idepth_var` (the centre's variance).
+///
+/// A threshold of `+∞` turns its rule off. Rules 4–6 need a variance: a keyframe
+/// without `idepth_var` skips them. Keyframes whose arrival index (position in the
+/// input) is `≤ cut_first_keyframes` are dropped whole.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct PointFilter {
+    /// Bound on `idepth_var · depth⁴` (the viewer's `scaledDepthVarTH`), SLAM units².
+    pub scaled_depth_var: f32,
+    /// Bound on `idepth_var · depth⁴ · s²` (the viewer's `absDepthVarTH`).
+    pub abs_depth_var: f32,
+    /// Minimum count of agreeing pixels in the 3×3 block; `0` or `1` turns the rule off.
+    pub min_near_support: u32,
+    /// Keep about one positive pixel in `sparsify` (`1` keeps all; must be `≥ 1`).
+    /// The viewer draws with `rand()`; here the draw is a hash of
+    /// `(seed, keyframe id, pixel index)`, so the same input gives the same points.
+    pub sparsify: u32,
+    /// The viewer's `cutFirstNKf`: keyframes with arrival index `i ≤ n` are dropped
+    /// (`Some(5)` drops the first six); `None` keeps every keyframe.
+    pub cut_first_keyframes: Option<usize>,
+    /// Skip the one-pixel image border (the viewer always does).
+    pub skip_border: bool,
+    /// Seed of the sparsify draw.
+    pub seed: u64,
+}
+
+impl Default for PointFilter {
+    /// The viewer's run-time defaults: `scaledDepthVarTH = 1e-3`,
+    /// `absDepthVarTH = 1e-1`, `minNearSupport = 7`, `sparsifyFactor = 1`,
+    /// `cutFirstNKf = 5`, border skipped.
+    fn default() -> Self {
+        PointFilter {
+            scaled_depth_var: 1e-3,
+            abs_depth_var: 1e-1,
+            min_near_support: 7,
+            sparsify: 1,
+            cut_first_keyframes: Some(5),
+            skip_border: true,
+            seed: 0,
+        }
+    }
+}
+
+impl PointFilter {
+    /// Every rule off: keeps every pixel with a finite inverse depth `> 0`.
+    pub fn none() -> Self {
+        PointFilter {
+            scaled_depth_var: f32::INFINITY,
+            abs_depth_var: f32::INFINITY,
+            min_near_support: 0,
+            sparsify: 1,
+            cut_first_keyframes: None,
+            skip_border: false,
+            seed: 0,
+        }
+    }
+
+    /// Checks the parameters: thresholds not NaN and `≥ 0`, `sparsify ≥ 1`.
+    pub fn validate(&self) -> Result<()> {
+        for (name, v) in [
+            ("scaled_depth_var", self.scaled_depth_var),
+            ("abs_depth_var", self.abs_depth_var),
+        ] {
+            if v.is_nan() || v < 0.0 {
+                return Err(Error::invalid(name, format!("must be >= 0, got {v}")));
+            }
+        }
+        if self.sparsify == 0 {
+            return Err(Error::invalid("sparsify", "must be >= 1, got 0"));
+        }
+        Ok(())
+    }
+
+    /// True when the keyframe at arrival index `index` is dropped whole.
+    pub fn cuts(&self, index: usize) -> bool {
+        self.cut_first_keyframes.is_some_and(|n| index <= n)
+    }
+}
+
+/// A point cloud: `N` points (row-major `(N, 3)` `f32`), optional colours and the
+/// id of the keyframe each point came from.
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct PointCloud {
+    /// Coordinates, `N × 3` row-major, in the frame the producer states.
+    pub points: Vec<f32>,
+    /// Colours, `N × 3` bytes in the order of the source (RGB for PLY).
+    pub colors: Option<Vec<u8>>,
+    /// Source keyframe id of each point (`N` values; `-1` when unknown).
+    pub keyframe_ids: Vec<i32>,
+}
+
+impl PointCloud {
+    /// Builds a cloud, checking the lengths; `keyframe_ids = None` gives `-1` for all.
+    pub fn try_new(
+        points: Vec<f32>,
+        colors: Option<Vec<u8>>,
+        keyframe_ids: Option<Vec<i32>>,
+    ) -> Result<Self> {
+        if points.len() % 3 != 0 {
+            return Err(Error::ShapeMismatch {
+                what: "points".into(),
+                expected: "(N, 3)".into(),
+                got: format!("{} values", points.len()),
+            });
+        }
+        let n = points.len() / 3;
+        if let Some(c) = &colors {
+            if c.len() != 3 * n {
+                return Err(Error::ShapeMismatch {
+                    what: "colors".into(),
+                    expected: format!("({n}, 3)"),
+                    got: format!("{} values", c.len()),
+                });
+            }
+        }
+        let keyframe_ids = match keyframe_ids {
+            Some(ids) if ids.len() != n => {
+                return Err(Error::ShapeMismatch {
+                    what: "keyframe_ids".into(),
+                    expected: format!("({n},)"),
+                    got: format!("({},)", ids.len()),
+                })
+            }
+            Some(ids) => ids,
+            None => vec![-1; n],
+        };
+        Ok(PointCloud {
+            points,
+            colors,
+            keyframe_ids,
+        })
+    }
+
+    /// Number of points.
+    pub fn len(&self) -> usize {
+        self.points.len() / 3
+    }
+
+    /// True when the cloud has no points.
+    pub fn is_empty(&self) -> bool {
+        self.points.is_empty()
+    }
+
+    /// The cloud carried by `t` (`T_b_a` for a cloud in frame a gives it in frame b),
+    /// in parallel; colours and keyframe ids are copied unchanged.
+    pub fn transformed(&self, t: &Sim3) -> Result<PointCloud> {
+        Ok(PointCloud {
+            points: transform_points_f32(t, &self.points)?,
+            colors: self.colors.clone(),
+            keyframe_ids: self.keyframe_ids.clone(),
+        })
+    }
+
+    /// Carries the cloud by `t` in place (see [`PointCloud::transformed`]).
+    pub fn transform_in_place(&mut self, t: &Sim3) -> Result<()> {
+        t.transform_points_in_place(&mut self.points)
+    }
+}
+
+/// `T · p` for row-major `(N, 3)` `f32` points, into a new vector, in parallel.
+/// The arithmetic is `f64`; the output is written once (no zero-fill pass).
+pub fn transform_points_f32(t: &Sim3, src: &[f32]) -> Result<Vec<f32>> {
+    if src.len() % 3 != 0 {
+        return Err(Error::ShapeMismatch {
+            what: "points".into(),
+            expected: "(N, 3)".into(),
+            got: format!("{} values", src.len()),
+        });
+    }
+    let (m, tr) = affine(t);
+    let mut out: Vec<f32> = Vec::with_capacity(src.len());
+    let chunk = 3 * POINTS_PER_TASK;
+    out.spare_capacity_mut()[..src.len()]
+        .par_chunks_mut(chunk)
+        .zip(src.par_chunks(chunk))
+        .for_each(|(d, s)| {
+            for (d, s) in d.chunks_exact_mut(3).zip(s.chunks_exact(3)) {
+                let p = [s[0] as f64, s[1] as f64, s[2] as f64];
+                for k in 0..3 {
+                    let v = m[k][0] * p[0] + m[k][1] * p[1] + m[k][2] * p[2] + tr[k];
+                    d[k].write(v as f32);
+                }
+            }
+        });
+    // SAFETY: the parallel loop above wrote every one of the first `src.len()`
+    // elements (the chunks of `d` and `s` pair up exactly, both of length src.len()).
+    unsafe { out.set_len(src.len()) };
+    Ok(out)
+}
+
+/// `s·R` (row-major) and `t` of a transform.
+fn affine(t: &Sim3) -> ([[f64; 3]; 3], [f64; 3]) {
+    let r = t.rotation_matrix() * t.scale;
+    (
+        [
+            [r[(0, 0)], r[(0, 1)], r[(0, 2)]],
+            [r[(1, 0)], r[(1, 1)], r[(1, 2)]],
+            [r[(2, 0)], r[(2, 1)], r[(2, 2)]],
+        ],
+        [t.translation.x, t.translation.y, t.translation.z],
+    )
+}
+
+/// SplitMix64 finaliser (Steele, Lea & Flood 2014): a well-mixed 64-bit hash.
+#[inline(always)]
+fn splitmix64(z: u64) -> u64 {
+    let mut z = z.wrapping_add(0x9E37_79B9_7F4A_7C15);
+    z = (z ^ (z >> 30)).wrapping_mul(0xBF58_476D_1CE4_E5B9);
+    z = (z ^ (z >> 27)).wrapping_mul(0x94D0_49BB_1331_11EB);
+    z ^ (z >> 31)
+}
+
+/// The sparsify draw: keeps pixel `pixel` (index `x + y·W`) of keyframe `id` when
+/// `splitmix64(((id as u32) << 32 ^ pixel) ^ seed) mod factor == 0`.
+#[inline]
+pub fn sparsify_keeps(seed: u64, id: i32, pixel: usize, factor: u32) -> bool {
+    let key = ((id as u32 as u64) << 32) ^ pixel as u64;
+    splitmix64(key ^ seed) % factor as u64 == 0
+}
+
+/// One keyframe prepared for the pixel loop: its image and `T_world_cam` folded
+/// with the intrinsics.
+struct Prepared<'a> {
+    kf: &'a Keyframe,
+    /// `s·R` of `T_world_cam`, row-major.
+    m: [[f64; 3]; 3],
+    /// Translation of `T_world_cam`.
+    t: [f64; 3],
+    /// The keyframe pose's scale as `f32` (the viewer's `camToWorld.scale()`).
+    pose_scale: f32,
+}
+
+/// Output of one work item (a block of rows of one keyframe).
+#[derive(Default)]
+struct Block {
+    points: Vec<f32>,
+    colors: Vec<u8>,
+    id: i32,
+}
+
+/// Backprojects `keyframes` through `filter`. With `transform = Some(T_world_slam)`
+/// the points are in the world frame (`T_world_slam · T_slam_cam · p_cam`, composed
+/// once per keyframe); without it they are in the SLAM frame.
+///
+/// Parallel over keyframes and blocks of rows; the output is in keyframe order,
+/// then row-major. Colours are returned when every keyframe has colour.
+pub fn backproject<K: Borrow<Keyframe> + Sync>(
+    keyframes: &[K],
+    filter: &PointFilter,
+    transform: Option<&Sim3>,
+) -> Result<PointCloud> {
+    let t = transform.copied().unwrap_or_else(Sim3::identity);
+    backproject_with(keyframes, filter, |_| t)
+}
+
+/// Like [`backproject`], with its own `T_world_slam` for each keyframe
+/// (`transforms[i]` carries `keyframes[i]`), for drift-aware alignments.
+pub fn backproject_per_keyframe<K: Borrow<Keyframe> + Sync>(
+    keyframes: &[K],
+    filter: &PointFilter,
+    transforms: &[Sim3],
+) -> Result<PointCloud> {
+    if transforms.len() != keyframes.len() {
+        return Err(Error::ShapeMismatch {
+            what: "transforms".into(),
+            expected: format!("one per keyframe ({})", keyframes.len()),
+            got: format!("{}", transforms.len()),
+        });
+    }
+    backproject_with(keyframes, filter, |i| transforms[i])
+}
+
+fn backproject_with<K: Borrow<Keyframe> + Sync>(
+    keyframes: &[K],
+    filter: &PointFilter,
+    world_slam: impl Fn(usize) -> Sim3,
+) -> Result<PointCloud> {
+    filter.validate()?;
+    let with_color = !keyframes.is_empty() && keyframes.iter().all(|k| k.borrow().color.is_some());
+    let mut prepared = Vec::new();
+    for (i, k) in keyframes.iter().enumerate() {
+        let kf = k.borrow();
+        check_keyframe(kf)?;
+        if filter.cuts(i) {
+            continue;
+        }
+        let (m, t) = affine(&(world_slam(i) * kf.pose));
+        prepared.push(Prepared {
+            kf,
+            m,
+            t,
+            pose_scale: kf.pose.scale as f32,
+        });
+    }
+    let tasks: Vec<(usize, usize)> = prepared
+        .iter()
+        .enumerate()
+        .flat_map(|(k, p)| {
+            let h = p.kf.camera.height as usize;
+            (0..h.div_ceil(ROWS_PER_TASK)).map(move |b| (k, b * ROWS_PER_TASK))
+        })
+        .collect();
+    let blocks: Vec<Block> = tasks
+        .par_iter()
+        .map(|&(k, y0)| {
+            let p = &prepared[k];
+            let y1 = (y0 + ROWS_PER_TASK).min(p.kf.camera.height as usize);
+            let mut b = Block {
+                id: p.kf.id,
+                ..Block::default()
+            };
+            for y in y0..y1 {
+                backproject_row(p, filter, y, with_color, &mut b);
+            }
+            b
+        })
+        .collect();
+    Ok(concat(blocks, with_color))
+}
+
+/// Keyframe arrays must match the camera (a `Keyframe` built by `try_new` does).
+fn check_keyframe(kf: &Keyframe) -> Result<()> {
+    let n = kf.camera.width as usize * kf.camera.height as usize;
+    let var_ok = kf.idepth_var.as_ref().is_none_or(|v| v.len() == n);
+    let col_ok = kf.color.as_ref().is_none_or(|c| c.len() == 3 * n);
+    if kf.idepth.len() != n || !var_ok || !col_ok {
+        return Err(Error::ShapeMismatch {
+            what: format!("keyframe {} arrays", kf.id),
+            expected: format!("{}x{} pixels", kf.camera.height, kf.camera.width),
+            got: format!("{} inverse depths", kf.idepth.len()),
+        });
+    }
+    Ok(())
+}
+
+/// `value ≤ threshold`, false for NaN (a NaN variance fails the test).
+#[inline(always)]
+fn within(value: f32, threshold: f32) -> bool {
+    value <= threshold
+}
+
+/// The filter and the backprojection for one image row.
+#[inline]
+fn backproject_row(p: &Prepared<'_>, f: &PointFilter, y: usize, with_color: bool, out: &mut Block) {
+    let kf = p.kf;
+    let (w, h) = (kf.camera.width as usize, kf.camera.height as usize);
+    let (x0, x1) = if f.skip_border {
+        if y == 0 || y + 1 >= h || w < 3 {
+            return;
+        }
+        (1, w - 1)
+    } else {
+        (0, w)
+    };
+    let idepth = &kf.idepth;
+    let var = kf.idepth_var.as_deref();
+    let scaled_on = f.scaled_depth_var.is_finite();
+    let abs_on = f.abs_depth_var.is_finite();
+    let support_on = f.min_near_support > 1;
+    let s = p.pose_scale;
+    let cam = &kf.camera;
+    let v = (y as f64 - cam.cy) / cam.fy;
+    let m = &p.m;
+    // T_world_cam · (u·d, v·d, d) = d · (u·m₀ + v·m₁ + m₂) + t, m_k the columns of sR.
+    let row = [
+        v * m[0][1] + m[0][2],
+        v * m[1][1] + m[1][2],
+        v * m[2][1] + m[2][2],
+    ];
+    let (ylo, yhi) = (y.saturating_sub(1), (y + 1).min(h - 1));
+    for x in x0..x1 {
+        let i = x + y * w;
+        let id = idepth[i];
+        if !(id > 0.0 && id.is_finite()) {
+            continue;
+        }
+        if f.sparsify > 1 && !sparsify_keeps(f.seed, kf.id, i, f.sparsify) {
+            continue;
+        }
+        if let Some(var) = var {
+            let vi = var[i];
+            let depth = 1.0f32 / id;
+            let d2 = depth * depth;
+            let d4 = d2 * d2;
+            if scaled_on && !within(vi * d4, f.scaled_depth_var) {
+                continue;
+            }
+            if abs_on && !within(vi * d4 * s * s, f.abs_depth_var) {
+                continue;
+            }
+            if support_on {
+                let two_var = 2.0 * vi;
+                let (xlo, xhi) = (x.saturating_sub(1), (x + 1).min(w - 1));
+                let mut support = 0u32;
+                for ny in ylo..=yhi {
+                    for &n in &idepth[xlo + ny * w..=xhi + ny * w] {
+                        let diff = n - id;
+                        if n > 0.0 && diff * diff < two_var {
+                            support += 1;
+                        }
+                    }
+                }
+                if support < f.min_near_support {
+                    continue;
+                }
+            }
+        }
+        let d = 1.0 / id as f64;
+        let u = (x as f64 - cam.cx) / cam.fx;
+        for k in 0..3 {
+            out.points
+                .push((d * (u * m[k][0] + row[k]) + p.t[k]) as f32);
+        }
+        if with_color {
+            if let Some(c) = &kf.color {
+                out.colors.extend_from_slice(&c[3 * i..3 * i + 3]);
+            }
+        }
+    }
+}
+
+/// Concatenates the blocks in order, copying in parallel into buffers of the final size.
+fn concat(blocks: Vec<Block>, with_color: bool) -> PointCloud {
+    let total: usize = blocks.iter().map(|b| b.points.len() / 3).sum();
+    let mut points = vec![0f32; 3 * total];
+    let mut colors = if with_color {
+        vec![0u8; 3 * total]
+    } else {
+        Vec::new()
+    };
+    let mut ids = vec![0i32; total];
+    {
+        let mut jobs = Vec::with_capacity(blocks.len());
+        let (mut pr, mut cr, mut ir) = (&mut points[..], &mut colors[..], &mut ids[..]);
+        for b in &blocks {
+            let n = b.points.len() / 3;
+            let (p, p_rest) = pr.split_at_mut(3 * n);
+            let (c, c_rest) = cr.split_at_mut(if with_color { 3 * n } else { 0 });
+            let (i, i_rest) = ir.split_at_mut(n);
+            jobs.push((b, p, c, i));
+            (pr, cr, ir) = (p_rest, c_rest, i_rest);
+        }
+        jobs.into_par_iter().for_each(|(b, p, c, i)| {
+            p.copy_from_slice(&b.points);
+            if with_color {
+                c.copy_from_slice(&b.colors);
+            }
+            i.fill(b.id);
+        });
+    }
+    PointCloud {
+        points,
+        colors: with_color.then_some(colors),
+        keyframe_ids: ids,
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::geometry::PinholeCamera;
+    use nalgebra::Vector3;
+
+    fn keyframe(id: i32, w: u32, h: u32, idepth: Vec<f32>, var: Option<Vec<f32>>) -> Keyframe {
+        let cam =
+            PinholeCamera::try_new(100.0, 120.0, w as f64 / 2.0, h as f64 / 2.0, w, h).unwrap();
+        Keyframe::try_new(id, id as f64, Sim3::identity(), cam, idepth, var, None).unwrap()
+    }
+
+    #[test]
+    fn none_keeps_every_positive_pixel_at_its_pinhole_point() {
+        let (w, h) = (5u32, 4u32);
+        let idepth: Vec<f32> = (0..20)
+            .map(|i| if i % 3 == 0 { 0.0 } else { 0.5 })
+            .collect();
+        let kf = keyframe(3, w, h, idepth.clone(), None);
+        let cloud = backproject(std::slice::from_ref(&kf), &PointFilter::none(), None).unwrap();
+        let expected = idepth.iter().filter(|&&v| v > 0.0).count();
+        assert_eq!(cloud.len(), expected);
+        assert!(cloud.keyframe_ids.iter().all(|&i| i == 3));
+        // Pixel (1, 0) is the first kept: depth 2 along z.
+        let p = kf.camera.backproject(1.0, 0.0, 2.0);
+        for (got, want) in cloud.points.iter().zip(p) {
+            assert!((*got as f64 - want).abs() < 1e-6);
+        }
+    }
+
+    #[test]
+    fn default_cuts_the_first_six_keyframes_and_the_border() {
+        let kfs: Vec<Keyframe> = (0..8)
+            .map(|i| keyframe(i, 4, 4, vec![1.0; 16], Some(vec![1e-6; 16])))
+            .collect();
+        let cloud = backproject(&kfs, &PointFilter::default(), None).unwrap();
+        // Two keyframes survive, each with its 2x2 interior (full 3x3 support).
+        assert_eq!(cloud.len(), 8);
+        assert_eq!(&cloud.keyframe_ids[..], &[6, 6, 6, 6, 7, 7, 7, 7]);
+    }
+
+    #[test]
+    fn fused_transform_equals_transform_after() {
+        let mut kf = keyframe(1, 6, 5, vec![0.25; 30], None);
+        kf.pose =
+            Sim3::from_quaternion_xyzw([0.1, 0.2, -0.3, 0.9], Vector3::new(1.0, 2.0, 3.0), 0.7)
+                .unwrap();
+        let t = Sim3::from_quaternion_xyzw([0.0, 0.3, 0.0, 1.0], Vector3::new(-4.0, 0.5, 2.0), 3.0)
+            .unwrap();
+        let f = PointFilter::none();
+        let fused = backproject(&[&kf], &f, Some(&t)).unwrap();
+        let after = backproject(&[&kf], &f, None)
+            .unwrap()
+            .transformed(&t)
+            .unwrap();
+        assert_eq!(fused.len(), 30);
+        for (a, b) in fused.points.iter().zip(&after.points) {
+            assert!((a - b).abs() <= 1e-5 * a.abs().max(1.0));
+        }
+        let per = backproject_per_keyframe(&[&kf], &f, &[t]).unwrap();
+        assert_eq!(per.points, fused.points);
+        assert!(backproject_per_keyframe(&[&kf], &f, &[]).is_err());
+    }
+
+    #[test]
+    fn sparsify_is_deterministic_and_near_its_rate() {
+        let kf = keyframe(2, 100, 100, vec![1.0; 10_000], None);
+        let f = PointFilter {
+            sparsify: 4,
+            ..PointFilter::none()
+        };
+        let a = backproject(&[&kf], &f, None).unwrap();
+        let b = backproject(&[&kf], &f, None).unwrap();
+        assert_eq!(a, b);
+        assert!((2200..2800).contains(&a.len()), "kept {}", a.len());
+        let c = backproject(&[&kf], &PointFilter { seed: 9, ..f }, None).unwrap();
+        assert_ne!(a.points, c.points);
+    }
+
+    #[test]
+    fn rejects_bad_filters_and_inconsistent_keyframes() {
+        let kf = keyframe(0, 3, 3, vec![1.0; 9], None);
+        let bad = PointFilter {
+            sparsify: 0,
+            ..PointFilter::none()
+        };
+        assert!(backproject(&[&kf], &bad, None).is_err());
+        let nan = PointFilter {
+            scaled_depth_var: f32::NAN,
+            ..PointFilter::none()
+        };
+        assert!(backproject(&[&kf], &nan, None).is_err());
+        let mut broken = kf.clone();
+        broken.idepth.pop();
+        assert!(backproject(&[broken], &PointFilter::none(), None).is_err());
+    }
+
+    #[test]
+    fn transformed_matches_sim3_point_map() {
+        let t =
+            Sim3::from_quaternion_xyzw([0.4, -0.1, 0.2, 0.8], Vector3::new(1.0, -1.0, 0.5), 2.5)
+                .unwrap();
+        let n = 3 * POINTS_PER_TASK + 5;
+        let pts: Vec<f32> = (0..3 * n)
+            .map(|i| ((i * 37) % 101) as f32 * 0.1 - 5.0)
+            .collect();
+        let cloud = PointCloud::try_new(pts.clone(), None, None).unwrap();
+        let out = cloud.transformed(&t).unwrap();
+        for i in (0..n).step_by(331) {
+            let p = Vector3::new(
+                pts[3 * i] as f64,
+                pts[3 * i + 1] as f64,
+                pts[3 * i + 2] as f64,
+            );
+            let q = t.transform_point(&p);
+            for k in 0..3 {
+                assert!((out.points[3 * i + k] as f64 - q[k]).abs() < 1e-5 * q[k].abs().max(1.0));
+            }
+        }
+        assert!(transform_points_f32(&t, &pts[..4]).is_err());
+        assert!(PointCloud::try_new(vec![0.0; 6], Some(vec![0; 3]), None).is_err());
+    }
+}

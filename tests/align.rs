@@ -1,0 +1,274 @@
+//! Property tests of the closed-form alignment and of Sim(3) algebra: random
+//! transforms (scales 1e-3 … 1e3, 15.49 among them), noise-free round trips,
+//! Horn against Umeyama, degenerate input.
+
+use nalgebra::{Matrix4, UnitQuaternion, Vector3, Vector4};
+use rand::{Rng, SeedableRng};
+use rand_chacha::ChaCha8Rng;
+use rand_distr::{Distribution, StandardNormal, UnitSphere};
+use slam2world::align::{align, align_flat, AlignMethod, AlignOptions};
+use slam2world::{Error, Sim3};
+
+fn random_rotation(rng: &mut ChaCha8Rng) -> UnitQuaternion<f64> {
+    let axis: [f64; 3] = UnitSphere.sample(rng);
+    let angle = rng.random_range(-3.1..3.1);
+    UnitQuaternion::from_scaled_axis(Vector3::from(axis) * angle)
+}
+
+fn random_sim3(rng: &mut ChaCha8Rng, scale: f64) -> Sim3 {
+    let t = Vector3::new(
+        rng.random_range(-100.0..100.0),
+        rng.random_range(-100.0..100.0),
+        rng.random_range(-100.0..100.0),
+    );
+    Sim3::try_new(random_rotation(rng), t, scale).unwrap()
+}
+
+fn random_cloud(rng: &mut ChaCha8Rng, n: usize, spread: f64, centre: f64) -> Vec<Vector3<f64>> {
+    let c = Vector3::new(centre, -centre, 0.5 * centre);
+    (0..n)
+        .map(|_| {
+            let g: [f64; 3] = [
+                StandardNormal.sample(rng),
+                StandardNormal.sample(rng),
+                StandardNormal.sample(rng),
+            ];
+            c + Vector3::from(g) * spread
+        })
+        .collect()
+}
+
+fn scales(rng: &mut ChaCha8Rng) -> Vec<f64> {
+    let mut s = vec![1e-3, 0.0646, 1.0, 15.49, 1e3];
+    s.extend((0..10).map(|_| 10f64.powf(rng.random_range(-3.0..3.0))));
+    s
+}
+
+/// Differences between two transforms: relative scale, rotation angle (rad),
+/// translation relative to the target's size.
+fn diff(a: &Sim3, b: &Sim3, size: f64) -> (f64, f64, f64) {
+    (
+        (a.scale - b.scale).abs() / b.scale,
+        a.rotation.angle_to(&b.rotation),
+        (a.translation - b.translation).norm() / size,
+    )
+}
+
+#[test]
+fn noise_free_round_trips_recover_the_transform() {
+    let mut rng = ChaCha8Rng::seed_from_u64(7);
+    for s in scales(&mut rng) {
+        for method in [AlignMethod::Horn, AlignMethod::Umeyama] {
+            let n = rng.random_range(3..400);
+            let a = random_cloud(&mut rng, n, 2.0, 5.0);
+            let t = random_sim3(&mut rng, s);
+            let b: Vec<_> = a.iter().map(|p| t.transform_point(p)).collect();
+            let opts = AlignOptions {
+                method,
+                ..Default::default()
+            };
+            let r = align(&a, &b, &opts).unwrap();
+            let size = t.translation.norm() + s * 10.0;
+            let (ds, da, dt) = diff(&r.transform, &t, size);
+            assert!(
+                ds < 1e-9 && da < 1e-9 && dt < 1e-9,
+                "s={s} {method:?} n={n}: {ds:e} {da:e} {dt:e}"
+            );
+            // Guards the paper's inverted formula: it would return 1/s.
+            if (s - 1.0).abs() > 1e-3 {
+                assert!((r.transform.scale * s - 1.0).abs() > 1e-3);
+            }
+            assert!(r.rmse <= 1e-9 * s * 10.0);
+        }
+    }
+}
+
+#[test]
+fn horn_equals_umeyama_on_noisy_data() {
+    let mut rng = ChaCha8Rng::seed_from_u64(11);
+    for s in scales(&mut rng) {
+        for scale in [true, false] {
+            let n = rng.random_range(3..2000);
+            let a = random_cloud(&mut rng, n, 1.0, 3.0);
+            let t = random_sim3(&mut rng, s);
+            let b: Vec<_> = a
+                .iter()
+                .map(|p| {
+                    let e: [f64; 3] = [
+                        StandardNormal.sample(&mut rng),
+                        StandardNormal.sample(&mut rng),
+                        StandardNormal.sample(&mut rng),
+                    ];
+                    t.transform_point(p) + Vector3::from(e) * 0.05 * s
+                })
+                .collect();
+            let opts = |method| AlignOptions {
+                method,
+                scale,
+                weights: None,
+            };
+            let h = align(&a, &b, &opts(AlignMethod::Horn)).unwrap();
+            let u = align(&a, &b, &opts(AlignMethod::Umeyama)).unwrap();
+            let (ds, da, dt) = diff(&h.transform, &u.transform, t.translation.norm() + s * 10.0);
+            assert!(
+                ds < 1e-9 && da < 1e-9 && dt < 1e-9,
+                "s={s}: {ds:e} {da:e} {dt:e}"
+            );
+            assert!((h.rmse - u.rmse).abs() <= 1e-9 * u.rmse);
+        }
+    }
+}
+
+#[test]
+fn least_squares_optimum_and_scale_direction() {
+    // Perturbing the optimum in scale, rotation or translation never lowers
+    // the sum of squared residuals; s is target units per source unit.
+    let mut rng = ChaCha8Rng::seed_from_u64(3);
+    let a = random_cloud(&mut rng, 300, 1.0, 0.0);
+    let t = random_sim3(&mut rng, 15.49);
+    let b: Vec<_> = a
+        .iter()
+        .map(|p| t.transform_point(p) + Vector3::new(rng.random_range(-0.5..0.5), 0.0, 0.0))
+        .collect();
+    let r = align(&a, &b, &AlignOptions::default()).unwrap();
+    let sse = |x: &Sim3| -> f64 {
+        a.iter()
+            .zip(&b)
+            .map(|(p, q)| (q - x.transform_point(p)).norm_squared())
+            .sum()
+    };
+    let best = sse(&r.transform);
+    assert!((best / 300.0).sqrt() - r.rmse < 1e-12);
+    let o = r.transform;
+    for k in [
+        Sim3 {
+            scale: o.scale * 1.001,
+            ..o
+        },
+        Sim3 {
+            scale: o.scale / 1.001,
+            ..o
+        },
+        Sim3 {
+            scale: 1.0 / o.scale,
+            ..o
+        },
+        Sim3 {
+            rotation: UnitQuaternion::from_euler_angles(1e-3, 0.0, 0.0) * o.rotation,
+            ..o
+        },
+        Sim3 {
+            translation: o.translation + Vector3::new(0.0, 0.0, 1e-3),
+            ..o
+        },
+    ] {
+        assert!(sse(&k) > best);
+    }
+}
+
+#[test]
+fn large_inputs_parallel_path_and_far_from_origin() {
+    let mut rng = ChaCha8Rng::seed_from_u64(5);
+    // 200 000 pairs 1e5 units from the origin with unit spread.
+    let a = random_cloud(&mut rng, 200_000, 1.0, 1e5);
+    let t = random_sim3(&mut rng, 0.37);
+    let b: Vec<_> = a.iter().map(|p| t.transform_point(p)).collect();
+    let r = align(&a, &b, &AlignOptions::default()).unwrap();
+    assert!((r.transform.scale / 0.37 - 1.0).abs() < 1e-9);
+    assert!(r.transform.rotation.angle_to(&t.rotation) < 1e-9);
+    assert!(r.rmse < 1e-9 * 1e5);
+    // The flat (NumPy layout) entry point gives the same answer.
+    let flat = |v: &[Vector3<f64>]| v.iter().flat_map(|p| [p.x, p.y, p.z]).collect::<Vec<_>>();
+    let f = align_flat(&flat(&a), &flat(&b), &AlignOptions::default()).unwrap();
+    assert_eq!(f.transform, r.transform);
+    assert_eq!(f.residuals, r.residuals);
+    assert!(matches!(
+        align_flat(&[0.0; 10], &[0.0; 10], &AlignOptions::default()),
+        Err(Error::ShapeMismatch { .. })
+    ));
+}
+
+#[test]
+fn degenerate_input_is_refused_with_its_diagnostic() {
+    let mut rng = ChaCha8Rng::seed_from_u64(9);
+    let a = random_cloud(&mut rng, 20, 1.0, 0.0);
+    let d = AlignOptions::default();
+    for method in [AlignMethod::Horn, AlignMethod::Umeyama] {
+        let o = AlignOptions {
+            method,
+            ..d.clone()
+        };
+        let p = vec![Vector3::new(0.5, 0.5, 0.5); 20];
+        match align(&p, &a, &o) {
+            Err(Error::Degenerate { reason, value }) => {
+                assert!(reason.contains("source points coincide"), "{reason}");
+                assert!(value < 1e-12);
+            }
+            other => panic!("{other:?}"),
+        }
+        assert!(matches!(align(&a, &p, &o), Err(Error::Degenerate { .. })));
+        let dir = Vector3::new(0.3, -1.0, 2.0);
+        let line: Vec<_> = (0..20).map(|i| dir * (i as f64 * 0.1 - 1.0)).collect();
+        let t = random_sim3(&mut rng, 2.0);
+        let mapped: Vec<_> = line.iter().map(|p| t.transform_point(p)).collect();
+        match align(&line, &mapped, &o) {
+            Err(Error::Degenerate { reason, value }) => {
+                assert!(reason.contains("collinear"), "{reason}");
+                assert!(value < 1e-9);
+            }
+            other => panic!("{other:?}"),
+        }
+        assert!(matches!(
+            align(&a[..2], &a[..2], &o),
+            Err(Error::TooFew {
+                need: 3,
+                got: 2,
+                ..
+            })
+        ));
+        let mut inf = a.clone();
+        inf[4].x = f64::INFINITY;
+        assert!(matches!(
+            align(&inf, &a, &o),
+            Err(Error::NonFinite { index: 4, .. })
+        ));
+    }
+    // Planar points determine the rotation.
+    let plane: Vec<_> = a.iter().map(|p| Vector3::new(p.x, p.y, 0.0)).collect();
+    let t = random_sim3(&mut rng, 3.0);
+    let mapped: Vec<_> = plane.iter().map(|p| t.transform_point(p)).collect();
+    let r = align(&plane, &mapped, &d).unwrap();
+    assert!(r.transform.rotation.angle_to(&t.rotation) < 1e-9);
+    assert!(r.diagnostics.singular_values[2] < 1e-9 * r.diagnostics.singular_values[0]);
+}
+
+#[test]
+fn sim3_algebra_agrees_with_4x4_matrices() {
+    let mut rng = ChaCha8Rng::seed_from_u64(13);
+    let h = |p: &Vector3<f64>| Vector4::new(p.x, p.y, p.z, 1.0);
+    for s in scales(&mut rng) {
+        let a = random_sim3(&mut rng, s);
+        let b = random_sim3(&mut rng, 1.0 / s.sqrt());
+        let (ma, mb) = (a.matrix(), b.matrix());
+        let tol = |m: &Matrix4<f64>| 1e-12 * m.amax().max(1.0);
+        let ab = (a * b).matrix();
+        assert!((ab - ma * mb).amax() < tol(&ab));
+        let inv = a.inverse().matrix();
+        let m_inv = ma.try_inverse().unwrap();
+        assert!((inv - m_inv).amax() < 1e-9 * m_inv.amax());
+        assert!((a * a.inverse())
+            .matrix()
+            .relative_eq(&Matrix4::identity(), 1e-9, 1e-9));
+        let p = random_cloud(&mut rng, 100, 3.0, 1.0);
+        let flat: Vec<f64> = p.iter().flat_map(|v| [v.x, v.y, v.z]).collect();
+        let out = a.transform_points(&flat).unwrap();
+        for (i, v) in p.iter().enumerate() {
+            let q = ma * h(v);
+            for k in 0..3 {
+                assert!((out[3 * i + k] - q[k]).abs() < 1e-12 * q.amax().max(1.0));
+            }
+        }
+        let back = Sim3::from_matrix(&ma).unwrap();
+        assert!((back.scale / s - 1.0).abs() < 1e-12);
+    }
+}

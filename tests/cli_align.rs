@@ -1,0 +1,172 @@
+//! `slam2world align` as a user runs it: exit codes 0 / 1 (bad data, one
+//! line) / 2 (usage), text and JSON output.
+
+use std::path::{Path, PathBuf};
+use std::process::{Command, Output};
+
+fn bin(args: &[&str]) -> Output {
+    Command::new(env!("CARGO_BIN_EXE_slam2world"))
+        .args(args)
+        .output()
+        .expect("the slam2world binary runs")
+}
+
+fn data(folder: &str, file: &str) -> Option<PathBuf> {
+    let p = Path::new(env!("CARGO_MANIFEST_DIR"))
+        .join("../shared/data")
+        .join(folder)
+        .join(file);
+    if p.exists() {
+        Some(p)
+    } else {
+        eprintln!("skipped: {} is absent", p.display());
+        None
+    }
+}
+
+fn stderr(o: &Output) -> String {
+    String::from_utf8_lossy(&o.stderr).into_owned()
+}
+
+/// A synthetic pair of TUM files: `est` is `ref` mapped by a known Sim(3) inverse.
+fn synthetic(dir: &Path) -> (PathBuf, PathBuf) {
+    let (est, reference) = (dir.join("est.txt"), dir.join("ref.txt"));
+    let mut e = String::from("# t x y z qx qy qz qw\n");
+    let mut r = String::new();
+    for i in 0..40 {
+        let t = i as f64 * 0.1;
+        let p = [t.sin(), (2.0 * t).cos(), 0.3 * t];
+        // ref = 4 · Rz(90°) · est + (1, 2, 3)  ⇒  est = Rz(−90°)(ref − t) / 4
+        let q = [p[0] - 1.0, p[1] - 2.0, p[2] - 3.0];
+        let s = [q[1] / 4.0, -q[0] / 4.0, q[2] / 4.0];
+        e += &format!("{t} {} {} {} 0 0 0 1\n", s[0], s[1], s[2]);
+        r += &format!("{t} {} {} {} 0 0 0 1\n", p[0], p[1], p[2]);
+    }
+    std::fs::write(&est, e).unwrap();
+    std::fs::write(&reference, r).unwrap();
+    (est, reference)
+}
+
+#[test]
+fn prints_transform_and_ape_and_exits_0() {
+    let dir = tempfile::tempdir().unwrap();
+    let (est, reference) = synthetic(dir.path());
+    let (e, r) = (est.to_str().unwrap(), reference.to_str().unwrap());
+    let o = bin(&["align", e, r]);
+    assert_eq!(o.status.code(), Some(0), "{}", stderr(&o));
+    let text = String::from_utf8_lossy(&o.stdout);
+    assert!(text.contains("matched 40 pairs"), "{text}");
+    assert!(text.contains("scale        4.000000000000"), "{text}");
+
+    let o = bin(&["align", e, r, "--json", "--method", "umeyama"]);
+    assert_eq!(o.status.code(), Some(0));
+    let v: serde_json::Value = serde_json::from_slice(&o.stdout).unwrap();
+    assert!((v["scale"].as_f64().unwrap() - 4.0).abs() < 1e-9);
+    let t: Vec<f64> = v["translation"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|x| x.as_f64().unwrap())
+        .collect();
+    assert!((t[0] - 1.0).abs() < 1e-9 && (t[1] - 2.0).abs() < 1e-9 && (t[2] - 3.0).abs() < 1e-9);
+    assert!(v["ape"]["rmse"].as_f64().unwrap() < 1e-9);
+    assert_eq!(v["ape"]["n_pairs"], 40);
+
+    let o = bin(&["align", e, r, "--json", "--no-scale", "--n-to-align", "10"]);
+    let v: serde_json::Value = serde_json::from_slice(&o.stdout).unwrap();
+    assert_eq!(v["scale"], 1.0);
+    assert_eq!(v["n_fitted"], 10);
+    // An offset of a whole second moves every pair off its match but 30 remain.
+    let o = bin(&["align", e, r, "--json", "--offset", "-1.0"]);
+    assert_eq!(o.status.code(), Some(0), "{}", stderr(&o));
+    let v: serde_json::Value = serde_json::from_slice(&o.stdout).unwrap();
+    assert_eq!(v["n_pairs"], 30);
+}
+
+#[test]
+fn bad_data_exits_1_with_one_line() {
+    let dir = tempfile::tempdir().unwrap();
+    let (est, reference) = synthetic(dir.path());
+    let (e, r) = (est.to_str().unwrap(), reference.to_str().unwrap());
+    let bad = dir.path().join("bad.txt");
+    std::fs::write(&bad, "0 1 2 3 0 0 0 1\n0.1 nan 2 3 0 0 0 1\n").unwrap();
+    let line = dir.path().join("line.txt");
+    let coincident = dir.path().join("same.txt");
+    let (mut l, mut c) = (String::new(), String::new());
+    for i in 0..40 {
+        let t = i as f64 * 0.1;
+        l += &format!("{t} {t} {} {} 0 0 0 1\n", 2.0 * t, -t);
+        c += &format!("{t} 1 1 1 0 0 0 1\n");
+    }
+    std::fs::write(&line, l).unwrap();
+    std::fs::write(&coincident, c).unwrap();
+    let missing = dir.path().join("missing.txt");
+    let cases: Vec<(Vec<&str>, &str)> = vec![
+        (vec![missing.to_str().unwrap(), r], "missing.txt"),
+        (vec![bad.to_str().unwrap(), r], "bad.txt:2"),
+        (
+            vec![line.to_str().unwrap(), line.to_str().unwrap()],
+            "collinear",
+        ),
+        (vec![coincident.to_str().unwrap(), r], "coincide"),
+        (vec![e, r, "--offset", "100"], "matched"),
+        (vec![e, r, "--n-to-align", "2"], "at least 3"),
+        (vec![e, r, "--ref-format", "euroc"], "comma-separated"),
+    ];
+    for (args, needle) in cases {
+        let mut all = vec!["align"];
+        all.extend(args);
+        let o = bin(&all);
+        let err = stderr(&o);
+        assert_eq!(o.status.code(), Some(1), "{all:?}: {err}");
+        assert!(err.starts_with("slam2world: error: "), "{err}");
+        assert_eq!(err.trim_end().lines().count(), 1, "{err}");
+        assert!(err.contains(needle), "{all:?}: {err}");
+        assert!(!err.contains("panicked"));
+        assert!(o.stdout.is_empty());
+    }
+}
+
+#[test]
+fn usage_errors_exit_2() {
+    for args in [
+        vec!["align"],
+        vec!["align", "a.txt"],
+        vec!["align", "a", "b", "--format", "csv"],
+        vec!["align", "a", "b", "--max-diff", "-1"],
+        vec!["align", "a", "b", "--max-diff", "nan"],
+        vec!["align", "a", "b", "--n-to-align", "x"],
+        vec!["align", "a", "b", "--bogus"],
+    ] {
+        let o = bin(&args);
+        assert_eq!(o.status.code(), Some(2), "{args:?}");
+        assert!(!stderr(&o).contains("panicked"));
+    }
+    let o = bin(&["align", "--help"]);
+    assert_eq!(o.status.code(), Some(0));
+    assert!(String::from_utf8_lossy(&o.stdout).contains("--n-to-align"));
+}
+
+#[test]
+fn real_data_matches_evo_numbers() {
+    let (Some(gt), Some(est)) = (
+        data("euroc_v102", "V102_groundtruth.csv"),
+        data("euroc_v102", "V102.txt"),
+    ) else {
+        return;
+    };
+    let o = bin(&[
+        "align",
+        est.to_str().unwrap(),
+        gt.to_str().unwrap(),
+        "--ref-format",
+        "euroc",
+        "--json",
+    ]);
+    assert_eq!(o.status.code(), Some(0), "{}", stderr(&o));
+    let v: serde_json::Value = serde_json::from_slice(&o.stdout).unwrap();
+    // PROVENANCE.md (evo 1.38.1 -as): 798 pairs, scale 0.9796982521745786, rmse 0.083841.
+    assert_eq!(v["n_pairs"], 798);
+    assert!((v["scale"].as_f64().unwrap() / 0.9796982521745786 - 1.0).abs() < 1e-9);
+    assert!((v["ape"]["rmse"].as_f64().unwrap() - 0.083841).abs() < 5e-7);
+}
