@@ -8,6 +8,7 @@ use std::ffi::OsString;
 use clap::{Parser, Subcommand};
 
 pub mod align;
+pub mod convert;
 pub mod inspect;
 
 use crate::error::Result;
@@ -24,6 +25,8 @@ pub struct Cli {
 enum Command {
     /// Fit the Sim(3) between two trajectory files and print the error statistics.
     Align(align::AlignArgs),
+    /// Convert an MCAP log into world.mcap, cloud.ply and report.json.
+    Convert(convert::ConvertArgs),
     /// List the topics of an MCAP log and what slam2world can use.
     Inspect(inspect::InspectArgs),
 }
@@ -31,6 +34,7 @@ enum Command {
 fn run(cli: Cli) -> Result<()> {
     match cli.command {
         Command::Align(args) => align::run(args),
+        Command::Convert(args) => convert::run(&args),
         Command::Inspect(args) => inspect::run(&args),
     }
 }
