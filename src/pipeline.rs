@@ -364,22 +364,13 @@ impl Conversion {
 
     /// Writes `report.json` (through a temporary file, renamed).
     pub fn write_report(&self, path: impl AsRef<Path>) -> Result<()> {
-        let path = path.as_ref();
-        let text = serde_json::to_string_pretty(&self.report)
-            .map_err(|e| Error::invalid("report", e.to_string()))?;
-        let dir = match path.parent() {
-            Some(d) if !d.as_os_str().is_empty() => d,
-            _ => Path::new("."),
-        };
-        let mut tmp = tempfile::NamedTempFile::new_in(dir).map_err(|e| Error::io(path, e))?;
-        std::io::Write::write_all(&mut tmp, text.as_bytes()).map_err(|e| Error::io(path, e))?;
-        tmp.persist(path).map_err(|e| Error::io(path, e.error))?;
-        Ok(())
+        write_json(path.as_ref(), &self.report)
     }
 
     /// Writes `world.mcap`, `cloud.ply` and `report.json` into `dir` (created
-    /// when missing). When one fails, the outputs written by this call are removed.
-    pub fn write_all(&mut self, dir: impl AsRef<Path>, flavor: WorldFlavor) -> Result<()> {
+    /// when missing); the written report carries the write time. When one fails,
+    /// the outputs written by this call are removed.
+    pub fn write_all(&self, dir: impl AsRef<Path>, flavor: WorldFlavor) -> Result<()> {
         let dir = dir.as_ref();
         std::fs::create_dir_all(dir).map_err(|e| Error::io(dir, e))?;
         let t = Instant::now();
@@ -391,9 +382,10 @@ impl Conversion {
             let p = dir.join(CLOUD_PLY);
             self.write_ply(&p)?;
             written.push(p);
-            self.report.timing.write_s = secs(t);
+            let mut report = self.report.clone();
+            report.timing.write_s = secs(t);
             let p = dir.join(REPORT_JSON);
-            self.write_report(&p)?;
+            write_json(&p, &report)?;
             written.push(p);
             Ok(())
         })();
@@ -404,4 +396,17 @@ impl Conversion {
         }
         result
     }
+}
+
+fn write_json(path: &Path, report: &Report) -> Result<()> {
+    let text = serde_json::to_string_pretty(report)
+        .map_err(|e| Error::invalid("report", e.to_string()))?;
+    let dir = match path.parent() {
+        Some(d) if !d.as_os_str().is_empty() => d,
+        _ => Path::new("."),
+    };
+    let mut tmp = tempfile::NamedTempFile::new_in(dir).map_err(|e| Error::io(path, e))?;
+    std::io::Write::write_all(&mut tmp, text.as_bytes()).map_err(|e| Error::io(path, e))?;
+    tmp.persist(path).map_err(|e| Error::io(path, e.error))?;
+    Ok(())
 }

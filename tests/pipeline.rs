@@ -75,7 +75,7 @@ fn opts() -> ConvertOptions {
 fn convert_recovers_the_transform_and_the_world_cloud() {
     let dir = tempfile::tempdir().unwrap();
     let path = write_log(dir.path());
-    let mut c = convert_file(&path, &opts()).unwrap();
+    let c = convert_file(&path, &opts()).unwrap();
     let t = c.transform();
     let want = truth();
     assert!((t.scale - want.scale).abs() < 1e-4, "scale {}", t.scale);

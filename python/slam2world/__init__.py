@@ -6,13 +6,13 @@ Conventions: metres and seconds; ``T_a_b`` maps frame-b coordinates into frame a
 
 from slam2world._slam2world import (
     Alignment,
+    Conversion,
     DegenerateError,
     FileError,
     FormatError,
     InvalidInputError,
     Keyframe,
     Log,
-    LogKeyframe,
     PinholeCamera,
     PointCloud,
     PointFilter,
@@ -25,6 +25,7 @@ from slam2world._slam2world import (
     align_trajectories,
     associate,
     backproject,
+    convert,
     read_mcap,
     read_ply,
     read_xyz_text,
@@ -34,6 +35,7 @@ from slam2world._slam2world import (
 
 __all__ = [
     "Alignment",
+    "Conversion",
     "DegenerateError",
     "FileError",
     "FormatError",
@@ -43,7 +45,6 @@ __all__ = [
     "PointCloud",
     "PointFilter",
     "Log",
-    "LogKeyframe",
     "Sim3",
     "Slam2WorldError",
     "Trajectory",
@@ -56,6 +57,7 @@ __all__ = [
     "backproject",
     "read_ply",
     "read_xyz_text",
+    "convert",
     "read_mcap",
     "write_world_mcap",
 ]
