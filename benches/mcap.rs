@@ -7,7 +7,8 @@
 //!   (decompressed bytes/s), beside plain single-threaded zstd decompression of
 //!   the same chunks (the peer, the limit).
 //!
-//! Sizes: `S2W_BENCH_POSES` (default 1e6) and `S2W_BENCH_KEYFRAMES` (default 16).
+//! Sizes: `S2W_BENCH_POSES` (default 1e6) and `S2W_BENCH_KEYFRAMES` (default 16);
+//! `cargo test` runs each once on small sizes.
 
 use std::hint::black_box;
 use std::path::Path;
@@ -18,7 +19,14 @@ use nalgebra::{UnitQuaternion, Vector3};
 use slam2world::io::mcap::{read_mcap, write_slam_log, ReadOptions, SlamLogOptions};
 use slam2world::{Keyframe, PinholeCamera, Sim3, Trajectory};
 
+/// `default` under `cargo bench`; a small size when `cargo test` runs the bench once.
 fn env_usize(name: &str, default: usize) -> usize {
+    let benchmarking = std::env::args().any(|a| a == "--bench");
+    let default = if benchmarking {
+        default
+    } else {
+        default.div_ceil(1000).max(2)
+    };
     std::env::var(name)
         .ok()
         .and_then(|v| v.parse::<f64>().ok())
