@@ -8,7 +8,7 @@ use nalgebra::{Quaternion, UnitQuaternion, Vector3};
 use rayon::prelude::*;
 
 use super::decode::{self, KeyframeMsg, MessageKind, StampedPose};
-use super::reader::{ChannelInfo, McapFile, RawMessage, ReadMode};
+use super::reader::{ChannelInfo, McapFile, RawMessage, ReadMode, Scan};
 use crate::error::{Error, Result};
 use crate::geometry::{PinholeCamera, Sim3};
 use crate::imu::ImuSamples;
@@ -106,13 +106,11 @@ fn kind_of(c: &ChannelInfo) -> Option<MessageKind> {
 }
 
 /// Counts and time ranges per channel, as topics and as a count map.
-fn topic_inventory(
-    channels: &BTreeMap<u16, ChannelInfo>,
-    messages: &[RawMessage<'_>],
-) -> (Vec<TopicInfo>, HashMap<u16, u64>) {
+fn topic_inventory(scan: &Scan<'_>) -> (Vec<TopicInfo>, HashMap<u16, u64>) {
+    let channels = &scan.channels;
     // (count, first, last) per channel id
     let mut stats = vec![(0u64, u64::MAX, 0u64); 1 << 16];
-    for m in messages {
+    for m in scan.iter() {
         let s = &mut stats[m.channel_id as usize];
         s.0 += 1;
         s.1 = s.1.min(m.log_time);
@@ -240,9 +238,7 @@ pub fn read_mcap(path: impl AsRef<Path>, options: &ReadOptions) -> Result<Log> {
     .map(String::as_str)
     .collect();
     let scan = file.scan(|c| kind_of(c).is_some() || named.contains(&c.topic.as_str()))?;
-    let messages = scan.messages();
-
-    let (topics, counts) = topic_inventory(&scan.channels, &messages);
+    let (topics, counts) = topic_inventory(&scan);
 
     use MessageKind as K;
     let ch = &scan.channels;
@@ -304,13 +300,13 @@ pub fn read_mcap(path: impl AsRef<Path>, options: &ReadOptions) -> Result<Log> {
     };
 
     if let Some(kf) = kf {
-        read_keyframes(path, &messages, kf, graph, &mut log)?;
+        read_keyframes(path, &scan, kf, graph, &mut log)?;
     }
     if let Some(pc) = pose {
-        log.reference = Some(read_reference(path, &messages, pc, options)?);
+        log.reference = Some(read_reference(path, &scan, pc, options)?);
     }
     if let Some(ic) = imu_ch {
-        log.imu = Some(read_imu(path, &messages, ic)?);
+        log.imu = Some(read_imu(path, &scan, ic)?);
     }
     Ok(log)
 }
@@ -322,19 +318,19 @@ struct Entry<'a> {
     pose_source: String,
 }
 
-fn read_keyframes(
+fn read_keyframes<'s>(
     path: &Path,
-    messages: &[RawMessage<'_>],
+    scan: &'s Scan<'_>,
     kf: &ChannelInfo,
     graph: Option<&ChannelInfo>,
     log: &mut Log,
 ) -> Result<()> {
     let graph_id = graph.map(|g| g.id);
     let mut order: Vec<i32> = Vec::new();
-    let mut latest: HashMap<i32, Entry<'_>> = HashMap::new();
+    let mut latest: HashMap<i32, Entry<'s>> = HashMap::new();
     let mut kf_index = 0usize;
     let mut graph_index = 0usize;
-    for m in messages {
+    for m in scan.iter() {
         if m.channel_id == kf.id {
             let i = kf_index;
             kf_index += 1;
@@ -425,7 +421,7 @@ fn to_keyframe(path: &Path, topic: &str, e: &Entry<'_>) -> Result<Keyframe> {
 /// The pose samples of a reference channel, with TF narrowed to one frame pair.
 fn read_reference(
     path: &Path,
-    messages: &[RawMessage<'_>],
+    scan: &Scan<'_>,
     c: &ChannelInfo,
     options: &ReadOptions,
 ) -> Result<Trajectory> {
@@ -435,7 +431,7 @@ fn read_reference(
             format!("topic {}: not a pose schema", c.topic),
         ));
     };
-    let mine: Vec<&RawMessage<'_>> = messages.iter().filter(|m| m.channel_id == c.id).collect();
+    let idx = scan.indices_of(c.id);
     let fail = |i: usize, m: &RawMessage<'_>, e: String| {
         mcap_err(
             path,
@@ -446,33 +442,44 @@ fn read_reference(
         )
     };
     if kind != MessageKind::Tf {
-        // Fast path: one pose a message, decoded in parallel blocks without allocation.
+        // Fast path: one pose a message, decoded and checked in parallel blocks.
         const BLOCK: usize = 8192;
-        let blocks: Result<Vec<Vec<(usize, decode::PoseSample)>>> = mine
+        let blocks: Result<Vec<Vec<decode::PoseSample>>> = idx
             .par_chunks(BLOCK)
             .enumerate()
             .map(|(b, block)| {
-                block
-                    .iter()
-                    .enumerate()
-                    .map(|(j, m)| {
-                        let i = b * BLOCK + j;
-                        decode::pose_sample(kind, &c.message_encoding, m.data)
-                            .map(|s| (i, s))
-                            .map_err(|e| fail(i, m, e))
-                    })
-                    .collect()
+                let mut out = Vec::with_capacity(block.len());
+                for (j, &k) in block.iter().enumerate() {
+                    let i = b * BLOCK + j;
+                    let Some(m) = scan.get(k) else { continue };
+                    let s = decode::pose_sample(kind, &c.message_encoding, m.data)
+                        .map_err(|e| fail(i, &m, e))?;
+                    out.push(checked_sample(s).map_err(|e| fail(i, &m, e))?);
+                }
+                Ok(out)
             })
             .collect();
-        let mut samples: Vec<(usize, decode::PoseSample)> = blocks?.into_iter().flatten().collect();
-        samples.sort_by(|a, b| a.1 .0.total_cmp(&b.1 .0));
-        return trajectory_of(
-            path,
-            &c.topic,
-            samples.iter().map(|(i, s)| (*i, s.0, s.1, s.2)),
-        );
+        let blocks = blocks?;
+        let mut samples = Vec::with_capacity(idx.len());
+        for b in blocks {
+            samples.extend(b);
+        }
+        if !samples.is_sorted_by(|a, b| a.0 <= b.0) {
+            samples.sort_by(|a, b| a.0.total_cmp(&b.0));
+        }
+        let times = samples.iter().map(|s| s.0).collect();
+        let positions = samples.iter().map(|s| Vector3::from(s.1)).collect();
+        let orientations = samples
+            .iter()
+            .map(|s| {
+                let [x, y, z, w] = s.2;
+                UnitQuaternion::new_unchecked(Quaternion::new(w, x, y, z))
+            })
+            .collect();
+        return Trajectory::try_new(times, positions, Some(orientations))
+            .map_err(|e| mcap_err(path, format!("topic {}: {e}", c.topic)));
     }
-    let mine: Vec<&RawMessage<'_>> = messages.iter().filter(|m| m.channel_id == c.id).collect();
+    let mine: Vec<RawMessage<'_>> = idx.iter().filter_map(|&k| scan.get(k)).collect();
     let decoded: Result<Vec<Vec<StampedPose>>> = mine
         .par_iter()
         .enumerate()
@@ -552,6 +559,29 @@ fn read_reference(
     )
 }
 
+/// Checks a pose sample (finite, non-zero quaternion) and normalises its quaternion.
+fn checked_sample(s: decode::PoseSample) -> std::result::Result<decode::PoseSample, String> {
+    let (time, position, orientation) = s;
+    let finite = time.is_finite()
+        && position
+            .iter()
+            .chain(orientation.iter())
+            .all(|v| v.is_finite());
+    let [x, y, z, w] = orientation;
+    let norm = (x * x + y * y + z * z + w * w).sqrt();
+    if !finite || norm < 1e-9 {
+        return Err(format!(
+            "{} pose (time {time}, position {position:?}, orientation {orientation:?})",
+            if finite {
+                "zero-quaternion"
+            } else {
+                "non-finite"
+            }
+        ));
+    }
+    Ok((time, position, [x / norm, y / norm, z / norm, w / norm]))
+}
+
 /// Checks and converts `(message index, time, position, orientation xyzw)` samples.
 fn trajectory_of(
     path: &Path,
@@ -592,8 +622,12 @@ fn trajectory_of(
         .map_err(|e| mcap_err(path, format!("topic {topic}: {e}")))
 }
 
-fn read_imu(path: &Path, messages: &[RawMessage<'_>], c: &ChannelInfo) -> Result<ImuSamples> {
-    let mine: Vec<&RawMessage<'_>> = messages.iter().filter(|m| m.channel_id == c.id).collect();
+fn read_imu(path: &Path, scan: &Scan<'_>, c: &ChannelInfo) -> Result<ImuSamples> {
+    let mine: Vec<RawMessage<'_>> = scan
+        .indices_of(c.id)
+        .into_iter()
+        .filter_map(|k| scan.get(k))
+        .collect();
     let decoded: Result<Vec<decode::ImuMsg>> = mine
         .par_iter()
         .enumerate()
@@ -649,8 +683,7 @@ pub fn inspect_mcap(path: impl AsRef<Path>) -> Result<Inventory> {
     let path = path.as_ref();
     let file = McapFile::open(path)?;
     let scan = file.scan(|_| true)?;
-    let messages = scan.messages();
-    let (topics, counts) = topic_inventory(&scan.channels, &messages);
+    let (topics, counts) = topic_inventory(&scan);
     use MessageKind as K;
     let roles: [(&'static str, &[MessageKind]); 4] = [
         ("keyframes", &[K::Keyframe]),

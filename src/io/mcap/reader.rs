@@ -104,25 +104,41 @@ impl Scan<'_> {
         self.entries.is_empty()
     }
 
+    fn view(&self, e: &Entry) -> RawMessage<'_> {
+        let buf: &[u8] = if e.buffer == MAP {
+            self.map
+        } else {
+            &self.buffers[e.buffer as usize]
+        };
+        RawMessage {
+            channel_id: e.channel_id,
+            sequence: e.sequence,
+            log_time: e.log_time,
+            publish_time: e.publish_time,
+            data: &buf[e.start..e.end],
+        }
+    }
+
     /// The messages in file order, each borrowing its bytes from the scan.
-    pub fn messages(&self) -> Vec<RawMessage<'_>> {
-        self.entries
-            .iter()
-            .map(|e| {
-                let buf: &[u8] = if e.buffer == MAP {
-                    self.map
-                } else {
-                    &self.buffers[e.buffer as usize]
-                };
-                RawMessage {
-                    channel_id: e.channel_id,
-                    sequence: e.sequence,
-                    log_time: e.log_time,
-                    publish_time: e.publish_time,
-                    data: &buf[e.start..e.end],
-                }
-            })
+    pub fn iter(&self) -> impl Iterator<Item = RawMessage<'_>> + '_ {
+        self.entries.iter().map(|e| self.view(e))
+    }
+
+    /// Message `i` in file order, `None` past the end.
+    pub fn get(&self, i: usize) -> Option<RawMessage<'_>> {
+        self.entries.get(i).map(|e| self.view(e))
+    }
+
+    /// Positions (in file order) of the messages of one channel.
+    pub fn indices_of(&self, channel_id: u16) -> Vec<usize> {
+        (0..self.entries.len())
+            .filter(|&i| self.entries[i].channel_id == channel_id)
             .collect()
+    }
+
+    /// The messages in file order, collected.
+    pub fn messages(&self) -> Vec<RawMessage<'_>> {
+        self.iter().collect()
     }
 }
 
