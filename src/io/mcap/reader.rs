@@ -20,7 +20,7 @@ use crate::error::{Error, Result};
 pub const MAGIC: &[u8; 8] = b"\x89MCAP0\r\n";
 
 /// A channel of the log with its schema (empty name and encoding when schemaless).
-#[derive(Clone, Debug, PartialEq, Eq)]
+#[derive(Clone, Debug, Default, PartialEq, Eq)]
 pub struct ChannelInfo {
     /// Channel id, unique in the file.
     pub id: u16,
@@ -58,14 +58,14 @@ pub struct RawMessage<'a> {
 
 /// Where a message's bytes are: buffer `MAP` is the file, others a decompressed chunk.
 #[derive(Clone, Copy, Debug)]
-struct Entry {
-    channel_id: u16,
-    sequence: u32,
-    log_time: u64,
-    publish_time: u64,
-    buffer: u32,
-    start: usize,
-    end: usize,
+pub(super) struct Entry {
+    pub(super) channel_id: u16,
+    pub(super) sequence: u32,
+    pub(super) log_time: u64,
+    pub(super) publish_time: u64,
+    pub(super) buffer: u32,
+    pub(super) start: usize,
+    pub(super) end: usize,
 }
 
 const MAP: u32 = u32::MAX;
@@ -149,7 +149,7 @@ pub struct McapFile {
 }
 
 /// One item of the data section, before chunks are expanded.
-enum Item<'a> {
+pub(super) enum Item<'a> {
     Schema(records::SchemaHeader, Vec<u8>),
     Channel(records::Channel),
     Message(Entry),
@@ -161,7 +161,7 @@ enum Item<'a> {
 }
 
 /// A schema or channel definition found in the data section or a chunk.
-enum Def {
+pub(super) enum Def {
     Schema(records::SchemaHeader, Vec<u8>),
     Channel(records::Channel),
 }
@@ -198,7 +198,7 @@ impl McapFile {
         &self.map
     }
 
-    fn err(&self, reason: impl Into<String>) -> Error {
+    pub(super) fn err(&self, reason: impl Into<String>) -> Error {
         Error::Mcap {
             path: self.path.clone(),
             reason: reason.into(),
@@ -257,7 +257,7 @@ impl McapFile {
         })
     }
 
-    fn profile(&self) -> String {
+    pub(super) fn profile(&self) -> String {
         let buf = &self.map[MAGIC.len()..];
         match frame(buf) {
             Some((op::HEADER, body, _)) => match mcap::parse_record(op::HEADER, body) {
@@ -271,7 +271,7 @@ impl McapFile {
     /// The chunk indexes (sorted by offset) and channels of the summary, when
     /// the summary has both and every chunk index points at a chunk.
     #[allow(clippy::type_complexity)]
-    fn indexed_plan(
+    pub(super) fn indexed_plan(
         &self,
     ) -> Result<Option<(Vec<records::ChunkIndex>, BTreeMap<u16, ChannelInfo>)>> {
         // A damaged summary is not fatal: the linear scan reports what is wrong.
@@ -305,7 +305,7 @@ impl McapFile {
         Ok(Some((chunks, channels)))
     }
 
-    fn chunk_at(&self, ci: &records::ChunkIndex) -> Result<Item<'_>> {
+    pub(super) fn chunk_at(&self, ci: &records::ChunkIndex) -> Result<Item<'_>> {
         let start = ci.chunk_start_offset as usize;
         let buf = &self.map[start..];
         match frame(buf) {
@@ -330,7 +330,7 @@ impl McapFile {
     }
 
     /// Walks the top-level records from the start to the footer.
-    fn linear_items(&self) -> Result<(Vec<Item<'_>>, BTreeMap<u16, ChannelInfo>)> {
+    pub(super) fn linear_items(&self) -> Result<(Vec<Item<'_>>, BTreeMap<u16, ChannelInfo>)> {
         let map: &[u8] = &self.map;
         let mut pos = MAGIC.len();
         let mut items = Vec::new();
@@ -547,18 +547,30 @@ impl McapFile {
 }
 
 /// The largest decompressed chunk accepted (guards allocations against damaged headers).
-const MAX_CHUNK: usize = 1 << 32;
+pub(super) const MAX_CHUNK: usize = 1 << 32;
 
 /// Decompresses a chunk's records to exactly `size` bytes.
 fn decompress(compression: &str, data: &[u8], size: usize) -> std::result::Result<Vec<u8>, String> {
-    let mut out: Vec<u8> = Vec::new();
+    let mut out = Vec::new();
+    decompress_into(compression, data, size, &mut out)?;
+    Ok(out)
+}
+
+/// Decompresses a chunk's records into `out` (cleared first, its allocation reused).
+pub(super) fn decompress_into(
+    compression: &str,
+    data: &[u8],
+    size: usize,
+    out: &mut Vec<u8>,
+) -> std::result::Result<(), String> {
+    out.clear();
     out.try_reserve_exact(size)
         .map_err(|_| format!("cannot allocate {size} bytes for the decompressed chunk"))?;
     match compression {
         "" => out.extend_from_slice(data),
         "zstd" => {
             let mut d = zstd::bulk::Decompressor::new().map_err(|e| format!("zstd: {e}"))?;
-            d.decompress_to_buffer(data, &mut out)
+            d.decompress_to_buffer(data, out)
                 .map_err(|e| format!("zstd: {e}"))?;
         }
         "lz4" => {
@@ -566,9 +578,7 @@ fn decompress(compression: &str, data: &[u8], size: usize) -> std::result::Resul
             let mut d = lz4::Decoder::new(data).map_err(|e| format!("lz4: {e}"))?;
             // Never read past the announced size (a damaged frame could go on).
             let mut limited = (&mut d).take(size as u64 + 1);
-            limited
-                .read_to_end(&mut out)
-                .map_err(|e| format!("lz4: {e}"))?;
+            limited.read_to_end(out).map_err(|e| format!("lz4: {e}"))?;
         }
         other => return Err(format!("unsupported compression {other:?}")),
     }
@@ -578,12 +588,12 @@ fn decompress(compression: &str, data: &[u8], size: usize) -> std::result::Resul
             out.len()
         ));
     }
-    Ok(out)
+    Ok(())
 }
 
 /// Splits one record off the front of `buf`: (opcode, body, bytes consumed).
 /// `None` when the buffer ends inside the record.
-fn frame(buf: &[u8]) -> Option<(u8, &[u8], usize)> {
+pub(super) fn frame(buf: &[u8]) -> Option<(u8, &[u8], usize)> {
     let opcode = *buf.first()?;
     let len_bytes: [u8; 8] = buf.get(1..9)?.try_into().ok()?;
     let len = usize::try_from(u64::from_le_bytes(len_bytes)).ok()?;
@@ -592,7 +602,7 @@ fn frame(buf: &[u8]) -> Option<(u8, &[u8], usize)> {
     Some((opcode, body, end))
 }
 
-fn channel_info(
+pub(super) fn channel_info(
     c: &records::Channel,
     schemas: &BTreeMap<u16, (records::SchemaHeader, Vec<u8>)>,
 ) -> std::result::Result<ChannelInfo, String> {
