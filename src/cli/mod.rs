@@ -10,6 +10,7 @@ use clap::{Parser, Subcommand};
 pub mod align;
 pub mod convert;
 pub mod inspect;
+pub mod transform_cloud;
 
 use crate::error::Result;
 
@@ -29,6 +30,8 @@ enum Command {
     Convert(convert::ConvertArgs),
     /// List the topics of an MCAP log and what slam2world can use.
     Inspect(inspect::InspectArgs),
+    /// Align EST to REF and carry a SLAM-frame point cloud (PLY or x y z text) into the world frame.
+    TransformCloud(transform_cloud::TransformCloudArgs),
 }
 
 fn run(cli: Cli) -> Result<()> {
@@ -36,6 +39,7 @@ fn run(cli: Cli) -> Result<()> {
         Command::Align(args) => align::run(args),
         Command::Convert(args) => convert::run(&args),
         Command::Inspect(args) => inspect::run(&args),
+        Command::TransformCloud(args) => transform_cloud::run(args),
     }
 }
 

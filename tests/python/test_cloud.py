@@ -336,3 +336,32 @@ def test_orbslam_map_points_read() -> None:
     assert len(c) == 6300
     want = np.loadtxt(path, dtype=np.float64)
     np.testing.assert_allclose(c.points, want, rtol=1e-6)
+
+
+def test_orbslam_map_points_in_the_vicon_frame(tmp_path: Path) -> None:
+    """EuRoC V1_01: the 6300 ORB-SLAM2 map points, carried by the Sim(3) of the keyframe
+    trajectory onto the ground truth, put the floor level (normal within 3 degrees of z)
+    at z ~ 0, and the points between floor and ceiling; the PLY keeps them exactly."""
+    folder = "euroc_v101_orbslam2_map"
+    est = sw.Trajectory.read_tum(data_path(folder, "KeyFrameTrajectory_TUM_Format.txt"))
+    gt = sw.Trajectory.read_tum(data_path(folder, "V1_01_easy_original.txt"))
+    fit = sw.align_trajectories(est, gt)
+    assert fit.transform.scale == pytest.approx(1.0081319980644732, abs=1e-6)
+    cloud = sw.read_xyz_text(data_path(folder, "MapPoints.txt")).transformed(fit.transform)
+    p = cloud.points.astype(np.float64)
+    # Floor: a plane through the lowest 40 % of points, refitted on those within 5 cm.
+    sel = p[p[:, 2] <= np.quantile(p[:, 2], 0.4)]
+    for _ in range(6):
+        c = sel.mean(axis=0)
+        n = np.linalg.svd(sel - c)[2][2]
+        n = n if n[2] > 0 else -n
+        sel = p[np.abs((p - c) @ n) < 0.05]
+    tilt = np.degrees(np.arccos(min(1.0, n[2])))
+    assert tilt < 3.0
+    assert abs(float(c @ n)) < 0.1
+    assert len(sel) > 1500
+    inside = (p[:, 2] > -0.3) & (p[:, 2] < 3.0)
+    assert inside.mean() >= 0.99
+    out = tmp_path / "world.ply"
+    cloud.write_ply(out)
+    np.testing.assert_array_equal(sw.read_ply(out).points, cloud.points)

@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+from pathlib import Path
+
 import numpy as np
 import numpy.typing as npt
 
@@ -38,3 +40,22 @@ def test_typed_alignment() -> None:
     world = s2w.Sim3.from_quaternion([0.0, 0.0, 0.0, 1.0], [1.0, 0.0, 0.0], 2.0).apply(slam)
     s, rmse = fit(slam, world)
     assert abs(s - 2.0) < 1e-12 and rmse < 1e-12
+
+
+def world_cloud(path: str) -> int:
+    cam = s2w.PinholeCamera(100.0, 100.0, 15.5, 11.5, 32, 24)
+    idepth = np.full((24, 32), 0.5, dtype=np.float32)
+    var = np.full((24, 32), 1e-6, dtype=np.float32)
+    kf = s2w.Keyframe(0, 0.0, s2w.Sim3(), cam, idepth, var, None)
+    f = s2w.PointFilter(cut_first_keyframes=None)
+    world = s2w.Sim3.from_quaternion([0.0, 0.0, 0.0, 1.0], [0.0, 0.0, 1.0], 2.0)
+    cloud: s2w.PointCloud = s2w.backproject([kf], f, transform=world)
+    pts: npt.NDArray[np.float32] = cloud.points
+    cloud.transformed(world.inverse()).write_ply(path)
+    back: s2w.PointCloud = s2w.read_ply(path)
+    assert back.colors is None and pts.dtype == np.float32
+    return len(back)
+
+
+def test_typed_cloud(tmp_path: Path) -> None:
+    assert world_cloud(str(tmp_path / "c.ply")) == 30 * 22

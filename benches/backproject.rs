@@ -1,0 +1,96 @@
+//! Backprojection of 123 keyframes of 640×480 with the viewer's default filters
+//! into the world frame, and the transform of 1e7 points (`PointCloud::transformed`).
+//! The side-by-side numpy comparison is `benches/compare_cloud.py`.
+
+use std::hint::black_box;
+use std::time::Duration;
+
+use criterion::{criterion_group, criterion_main, Criterion, Throughput};
+use nalgebra::Vector3;
+use rand::{Rng, SeedableRng};
+use rand_chacha::ChaCha8Rng;
+use slam2world::cloud::{backproject, PointCloud, PointFilter};
+use slam2world::{Keyframe, PinholeCamera, Sim3};
+
+const KEYFRAMES: usize = 123;
+const W: u32 = 640;
+const H: u32 = 480;
+
+/// A semi-dense keyframe: a smooth inverse-depth surface with noise, about half
+/// the pixels without depth, variances spread across the thresholds.
+fn keyframe(rng: &mut ChaCha8Rng, id: i32) -> Keyframe {
+    let cam = PinholeCamera::try_new(517.3, 516.5, 318.6, 255.3, W, H).unwrap();
+    let n = (W * H) as usize;
+    let (mut idepth, mut var) = (Vec::with_capacity(n), Vec::with_capacity(n));
+    let phase: f32 = rng.random_range(0.0..6.0);
+    for y in 0..H {
+        for x in 0..W {
+            let (xf, yf) = (x as f32, y as f32);
+            let hole = (xf / 9.0 + phase).sin() * (yf / 7.0).sin() > 0.2;
+            let d = 1.0 + 0.2 * (xf / 60.0).sin() + 0.1 * (yf / 50.0).cos();
+            idepth.push(if hole {
+                0.0
+            } else {
+                d + rng.random_range(-0.01..0.01)
+            });
+            var.push(10f32.powf(rng.random_range(-6.0..-2.0)));
+        }
+    }
+    let color = (0..3 * n).map(|i| (i % 251) as u8).collect();
+    let pose = Sim3::from_quaternion_xyzw(
+        [0.1, rng.random_range(-0.5..0.5), 0.05, 1.0],
+        Vector3::new(
+            rng.random_range(-2.0..2.0),
+            0.0,
+            rng.random_range(-2.0..2.0),
+        ),
+        rng.random_range(0.5..2.0),
+    )
+    .unwrap();
+    Keyframe::try_new(
+        id,
+        id as f64 * 0.1,
+        pose,
+        cam,
+        idepth,
+        Some(var),
+        Some(color),
+    )
+    .unwrap()
+}
+
+fn bench_backproject(c: &mut Criterion) {
+    let mut rng = ChaCha8Rng::seed_from_u64(1);
+    let kfs: Vec<Keyframe> = (0..KEYFRAMES as i32)
+        .map(|i| keyframe(&mut rng, i))
+        .collect();
+    let world_slam =
+        Sim3::from_quaternion_xyzw([0.3, 0.1, 0.0, 1.0], Vector3::new(1.0, 2.0, 3.0), 2.5).unwrap();
+    let filter = PointFilter::default();
+    let mut g = c.benchmark_group("backproject");
+    g.sample_size(10).measurement_time(Duration::from_secs(8));
+    g.throughput(Throughput::Elements((KEYFRAMES * (W * H) as usize) as u64));
+    g.bench_function("default_filter_world_123x640x480", |b| {
+        b.iter(|| backproject(black_box(&kfs), &filter, Some(&world_slam)).unwrap())
+    });
+    g.finish();
+}
+
+fn bench_transform(c: &mut Criterion) {
+    let n = 10_000_000usize;
+    let mut rng = ChaCha8Rng::seed_from_u64(2);
+    let pts: Vec<f32> = (0..3 * n).map(|_| rng.random_range(-10.0..10.0)).collect();
+    let cloud = PointCloud::try_new(pts, None, None).unwrap();
+    let t =
+        Sim3::from_quaternion_xyzw([0.3, 0.1, 0.0, 1.0], Vector3::new(1.0, 2.0, 3.0), 2.5).unwrap();
+    let mut g = c.benchmark_group("transform");
+    g.sample_size(10).measurement_time(Duration::from_secs(5));
+    g.throughput(Throughput::Elements(n as u64));
+    g.bench_function("pointcloud_transformed_1e7_f32", |b| {
+        b.iter(|| black_box(&cloud).transformed(&t).unwrap())
+    });
+    g.finish();
+}
+
+criterion_group!(benches, bench_backproject, bench_transform);
+criterion_main!(benches);
