@@ -98,10 +98,15 @@ impl McapFile {
                 (items, known, ReadMode::Linear)
             }
         };
+        // Channel lookup by id for the tasks: `(info, wanted)`.
+        let mut table: Vec<Option<(&ChannelInfo, bool)>> = vec![None; 1 << 16];
+        for c in known.values() {
+            table[c.id as usize] = Some((c, want(c)));
+        }
         let parts: Vec<Result<Part<T>>> = items
             .into_par_iter()
             .map_init(Vec::new, |buf, item| {
-                self.map_item(item, &known, buf, &want, &map)
+                self.map_item(item, &table, buf, &want, &map)
             })
             .collect();
         // Merge in file order (as `scan` does), mapping the deferred messages after.
@@ -186,7 +191,7 @@ impl McapFile {
     fn map_item<T: Default>(
         &self,
         item: Item<'_>,
-        known: &BTreeMap<u16, ChannelInfo>,
+        known: &[Option<(&ChannelInfo, bool)>],
         buf: &mut Vec<u8>,
         want: &(impl Fn(&ChannelInfo) -> bool + Sync),
         map: &(impl Fn(&ChannelInfo, &RawMessage<'_>) -> T + Sync),
@@ -202,13 +207,14 @@ impl McapFile {
         let mut local: BTreeMap<u16, ChannelInfo> = BTreeMap::new();
         let mut local_schemas: BTreeMap<u16, (records::SchemaHeader, Vec<u8>)> = BTreeMap::new();
         let mut push = |raw: RawMessage<'_>, local: &BTreeMap<u16, ChannelInfo>| {
-            let info = known
-                .get(&raw.channel_id)
-                .or_else(|| local.get(&raw.channel_id));
+            let info = match known[raw.channel_id as usize] {
+                Some((c, w)) => Some((c, w)),
+                None => local.get(&raw.channel_id).map(|c| (c, want(c))),
+            };
             let value = match info {
-                Some(c) if want(c) => map(c, &raw),
+                Some((c, true)) => map(c, &raw),
                 // Unwanted (the merge drops it) or not yet defined (mapped after the merge).
-                Some(_) => T::default(),
+                Some((_, false)) => T::default(),
                 None => {
                     raw_of.push((msgs.len(), raw.data.to_vec()));
                     T::default()
