@@ -97,6 +97,24 @@ fn conformance_suite_yields_exactly_the_listed_messages() {
                 })
                 .collect();
             assert_eq!(got, expected, "{}", path.display());
+            // The mapping reader (read_mcap's path) sees the same messages.
+            let mapped = file
+                .scan_map(|_| true, |_, m| m.data.to_vec())
+                .unwrap_or_else(|e| panic!("{}: {e}", path.display()));
+            let got_mapped: Vec<_> = mapped
+                .messages
+                .into_iter()
+                .map(|m| {
+                    (
+                        m.channel_id,
+                        m.sequence,
+                        m.log_time,
+                        m.publish_time,
+                        m.value,
+                    )
+                })
+                .collect();
+            assert_eq!(got_mapped, expected, "scan_map {}", path.display());
             files += 1;
             messages += got.len();
             if scan.mode == ReadMode::Indexed {

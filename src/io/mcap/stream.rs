@@ -46,6 +46,18 @@ pub struct MappedScan<T> {
 /// whose channel the task could not see, by position in the item's messages.
 type Part<T> = (Vec<Def>, Vec<MappedMessage<T>>, Vec<(usize, Vec<u8>)>);
 
+/// Channel lookup by id for the chunk tasks: `(info, wanted)`.
+fn table_of<'k>(
+    known: &'k BTreeMap<u16, ChannelInfo>,
+    want: &impl Fn(&ChannelInfo) -> bool,
+) -> Vec<Option<(&'k ChannelInfo, bool)>> {
+    let mut table = vec![None; 1 << 16];
+    for c in known.values() {
+        table[c.id as usize] = Some((c, want(c)));
+    }
+    table
+}
+
 impl McapFile {
     /// Like [`McapFile::scan`], but each wanted message is passed to `map`
     /// (with its channel) inside the parallel chunk task, and only the mapped
@@ -57,7 +69,7 @@ impl McapFile {
         map: impl Fn(&ChannelInfo, &RawMessage<'_>) -> T + Sync,
     ) -> Result<MappedScan<T>> {
         let profile = self.profile();
-        let (items, known, mode) = match self.indexed_plan()? {
+        let (mut items, mut known, mode, mut schemas_seen) = match self.indexed_plan()? {
             Some((chunks, channels)) => {
                 let wanted: Vec<u16> = channels
                     .values()
@@ -75,7 +87,7 @@ impl McapFile {
                         items.push(self.chunk_at(ci)?);
                     }
                 }
-                (items, channels, ReadMode::Indexed)
+                (items, channels, ReadMode::Indexed, BTreeMap::new())
             }
             None => {
                 let (items, _) = self.linear_items()?;
@@ -95,20 +107,52 @@ impl McapFile {
                         _ => {}
                     }
                 }
-                (items, known, ReadMode::Linear)
+                (items, known, ReadMode::Linear, schemas)
             }
         };
-        // Channel lookup by id for the tasks: `(info, wanted)`.
-        let mut table: Vec<Option<(&ChannelInfo, bool)>> = vec![None; 1 << 16];
-        for c in known.values() {
-            table[c.id as usize] = Some((c, want(c)));
+        let mut parts: Vec<Result<Part<T>>> = Vec::new();
+        if mode == ReadMode::Linear {
+            // Writers define a channel in the chunk of its first message: reading up
+            // to the first chunk alone lets the parallel tasks know those channels.
+            if let Some(first) = items.iter().position(|i| matches!(i, Item::Chunk { .. })) {
+                let rest = items.split_off(first + 1);
+                let prefix = std::mem::replace(&mut items, rest);
+                let mut found = Vec::new();
+                {
+                    let table = table_of(&known, &want);
+                    let mut buf = Vec::new();
+                    for item in prefix {
+                        let part = self.map_item(item, &table, &mut buf, &want, &map);
+                        if let Ok((defs, _, _)) = &part {
+                            for d in defs {
+                                match d {
+                                    Def::Schema(h, data) => {
+                                        schemas_seen.insert(h.id, (h.clone(), data.clone()));
+                                    }
+                                    Def::Channel(c) => {
+                                        if let Ok(info) = channel_info(c, &schemas_seen) {
+                                            found.push(info);
+                                        }
+                                    }
+                                }
+                            }
+                        }
+                        parts.push(part);
+                    }
+                }
+                for info in found {
+                    known.entry(info.id).or_insert(info);
+                }
+            }
         }
-        let parts: Vec<Result<Part<T>>> = items
+        let table = table_of(&known, &want);
+        let rest: Vec<Result<Part<T>>> = items
             .into_par_iter()
             .map_init(Vec::new, |buf, item| {
                 self.map_item(item, &table, buf, &want, &map)
             })
             .collect();
+        parts.extend(rest);
         // Merge in file order (as `scan` does), mapping the deferred messages after.
         let mut channels = if mode == ReadMode::Indexed {
             known.clone()
@@ -167,18 +211,37 @@ impl McapFile {
                 }
             }
         }
-        for (k, bytes) in deferred {
-            let m = &mut messages[k];
-            let raw = RawMessage {
-                channel_id: m.channel_id,
-                sequence: m.sequence,
-                log_time: m.log_time,
-                publish_time: m.publish_time,
-                data: &bytes,
-            };
-            if let Some(c) = channels.get(&m.channel_id) {
-                m.value = map(c, &raw);
-            }
+        // In parallel: a linear scan of a file whose channels are defined in an
+        // earlier chunk defers most messages.
+        let heads: Vec<(usize, u16, u32, u64, u64, Vec<u8>)> = deferred
+            .into_iter()
+            .map(|(k, bytes)| {
+                let m = &messages[k];
+                (
+                    k,
+                    m.channel_id,
+                    m.sequence,
+                    m.log_time,
+                    m.publish_time,
+                    bytes,
+                )
+            })
+            .collect();
+        let values: Vec<(usize, T)> = heads
+            .into_par_iter()
+            .filter_map(|(k, channel_id, sequence, log_time, publish_time, bytes)| {
+                let raw = RawMessage {
+                    channel_id,
+                    sequence,
+                    log_time,
+                    publish_time,
+                    data: &bytes,
+                };
+                channels.get(&channel_id).map(|c| (k, map(c, &raw)))
+            })
+            .collect();
+        for (k, v) in values {
+            messages[k].value = v;
         }
         Ok(MappedScan {
             channels,
