@@ -6,6 +6,7 @@ Conventions: metres and seconds; ``T_a_b`` maps frame-b coordinates into frame a
 
 from slam2world._slam2world import (
     Alignment,
+    Conversion,
     DegenerateError,
     FileError,
     FormatError,
@@ -26,6 +27,7 @@ from slam2world._slam2world import (
     align_trajectories,
     associate,
     backproject,
+    convert,
     read_bt,
     read_mcap,
     read_ply,
@@ -36,6 +38,7 @@ from slam2world._slam2world import (
 
 __all__ = [
     "Alignment",
+    "Conversion",
     "DegenerateError",
     "FileError",
     "FormatError",
@@ -60,6 +63,7 @@ __all__ = [
     "read_bt",
     "read_ply",
     "read_xyz_text",
+    "convert",
     "read_mcap",
     "write_world_mcap",
 ]
