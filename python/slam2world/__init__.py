@@ -6,13 +6,13 @@ Conventions: metres and seconds; ``T_a_b`` maps frame-b coordinates into frame a
 
 from slam2world._slam2world import (
     Alignment,
+    Conversion,
     DegenerateError,
     FileError,
     FormatError,
     InvalidInputError,
     Keyframe,
     Log,
-    LogKeyframe,
     OccupancyMap,
     PinholeCamera,
     PointCloud,
@@ -27,6 +27,7 @@ from slam2world._slam2world import (
     align_trajectories,
     associate,
     backproject,
+    convert,
     evaluate,
     point_distances,
     read_bt,
@@ -40,6 +41,7 @@ from slam2world._slam2world import (
 
 __all__ = [
     "Alignment",
+    "Conversion",
     "DegenerateError",
     "FileError",
     "FormatError",
@@ -49,7 +51,6 @@ __all__ = [
     "PointCloud",
     "PointFilter",
     "Log",
-    "LogKeyframe",
     "OccupancyMap",
     "Sim3",
     "Simulation",
@@ -68,6 +69,7 @@ __all__ = [
     "read_bt",
     "read_ply",
     "read_xyz_text",
+    "convert",
     "read_mcap",
     "write_world_mcap",
 ]

@@ -8,6 +8,7 @@ use std::ffi::OsString;
 use clap::{Parser, Subcommand};
 
 pub mod align;
+pub mod convert;
 pub mod inspect;
 pub mod sim;
 pub mod transform_cloud;
@@ -26,6 +27,8 @@ pub struct Cli {
 enum Command {
     /// Fit the Sim(3) between two trajectory files and print the error statistics.
     Align(align::AlignArgs),
+    /// Convert an MCAP log into world.mcap, cloud.ply and report.json.
+    Convert(convert::ConvertArgs),
     /// List the topics of an MCAP log and what slam2world can use.
     Inspect(inspect::InspectArgs),
     /// Simulate the paper's experiment and write the LSD-SLAM log (MCAP) and its truth.
@@ -41,6 +44,7 @@ enum Command {
 fn run(cli: Cli) -> Result<()> {
     match cli.command {
         Command::Align(args) => align::run(args),
+        Command::Convert(args) => convert::run(&args),
         Command::Inspect(args) => inspect::run(&args),
         Command::Simulate(args) => sim::run_simulate(&args),
         Command::Evaluate(args) => sim::run_evaluate(&args),
