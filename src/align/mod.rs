@@ -12,8 +12,12 @@
 //! equal to Umeyama's `tr(DS)/σ²_a`. (The paper prints the denominator over
 //! the target points, which yields `1/s`.)
 
+pub mod covariance;
+pub mod handeye;
 mod horn;
 mod moments;
+pub mod robust;
+pub mod time_offset;
 mod umeyama;
 
 use nalgebra::{Matrix3, Vector3};
