@@ -17,8 +17,10 @@ pub mod handeye;
 mod horn;
 mod moments;
 pub mod robust;
+pub mod stages;
 pub mod time_offset;
 mod umeyama;
+pub mod windowed;
 
 use nalgebra::{Matrix3, Vector3};
 use rayon::prelude::*;
