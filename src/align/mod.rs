@@ -13,6 +13,7 @@
 //! the target points, which yields `1/s`.)
 
 pub mod covariance;
+pub mod extended;
 pub mod handeye;
 mod horn;
 mod moments;
