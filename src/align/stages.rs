@@ -10,9 +10,11 @@
 //! * the stable level `L` and the per-sample noise `σ` are the median and the
 //!   scaled MAD of the last third of `x`;
 //! * a rolling median `m_k` (odd window `w`) follows the level; it is "at the
-//!   stable level" where `|m_k − L| ≤ 4·1.2533·σ/√w` (four standard errors of a
-//!   median of `w` samples);
-//! * `stable_start` is the first index after the last one not at the level;
+//!   stable level" where `|m_k − L| ≤ 4·max(1.2533·σ/√w, ω)`: four standard
+//!   errors of a median of `w` samples, or four times the robust spread `ω` of
+//!   `m_k` about `L` over the last third (a level that wanders once stable);
+//! * `stable_start` is the first index after the last stretch of at least `w`
+//!   consecutive factors not at the level (shorter excursions are kept);
 //! * before it, `converging_start` is the change point of a level-then-ramp
 //!   model of the rolling median (a constant start level, then a straight
 //!   ramp to `L`), fitted by least squares.
@@ -159,13 +161,32 @@ pub fn detect_stages(p: &[f64]) -> Result<Stages> {
         *v = (*v - level).abs();
     }
     let noise = MAD_TO_SIGMA * median_in_place(&mut buf);
-    let tolerance = (LEVEL_TOLERANCE * MEDIAN_EFFICIENCY * noise / (w as f64).sqrt()).max(1e-9);
     let (med, _) = rolling(&x, w);
+    // The level may wander slowly once stable (scale drift): the spread of the
+    // rolling median over the tail widens the tolerance accordingly.
+    let mut tail_med: Vec<f64> = med[n - n / 3..].iter().map(|m| (m - level).abs()).collect();
+    let wander = MAD_TO_SIGMA * median_in_place(&mut tail_med);
+    let tolerance =
+        (LEVEL_TOLERANCE * (MEDIAN_EFFICIENCY * noise / (w as f64).sqrt()).max(wander)).max(1e-9);
     let off = |k: usize| (med[k] - level).abs() > tolerance;
-    let stable_start = match (0..n).rev().find(|&k| off(k)) {
-        Some(k) => (k + 1).min(n - 1),
-        None => 0,
-    };
+    // The last stretch of at least `w` consecutive factors off the level ends
+    // the start-up; shorter excursions of a stable run are kept.
+    let mut stable_start = 0;
+    let (mut run, mut run_end) = (0usize, 0usize);
+    for k in (0..n).rev() {
+        if off(k) {
+            if run == 0 {
+                run_end = k;
+            }
+            run += 1;
+            if run >= w {
+                stable_start = (run_end + 1).min(n - 1);
+                break;
+            }
+        } else {
+            run = 0;
+        }
+    }
     let converging_start = ramp_start(&med, stable_start, level, w);
     Ok(Stages {
         converging_start,
