@@ -94,10 +94,8 @@ fn robust_fit_ignores_thirty_percent_gross_outliers() {
     assert!(rel(naive.transform.scale) > 3e-3);
     assert!(rel(r.alignment.transform.scale) < 1e-3);
     // Every injected outlier is flagged; almost every clean pair is kept.
-    for i in 0..n {
-        if bad[i] {
-            assert!(!r.inliers[i], "outlier {i} kept");
-        }
+    for (i, (&b, &inl)) in bad.iter().zip(&r.inliers).enumerate() {
+        assert!(!(b && inl), "outlier {i} kept");
     }
     let kept_clean = (0..n).filter(|&i| !bad[i] && r.inliers[i]).count();
     assert!(

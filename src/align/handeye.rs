@@ -297,7 +297,7 @@ pub fn estimate_body_from_cam(
             h += j.transpose() * j;
             g += j.transpose() * q;
         }
-        let Some(x) = h.clone().cholesky().map(|ch| ch.solve(&g)) else {
+        let Some(x) = h.cholesky().map(|ch| ch.solve(&g)) else {
             return Err(Error::Degenerate {
                 reason: "the lever arm is not observable (the camera hardly rotates) \
                          (diagnostic: smallest eigenvalue of the normal matrix)"
@@ -347,18 +347,17 @@ pub fn estimate_body_from_cam(
 mod tests {
     use super::*;
 
+    type Poses = (
+        Vec<Vector3<f64>>,
+        Vec<UnitQuaternion<f64>>,
+        Vec<Vector3<f64>>,
+        Vec<UnitQuaternion<f64>>,
+        Sim3,
+        Sim3,
+    );
+
     /// A wiggly path with rotations about all axes, camera poses in a SLAM frame.
-    fn poses(
-        n: usize,
-        straight: bool,
-    ) -> (
-        Vec<Vector3<f64>>,
-        Vec<UnitQuaternion<f64>>,
-        Vec<Vector3<f64>>,
-        Vec<UnitQuaternion<f64>>,
-        Sim3,
-        Sim3,
-    ) {
+    fn poses(n: usize, straight: bool) -> Poses {
         let t_ws =
             Sim3::from_quaternion_xyzw([0.2, -0.4, 0.1, 0.8], Vector3::new(3.0, 1.0, -2.0), 5.0)
                 .unwrap();
