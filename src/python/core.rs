@@ -764,6 +764,34 @@ fn align_trajectories_py(
     })
 }
 
+impl PyTrajectoryAlignment {
+    /// Wraps a core result (also used by `convert` in `mcap.rs`): `offset` is
+    /// the one the fit was asked for; no start-up cut, no robust fit; the
+    /// covariance from the fitted pairs when they determine it.
+    pub fn from_core(py: Python<'_>, ta: TrajectoryAlignment, offset: f64) -> PyResult<Self> {
+        let TrajectoryAlignment {
+            alignment,
+            pairs,
+            ape,
+            errors,
+        } = ta;
+        let transform = alignment.transform;
+        Ok(PyTrajectoryAlignment {
+            alignment: Py::new(py, PyAlignment::new(py, alignment))?,
+            transform,
+            ape,
+            pairs,
+            residuals: errors.into_pyarray(py).unbind(),
+            offset,
+            fit_start: 0,
+            skip_reason: "no start-up cut asked for".into(),
+            stages: None,
+            inliers: None,
+            covariance: None,
+        })
+    }
+}
+
 /// The paper's frame-to-frame factors `p_k = ‖t'_{k+1} − t'_k‖² / ‖t_{k+1} − t_k‖²`
 /// (`t'` reference, `t` SLAM), shape (N−1,); about `s²`.
 #[pyfunction(name = "scale_factors")]
