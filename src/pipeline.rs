@@ -12,12 +12,12 @@ use std::time::Instant;
 
 use serde::Serialize;
 
+use crate::align::extended::{align_trajectories_extended, ExtendedOptions};
+use crate::align::windowed::{align_windowed, Window, WindowedOptions};
 use crate::cloud::{backproject, PointCloud, PointFilter};
 use crate::error::{Error, Result};
 use crate::io::mcap::{read_mcap, write_world_mcap, Log, ReadOptions, WorldFlavor, WorldScene};
-use crate::trajectory::{
-    align_trajectories, Trajectory, TrajectoryAlignOptions, TrajectoryAlignment,
-};
+use crate::trajectory::{Trajectory, TrajectoryAlignOptions, TrajectoryAlignment};
 
 /// Everything `convert` can be told.
 #[derive(Clone, Debug, Default)]
@@ -29,6 +29,11 @@ pub struct ConvertOptions {
     pub align: TrajectoryAlignOptions,
     /// Which pixels become points (the LSD-SLAM viewer's defaults by default).
     pub filter: PointFilter,
+    /// Start-up cut, robust fit, orientations, time offset, extrinsic.
+    pub beyond: ExtendedOptions,
+    /// Also fit a windowed (drift-aware) alignment and compare it with the
+    /// single Sim(3) in the report (the cloud still uses the single Sim(3)).
+    pub compare_windowed: Option<Window>,
 }
 
 /// `T_world_slam` as the report writes it.
@@ -105,6 +110,11 @@ pub struct Report {
     pub ape: ApeReport,
     /// Every matched pair.
     pub pairs: Vec<PairReport>,
+    /// What the options beyond one fit did: start-up cut and why, offset,
+    /// inliers, 95 % confidence intervals.
+    pub beyond: serde_json::Value,
+    /// The windowed alignment against the single Sim(3), when asked for.
+    pub windowed: Option<serde_json::Value>,
     /// Points in the world cloud.
     pub points: usize,
     /// Stage timings.
@@ -203,8 +213,8 @@ pub fn convert(log: &Log, opts: &ConvertOptions) -> Result<Conversion> {
     let ref_topic = log.reference_topic.clone().unwrap_or_default();
     let t0 = Instant::now();
     let (slam, order) = keyframe_trajectory(log)?;
-    let ta = match align_trajectories(&slam, reference, &opts.align) {
-        Ok(ta) => ta,
+    let ext = match align_trajectories_extended(&slam, reference, &opts.align, &opts.beyond) {
+        Ok(ext) => ext,
         Err(Error::TooFew { need, got, .. }) => {
             return Err(mcap_err(
                 &log.path,
@@ -216,6 +226,35 @@ pub fn convert(log: &Log, opts: &ConvertOptions) -> Result<Conversion> {
             ))
         }
         Err(e) => return Err(e),
+    };
+    let beyond = ext.report_json(0.95);
+    let fit_start = ext.fit_start;
+    let inliers = ext.inliers.clone();
+    let offset = ext.offset;
+    let ta = ext.trajectory;
+    let windowed = match opts.compare_windowed {
+        Some(window) => {
+            let w = align_windowed(
+                &slam,
+                reference,
+                &WindowedOptions {
+                    window,
+                    max_diff: opts.align.max_diff,
+                    offset,
+                    scale: opts.align.scale,
+                },
+            )?;
+            let scales = w.transforms.iter().map(|t| t.scale);
+            let (lo, hi) = scales.fold((f64::INFINITY, 0.0f64), |(a, b), s| (a.min(s), b.max(s)));
+            Some(serde_json::json!({
+                "window": format!("{window:?}"),
+                "windowed_rmse": w.rmse,
+                "single_rmse": w.global.rmse,
+                "scale_min": lo,
+                "scale_max": hi,
+            }))
+        }
+        None => None,
     };
     let align_s = secs(t0);
     let t = ta.alignment.transform;
@@ -238,7 +277,9 @@ pub fn convert(log: &Log, opts: &ConvertOptions) -> Result<Conversion> {
     let n_fit = opts
         .align
         .first_n
-        .map_or(ta.pairs.len(), |n| n.min(ta.pairs.len()));
+        .map_or(ta.pairs.len() - fit_start.min(ta.pairs.len()), |n| {
+            n.min(ta.pairs.len() - fit_start.min(ta.pairs.len()))
+        });
     let mut used = vec![false; slam.len()];
     let pairs: Vec<PairReport> = ta
         .pairs
@@ -252,7 +293,9 @@ pub fn convert(log: &Log, opts: &ConvertOptions) -> Result<Conversion> {
                 keyframe_time: slam.timestamps[s],
                 reference_time: reference.timestamps[r],
                 error,
-                fitted: k < n_fit,
+                fitted: k >= fit_start
+                    && k < fit_start + n_fit
+                    && inliers.as_ref().is_none_or(|m| m[k - fit_start]),
             }
         })
         .collect();
@@ -278,7 +321,7 @@ pub fn convert(log: &Log, opts: &ConvertOptions) -> Result<Conversion> {
         frames_dropped,
         pairs_fitted: n_fit,
         max_diff: opts.align.max_diff,
-        offset: opts.align.offset,
+        offset,
         t_world_slam: TransformReport {
             quaternion_xyzw: t.quaternion_xyzw(),
             translation: [t.translation.x, t.translation.y, t.translation.z],
@@ -295,6 +338,8 @@ pub fn convert(log: &Log, opts: &ConvertOptions) -> Result<Conversion> {
             max: ta.ape.max,
         },
         pairs,
+        beyond,
+        windowed,
         points: cloud.len(),
         timing: Timing {
             read_s: 0.0,

@@ -295,6 +295,55 @@ pub fn align_trajectories_extended(
     })
 }
 
+impl ExtendedAlignment {
+    /// The report of what the extras did: start-up cut (and why), offset,
+    /// inlier counts, `level` confidence intervals.
+    pub fn report_json(&self, level: f64) -> serde_json::Value {
+        let r = self;
+        let mut v = serde_json::json!({
+            "fit_start": r.fit_start,
+            "skip_reason": r.skip_reason,
+            "offset": r.offset,
+        });
+        if let Some(st) = &r.stages {
+            v["stages"] = serde_json::json!({
+                "converging_start": st.converging_start,
+                "stable_start": st.stable_start,
+                "n_factors": st.n,
+                "stable_level": st.stable_level,
+                "noise": st.noise,
+                "window": st.window,
+            });
+        }
+        if let Some(o) = &r.offset_estimate {
+            v["offset_estimate"] = serde_json::json!({
+                "estimated": o.offset, "rmse": o.rmse, "rmse_at_zero": o.rmse_at_zero,
+                "n_used": o.n_used,
+            });
+        }
+        if let Some(m) = &r.inliers {
+            v["n_inliers"] = m.iter().filter(|&&b| b).count().into();
+            v["n_outliers"] = m.iter().filter(|&&b| !b).count().into();
+        }
+        if let Some(c) = &r.covariance {
+            if let (Ok(s), Ok(t), Ok(rot)) = (
+                c.scale_interval(level),
+                c.translation_intervals(level),
+                c.rotation_half_widths(level),
+            ) {
+                v["intervals"] = serde_json::json!({
+                    "level": level,
+                    "scale": [s.0, s.1],
+                    "translation": t.iter().map(|p| [p.0, p.1]).collect::<Vec<_>>(),
+                    "rotation_half_width_deg": rot.iter().map(|x| x.to_degrees()).collect::<Vec<_>>(),
+                    "sigma": c.sigma2.sqrt(),
+                });
+            }
+        }
+        v
+    }
+}
+
 /// The lever arm `c` (body origin in the camera frame, metres) of `T_body_cam`.
 fn lever(body_from_cam: &Sim3) -> Result<Vector3<f64>> {
     let unscaled = Sim3::try_new(body_from_cam.rotation, body_from_cam.translation, 1.0)?;

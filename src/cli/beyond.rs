@@ -115,47 +115,7 @@ impl BeyondArgs {
 
 /// The JSON report of the extras: start-up cut, offset, inliers, intervals.
 pub fn report_json(r: &ExtendedAlignment, level: f64) -> serde_json::Value {
-    let mut v = serde_json::json!({
-        "fit_start": r.fit_start,
-        "skip_reason": r.skip_reason,
-        "offset": r.offset,
-    });
-    if let Some(st) = &r.stages {
-        v["stages"] = serde_json::json!({
-            "converging_start": st.converging_start,
-            "stable_start": st.stable_start,
-            "n_factors": st.n,
-            "stable_level": st.stable_level,
-            "noise": st.noise,
-            "window": st.window,
-        });
-    }
-    if let Some(o) = &r.offset_estimate {
-        v["offset_estimate"] = serde_json::json!({
-            "estimated": o.offset, "rmse": o.rmse, "rmse_at_zero": o.rmse_at_zero,
-            "n_used": o.n_used,
-        });
-    }
-    if let Some(m) = &r.inliers {
-        v["n_inliers"] = m.iter().filter(|&&b| b).count().into();
-        v["n_outliers"] = m.iter().filter(|&&b| !b).count().into();
-    }
-    if let Some(c) = &r.covariance {
-        if let (Ok(s), Ok(t), Ok(rot)) = (
-            c.scale_interval(level),
-            c.translation_intervals(level),
-            c.rotation_half_widths(level),
-        ) {
-            v["intervals"] = serde_json::json!({
-                "level": level,
-                "scale": [s.0, s.1],
-                "translation": t.iter().map(|p| [p.0, p.1]).collect::<Vec<_>>(),
-                "rotation_half_width_deg": rot.iter().map(|x| x.to_degrees()).collect::<Vec<_>>(),
-                "sigma": c.sigma2.sqrt(),
-            });
-        }
-    }
-    v
+    r.report_json(level)
 }
 
 /// The text lines of the extras (empty parts left out).

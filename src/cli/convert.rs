@@ -53,6 +53,12 @@ pub struct ConvertArgs {
     /// No progress bar and no summary.
     #[arg(short, long)]
     pub quiet: bool,
+    /// Also fit a windowed Sim(3) over N matched keyframes and compare it with
+    /// the single Sim(3) in the report.
+    #[arg(long, value_name = "N")]
+    pub compare_windowed: Option<usize>,
+    #[command(flatten)]
+    pub beyond: super::beyond::BeyondArgs,
 }
 
 /// Runs the conversion and writes the three outputs.
@@ -87,6 +93,11 @@ pub fn run(args: &ConvertArgs) -> Result<()> {
         } else {
             PointFilter::default()
         },
+
+        beyond: args.beyond.options(),
+        compare_windowed: args
+            .compare_windowed
+            .map(crate::align::windowed::Window::Poses),
     };
     bar.set_message("reading the log");
     let t = Instant::now();

@@ -316,6 +316,8 @@ fn convert_py(
             ..TrajectoryAlignOptions::default()
         },
         filter: filter.map(|f| f.inner).unwrap_or_default(),
+
+        ..ConvertOptions::default()
     };
     let conversion = if let Ok(log) = log_or_path.cast::<PyLog>() {
         let log = log.get();
