@@ -83,7 +83,8 @@ def test_covariance_interval_covers_by_monte_carlo() -> None:
 def test_detect_stages_on_synthetic_factors() -> None:
     rng = np.random.default_rng(2)
     k = np.arange(1200)
-    level = np.where(k < 300, np.log(2.0), np.log(9.0))
+    level = np.full(k.size, np.log(9.0))
+    level[k < 300] = np.log(2.0)
     ramp = (k >= 300) & (k < 700)
     level[ramp] = np.log(2.0) + (np.log(9.0) - np.log(2.0)) * (k[ramp] - 300) / 400
     p = np.exp(level + rng.normal(scale=0.1, size=k.size))
