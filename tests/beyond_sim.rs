@@ -4,7 +4,8 @@
 use slam2world::align::extended::{align_trajectories_extended, ExtendedOptions, SkipInit};
 use slam2world::align::windowed::{align_windowed, Window, WindowedOptions};
 use slam2world::cloud::{backproject, backproject_per_keyframe, PointFilter};
-use slam2world::sim::{point_distances, simulate, ErrorStats, SimConfig};
+use slam2world::sim::evaluate::point_distances;
+use slam2world::sim::{simulate, ErrorStats, SimConfig};
 use slam2world::trajectory::{align_trajectories, TrajectoryAlignOptions};
 
 #[test]
@@ -74,7 +75,11 @@ fn windowed_alignment_halves_the_cloud_error_under_scale_drift() {
         .unwrap()
         .alignment
         .transform;
-    let single_rmse = rmse(&backproject(&sim.keyframes, &filter, Some(&single)).unwrap().points);
+    let single_rmse = rmse(
+        &backproject(&sim.keyframes, &filter, Some(&single))
+            .unwrap()
+            .points,
+    );
     let w = align_windowed(
         &kf,
         &sim.reference,
