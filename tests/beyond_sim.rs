@@ -106,3 +106,45 @@ fn windowed_alignment_halves_the_cloud_error_under_scale_drift() {
         "{windowed_rmse} vs {single_rmse}"
     );
 }
+
+#[test]
+fn convert_reports_the_cut_the_inliers_and_the_windowed_comparison() {
+    use slam2world::align::robust::RobustOptions;
+    use slam2world::io::mcap::Log;
+    use slam2world::pipeline::{convert, ConvertOptions};
+    let sim = simulate(&SimConfig {
+        scale_drift: 0.01,
+        ..SimConfig::default().reduced(8)
+    })
+    .unwrap();
+    let log = Log {
+        keyframes: sim.keyframes.clone(),
+        reference: Some(sim.reference.clone()),
+        ..Default::default()
+    };
+    let opts = ConvertOptions {
+        filter: PointFilter::none(),
+        beyond: ExtendedOptions {
+            skip_init: SkipInit::First(3),
+            robust: Some(RobustOptions::default()),
+            ..Default::default()
+        },
+        compare_windowed: Some(Window::Poses(5)),
+        ..Default::default()
+    };
+    let c = convert(&log, &opts).unwrap();
+    let r = &c.report;
+    assert_eq!(r.beyond["fit_start"], 3);
+    assert!(r.beyond["skip_reason"]
+        .as_str()
+        .unwrap()
+        .contains("first 3"));
+    let n_in = r.beyond["n_inliers"].as_u64().unwrap() as usize;
+    assert_eq!(r.pairs.iter().filter(|p| p.fitted).count(), n_in);
+    assert!(r.pairs.iter().take(3).all(|p| !p.fitted));
+    let w = r.windowed.as_ref().unwrap();
+    assert!(w["windowed_rmse"].as_f64().unwrap() < w["single_rmse"].as_f64().unwrap());
+    let iv = r.beyond["intervals"]["scale"].as_array().unwrap();
+    let s = r.t_world_slam.scale;
+    assert!(iv[0].as_f64().unwrap() < s && s < iv[1].as_f64().unwrap());
+}
