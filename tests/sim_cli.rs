@@ -82,7 +82,7 @@ fn demo_then_evaluate() {
         "--cloud",
         s(&out.join("cloud.ply")),
         "--transform",
-        s(&out.join("demo.json")),
+        s(&out.join("report.json")),
         "-o",
         s(&scores),
     ]);

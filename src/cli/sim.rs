@@ -18,14 +18,14 @@ use clap::Args;
 use nalgebra::Vector3;
 use serde_json::{json, Value};
 
-use crate::cloud::{backproject, PointFilter};
+use crate::cloud::backproject;
 use crate::error::{Error, Result};
 use crate::geometry::Sim3;
-use crate::io::mcap::{write_slam_log, write_world_mcap, SlamLogOptions, WorldFlavor, WorldScene};
-use crate::io::ply::write_ply;
+use crate::io::mcap::{read_mcap, write_slam_log, SlamLogOptions, WorldFlavor};
+use crate::pipeline::{convert, ConvertOptions};
 use crate::sim::evaluate::{ape, point_distances, transform_error, ErrorStats};
 use crate::sim::{simulate, CameraPath, Scene, SimConfig, Simulation};
-use crate::trajectory::{align_trajectories, scale_factors, Trajectory, TrajectoryAlignOptions};
+use crate::trajectory::{align_trajectories, scale_factors, Trajectory};
 
 /// Options shared by `simulate` and `demo`: which run.
 #[derive(Args, Debug, Clone)]
@@ -106,9 +106,6 @@ pub struct DemoArgs {
     /// Output folder (created).
     #[arg(short, long, default_value = "slam2world-demo", value_name = "DIR")]
     output: PathBuf,
-    /// Also write the simulated input log (`sim.mcap`, about 0.5 GB uncompressed keyframes).
-    #[arg(long)]
-    write_log: bool,
     /// Skip the figures (they need Python with slam2world and matplotlib).
     #[arg(long)]
     no_plots: bool,
@@ -371,37 +368,47 @@ pub fn run_demo(args: &DemoArgs) -> Result<()> {
     let sim = simulate(&cfg)?;
     let t_sim = t0.elapsed().as_secs_f64();
 
-    // The map's keyframe trajectory against the 200 Hz reference.
-    let kf_traj = sim.keyframe_trajectory()?;
-    let opts = TrajectoryAlignOptions::default();
-    let fit = align_trajectories(&kf_traj, &sim.reference, &opts)?;
-    let est = fit.alignment.transform;
+    // The log a LSD-SLAM user records, and its truth.
+    let log_path = dir.join("sim.mcap");
+    let truth_file = dir.join("sim.truth.json");
+    write_log(&sim, &log_path, &truth_file)?;
+    let t_log = t0.elapsed().as_secs_f64() - t_sim;
+
+    // Convert it: read, associate, align (keyframes vs reference), backproject, write.
+    let opts = ConvertOptions::default();
+    let log = read_mcap(&log_path, &opts.read)?;
+    let conv = convert(&log, &opts)?;
+    conv.write_all(dir, WorldFlavor::Foxglove)?;
+    let est = conv.transform();
+    let cloud = &conv.cloud;
+    // The same keyframes through the same filter, carried with the true transform:
+    // SLAM's own depth error, the yardstick of the alignment.
+    let cloud_true = backproject(&log.keyframes, &opts.filter, Some(&sim.truth.t_world_slam))?;
+    let t_convert = t0.elapsed().as_secs_f64() - t_sim - t_log;
+
     // For comparison: every tracked frame, start-up included (the paper's warning), and
     // the tracked frames of the stable stage only.
-    let all_frames = align_trajectories(&sim.slam_frames, &sim.reference, &opts)?;
+    let all_frames = align_trajectories(&sim.slam_frames, &sim.reference, &opts.align)?;
     let k = cfg.stable_start;
     let stable_frames = Trajectory::try_new(
         sim.slam_frames.timestamps[k..].to_vec(),
         sim.slam_frames.positions[k..].to_vec(),
         None,
     )?;
-    let stable_fit = align_trajectories(&stable_frames, &sim.reference, &opts)?;
-
-    // Convert: the LSD-SLAM viewer's filters, then T_world_slam.
-    let filter = PointFilter::default();
-    let cloud = backproject(&sim.keyframes, &filter, Some(&est))?;
-    let cloud_true = backproject(&sim.keyframes, &filter, Some(&sim.truth.t_world_slam))?;
-    let t_convert = t0.elapsed().as_secs_f64() - t_sim;
+    let stable_fit = align_trajectories(&stable_frames, &sim.reference, &opts.align)?;
 
     // Score.
+    let t1 = Instant::now();
     let scene = &sim.truth.scene;
     let d = point_distances(scene, &cloud.points)?;
     let d_true = point_distances(scene, &cloud_true.points)?;
     let err = ErrorStats::from_values("points", &d)?;
     let err_true = ErrorStats::from_values("points", &d_true)?;
     let terr = transform_error(&est, &sim.truth.t_world_slam);
-    let ape_kf = ape(&kf_traj, &est, &sim.truth.path)?;
-    let t_score = t0.elapsed().as_secs_f64() - t_sim - t_convert;
+    // The pipeline's keyframe trajectory is already in the world frame.
+    let aligned = &conv.slam_trajectory;
+    let ape_kf = ape(aligned, &Sim3::identity(), &sim.truth.path)?;
+    let t_score = t1.elapsed().as_secs_f64();
 
     // p_k of the tracked frames against the reference at the same times.
     let ref_at = sim
@@ -409,29 +416,6 @@ pub fn run_demo(args: &DemoArgs) -> Result<()> {
         .interpolate(&sim.slam_frames.timestamps, 0.1)?;
     let p_k = scale_factors(&sim.slam_frames.positions, &ref_at.positions)?;
 
-    // Outputs.
-    write_ply(dir.join("cloud.ply"), &cloud)?;
-    let aligned = kf_traj.transformed(&est);
-    write_world_mcap(
-        dir.join("world.mcap"),
-        &WorldScene {
-            points: &cloud.points,
-            colors: cloud.colors.as_deref(),
-            t_world_slam: est,
-            slam_trajectory: Some(&aligned),
-            reference: Some(&sim.reference),
-            stamp: kf_traj.timestamps.last().copied().unwrap_or(0.0),
-            world_frame: "world",
-            slam_frame: "slam",
-        },
-        WorldFlavor::Foxglove,
-    )?;
-    let truth_file = dir.join("sim.truth.json");
-    if args.write_log {
-        write_log(&sim, &dir.join("sim.mcap"), &truth_file)?;
-    } else {
-        write_atomic(&truth_file, &json_bytes(&truth_json(&sim, true))?)?;
-    }
     let files = [
         (
             "points",
@@ -485,9 +469,9 @@ pub fn run_demo(args: &DemoArgs) -> Result<()> {
         "cloud_error_true_transform": stats_json(&err_true),
         "ape_keyframes": stats_json(&ape_kf),
         "alignment": {
-            "fit": "keyframes vs reference",
-            "pairs": fit.pairs.len(),
-            "rmse": fit.ape.rmse,
+            "fit": "keyframes vs reference (the convert pipeline, report.json)",
+            "pairs": conv.alignment.pairs.len(),
+            "rmse": conv.alignment.ape.rmse,
             "scale_error_all_frames": all_frames.alignment.transform.scale / sim.truth.t_world_slam.scale - 1.0,
             "scale_error_stable_frames": stable_fit.alignment.transform.scale / sim.truth.t_world_slam.scale - 1.0,
         },
@@ -495,10 +479,9 @@ pub fn run_demo(args: &DemoArgs) -> Result<()> {
         "scene": truth_json(&sim, false)["scene"].clone(),
         "config": cfg.to_json(),
         "files": Value::Object(names),
-        "seconds": {"simulate": t_sim, "convert": t_convert, "score": t_score},
+        "seconds": {"simulate": t_sim, "write_log": t_log, "convert": t_convert, "score": t_score},
     });
     write_atomic(&dir.join("demo.json"), &json_bytes(&report)?)?;
-    let t_write = t0.elapsed().as_secs_f64();
 
     let plots = if args.no_plots {
         None
@@ -557,13 +540,13 @@ pub fn run_demo(args: &DemoArgs) -> Result<()> {
         None => {}
     }
     println!(
-        "  wrote {} in {:.1} s (simulate {:.1} s, convert {:.1} s, score {:.1} s, write {:.1} s)",
+        "  wrote {} in {:.1} s (simulate {:.1} s, log {:.1} s, convert {:.1} s, score {:.1} s)",
         dir.display(),
         t0.elapsed().as_secs_f64(),
         t_sim,
+        t_log,
         t_convert,
-        t_score,
-        t_write - t_sim - t_convert - t_score
+        t_score
     );
     Ok(())
 }
