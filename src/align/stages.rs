@@ -82,25 +82,19 @@ fn median_in_place(v: &mut [f64]) -> f64 {
     }
 }
 
-fn rolling(x: &[f64], w: usize) -> (Vec<f64>, Vec<f64>) {
+fn rolling_median(x: &[f64], w: usize) -> Vec<f64> {
     let h = w / 2;
     let n = x.len();
-    let mut med = Vec::with_capacity(n);
-    let mut mad = Vec::with_capacity(n);
     let mut buf = Vec::with_capacity(w);
-    for k in 0..n {
-        let lo = k.saturating_sub(h);
-        let hi = (k + h + 1).min(n);
-        buf.clear();
-        buf.extend_from_slice(&x[lo..hi]);
-        let m = median_in_place(&mut buf);
-        for v in buf.iter_mut() {
-            *v = (*v - m).abs();
-        }
-        med.push(m);
-        mad.push(MAD_TO_SIGMA * median_in_place(&mut buf));
-    }
-    (med, mad)
+    (0..n)
+        .map(|k| {
+            let lo = k.saturating_sub(h);
+            let hi = (k + h + 1).min(n);
+            buf.clear();
+            buf.extend_from_slice(&x[lo..hi]);
+            median_in_place(&mut buf)
+        })
+        .collect()
 }
 
 /// The change point `j` of a level-then-ramp model of the rolling median
@@ -161,7 +155,7 @@ pub fn detect_stages(p: &[f64]) -> Result<Stages> {
         *v = (*v - level).abs();
     }
     let noise = MAD_TO_SIGMA * median_in_place(&mut buf);
-    let (med, _) = rolling(&x, w);
+    let med = rolling_median(&x, w);
     // The level may wander slowly once stable (scale drift): the spread of the
     // rolling median over the tail widens the tolerance accordingly.
     let mut tail_med: Vec<f64> = med[n - n / 3..].iter().map(|m| (m - level).abs()).collect();

@@ -131,7 +131,7 @@ impl PyAlignment {
         match &self.covariance {
             CovarianceSource::Known(Some(c)) => Ok((**c).clone()),
             CovarianceSource::Known(None) => Err(Error::Degenerate {
-                reason: "no covariance: the positions alone do not determine this fit".into(),
+                reason: "no covariance for this fit (the positions alone do not determine it, or it was not computed)".into(),
                 value: 0.0,
             }
             .into()),
@@ -655,7 +655,7 @@ impl PyTrajectoryAlignment {
     fn covariance_checked(&self) -> PyResult<&Covariance> {
         self.covariance.as_ref().ok_or_else(|| {
             Error::Degenerate {
-                reason: "no covariance: the positions alone do not determine this fit".into(),
+                reason: "no covariance for this fit (the positions alone do not determine it, or it was not computed)".into(),
                 value: 0.0,
             }
             .into()
