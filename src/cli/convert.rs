@@ -67,6 +67,12 @@ pub struct ConvertArgs {
     /// No progress bar and no summary.
     #[arg(short, long)]
     pub quiet: bool,
+    /// Also fit a windowed Sim(3) over N matched keyframes and compare it with
+    /// the single Sim(3) in the report.
+    #[arg(long, value_name = "N")]
+    pub compare_windowed: Option<usize>,
+    #[command(flatten)]
+    pub beyond: super::beyond::BeyondArgs,
 }
 
 /// Runs the conversion and writes the three outputs.
@@ -103,6 +109,10 @@ pub fn run(args: &ConvertArgs) -> Result<()> {
         },
         octree_resolution: args.octree,
         octree_max_range: args.octree_max_range,
+        beyond: args.beyond.options(),
+        compare_windowed: args
+            .compare_windowed
+            .map(crate::align::windowed::Window::Poses),
     };
     // Bad octree parameters fail before the log is read.
     opts.octree_params()?;

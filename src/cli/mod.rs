@@ -8,6 +8,7 @@ use std::ffi::OsString;
 use clap::{Parser, Subcommand};
 
 pub mod align;
+pub mod beyond;
 pub mod convert;
 pub mod inspect;
 pub mod sim;

@@ -339,6 +339,7 @@ fn convert_py(
         filter: filter.map(|f| f.inner).unwrap_or_default(),
         octree_resolution,
         octree_max_range,
+        ..ConvertOptions::default()
     };
     let conversion = if let Ok(log) = log_or_path.cast::<PyLog>() {
         let log = log.get();
@@ -354,7 +355,7 @@ fn convert_py(
     };
     let alignment = Py::new(
         py,
-        PyTrajectoryAlignment::from_core(py, conversion.alignment.clone())?,
+        PyTrajectoryAlignment::from_core(py, conversion.alignment.clone(), offset)?,
     )?;
     Ok(PyConversion {
         inner: conversion,

@@ -3,6 +3,7 @@
 
 use pyo3::prelude::*;
 
+mod beyond;
 mod cli;
 mod cloud;
 mod convert;
@@ -21,6 +22,7 @@ fn _slam2world(m: &Bound<'_, PyModule>) -> PyResult<()> {
     sim::register(m)?;
     map::register(m)?;
     core::register(m)?;
+    beyond::register(m)?;
     cloud::register(m)?;
     cli::register(m)?;
     mcap::register(m)?;
