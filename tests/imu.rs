@@ -1,0 +1,240 @@
+//! Inertial initialisation: synthetic motion with known derivatives, the EuRoC
+//! IMU reader, degenerate motion, and the real EuRoC V1_02 data (skipped when
+//! ../shared/data is absent).
+
+use std::f64::consts::PI;
+use std::path::{Path, PathBuf};
+
+use nalgebra::{UnitQuaternion, Vector3};
+use rand::SeedableRng;
+use rand_chacha::ChaCha8Rng;
+use rand_distr::{Distribution, Normal};
+use slam2world::imu::{imu_initialize, ImuInitOptions};
+use slam2world::{Error, ImuSamples, Sim3, Trajectory};
+
+const G: f64 = 9.81;
+
+/// A smooth 3-D motion (metres, seconds) with known derivatives; `excite`
+/// scales the acceleration (0: constant velocity), `translate` = false keeps
+/// the body in place (pure rotation).
+#[derive(Clone, Copy)]
+struct Motion {
+    excite: f64,
+    translate: bool,
+}
+
+impl Motion {
+    fn position(&self, t: f64) -> Vector3<f64> {
+        if !self.translate {
+            return Vector3::new(0.5, -0.2, 1.0);
+        }
+        let e = self.excite;
+        Vector3::new(
+            0.3 * t + e * 1.2 * (0.9 * t).sin(),
+            -0.1 * t + e * 0.8 * (1.3 * t + 0.4).sin(),
+            e * 0.4 * (0.7 * t + 1.0).sin(),
+        )
+    }
+    fn acceleration(&self, t: f64) -> Vector3<f64> {
+        if !self.translate {
+            return Vector3::zeros();
+        }
+        let e = self.excite;
+        Vector3::new(
+            -e * 1.2 * 0.81 * (0.9 * t).sin(),
+            -e * 0.8 * 1.69 * (1.3 * t + 0.4).sin(),
+            -e * 0.4 * 0.49 * (0.7 * t + 1.0).sin(),
+        )
+    }
+    /// `R_world_body`.
+    fn orientation(&self, t: f64) -> UnitQuaternion<f64> {
+        UnitQuaternion::from_scaled_axis(Vector3::new(
+            0.3 * (0.5 * t).sin(),
+            0.25 * (0.8 * t + 1.0).sin(),
+            0.6 * (0.3 * t).sin() + 0.2,
+        ))
+    }
+    /// Body angular rate (central difference of the orientation, O(h²)).
+    fn angular_velocity(&self, t: f64) -> Vector3<f64> {
+        let h = 1e-4;
+        (self.orientation(t - h).inverse() * self.orientation(t + h)).scaled_axis() / (2.0 * h)
+    }
+}
+
+struct Noise {
+    gyro: f64,
+    gyro_walk: f64,
+    accel: f64,
+    accel_walk: f64,
+    keyframe_pos: f64,
+    keyframe_rot: f64,
+}
+
+const QUIET: Noise = Noise {
+    gyro: 0.0,
+    gyro_walk: 0.0,
+    accel: 0.0,
+    accel_walk: 0.0,
+    keyframe_pos: 0.0,
+    keyframe_rot: 0.0,
+};
+
+/// EuRoC ADIS16448 densities; keyframe noise of a good SLAM system.
+const EUROC: Noise = Noise {
+    gyro: 1.6968e-4,
+    gyro_walk: 1.9393e-5,
+    accel: 2.0e-3,
+    accel_walk: 3.0e-3,
+    keyframe_pos: 0.005,
+    keyframe_rot: 1e-3,
+};
+
+struct Scenario {
+    imu: ImuSamples,
+    keyframes: Trajectory,
+    /// `T_world_slam` used to make the keyframes.
+    truth: Sim3,
+    imu_from_cam: Sim3,
+}
+
+fn gauss(rng: &mut ChaCha8Rng, sigma: f64) -> Vector3<f64> {
+    if sigma == 0.0 {
+        return Vector3::zeros();
+    }
+    let n = Normal::new(0.0, sigma).unwrap();
+    Vector3::new(n.sample(rng), n.sample(rng), n.sample(rng))
+}
+
+fn scenario(motion: Motion, duration: f64, noise: &Noise, seed: u64) -> Scenario {
+    let mut rng = ChaCha8Rng::seed_from_u64(seed);
+    let rate = 200.0;
+    let dt = 1.0 / rate;
+    let g = Vector3::new(0.0, 0.0, -G);
+    let mut bg = Vector3::new(0.004, -0.006, 0.003);
+    let mut ba = Vector3::new(0.05, -0.08, 0.06);
+    let (mut ts, mut gyro, mut accel) = (Vec::new(), Vec::new(), Vec::new());
+    let t0 = 100.0;
+    let n = (duration * rate) as usize + 41;
+    for j in 0..n {
+        let t = j as f64 * dt - 0.1;
+        let r = motion.orientation(t);
+        ts.push(t0 + t);
+        gyro.push(motion.angular_velocity(t) + bg + gauss(&mut rng, noise.gyro * rate.sqrt()));
+        accel.push(
+            r.inverse() * (motion.acceleration(t) - g) + ba + gauss(&mut rng, noise.accel * rate.sqrt()),
+        );
+        bg += gauss(&mut rng, noise.gyro_walk * dt.sqrt());
+        ba += gauss(&mut rng, noise.accel_walk * dt.sqrt());
+    }
+    let imu = ImuSamples::try_new(ts, gyro, accel).unwrap();
+    // Camera: rotated and offset from the IMU (EuRoC-like lever arm).
+    let imu_from_cam = Sim3::try_new(
+        UnitQuaternion::from_scaled_axis(Vector3::new(0.02, -0.03, PI / 2.0)),
+        Vector3::new(-0.02, -0.065, 0.01),
+        1.0,
+    )
+    .unwrap();
+    let truth = Sim3::try_new(
+        UnitQuaternion::from_scaled_axis(Vector3::new(0.7, -1.1, 0.4)),
+        Vector3::new(2.0, -1.0, 0.5),
+        3.7,
+    )
+    .unwrap();
+    let slam_from_world = truth.inverse();
+    let (mut kt, mut kp, mut ko) = (Vec::new(), Vec::new(), Vec::new());
+    let kf_rate = 10.0;
+    let nk = (duration * kf_rate) as usize + 1;
+    for k in 0..nk {
+        let t = k as f64 / kf_rate;
+        let t_world_imu = Sim3::try_new(motion.orientation(t), motion.position(t), 1.0).unwrap();
+        let t_world_cam = t_world_imu * imu_from_cam;
+        let t_slam_cam = slam_from_world * t_world_cam;
+        kt.push(t0 + t);
+        kp.push(t_slam_cam.translation + gauss(&mut rng, noise.keyframe_pos / truth.scale));
+        ko.push(t_slam_cam.rotation * UnitQuaternion::from_scaled_axis(gauss(&mut rng, noise.keyframe_rot)));
+    }
+    Scenario {
+        imu,
+        keyframes: Trajectory::try_new(kt, kp, Some(ko)).unwrap(),
+        truth,
+        imu_from_cam,
+    }
+}
+
+fn options(s: &Scenario) -> ImuInitOptions {
+    ImuInitOptions {
+        imu_from_cam: s.imu_from_cam,
+        ..ImuInitOptions::default()
+    }
+}
+
+/// Angle between the estimated and the true gravity direction, degrees.
+fn gravity_error_deg(s: &Scenario, gravity_slam: &Vector3<f64>) -> f64 {
+    let true_dir = s.truth.rotation.inverse() * Vector3::new(0.0, 0.0, -1.0);
+    gravity_slam.normalize().dot(&true_dir).clamp(-1.0, 1.0).acos().to_degrees()
+}
+
+#[test]
+fn noiseless_motion_gives_scale_gravity_and_biases() {
+    let s = scenario(Motion { excite: 1.0, translate: true }, 10.0, &QUIET, 1);
+    let mut o = options(&s);
+    o.keyframe_position_sigma = 1e-4;
+    o.keyframe_rotation_sigma = 1e-5;
+    let a = imu_initialize(&s.keyframes, &s.imu, &o).unwrap();
+    let scale_err = (a.scale / s.truth.scale - 1.0).abs();
+    assert!(scale_err < 1e-3, "scale {} vs {}", a.scale, s.truth.scale);
+    assert!(gravity_error_deg(&s, &a.gravity_slam) < 0.02);
+    assert!((a.gyro_bias - Vector3::new(0.004, -0.006, 0.003)).norm() < 2e-4, "{}", a.gyro_bias);
+    assert!((a.accel_bias - Vector3::new(0.05, -0.08, 0.06)).norm() < 0.02, "{}", a.accel_bias);
+    assert!((a.gravity_slam.norm() - G).abs() < 1e-9);
+    // World z against gravity; the first keyframe's IMU at the origin.
+    let g_world = a.transform.rotation * a.gravity_slam;
+    assert!((g_world - Vector3::new(0.0, 0.0, -G)).norm() < 1e-9);
+    let p_ci = s.imu_from_cam.inverse().translation;
+    let r0 = s.keyframes.orientations.as_ref().unwrap()[0];
+    let imu0_slam = s.keyframes.positions[0] + r0 * p_ci / a.scale;
+    assert!(a.transform.transform_point(&imu0_slam).norm() < 1e-9);
+    // The world frame equals the true one up to a yaw and a shift: true and
+    // estimated world positions of the keyframes differ by a z rotation.
+    let rel = a.transform.rotation * s.truth.rotation.inverse();
+    let axis = rel.axis().map(|u| u.into_inner()).unwrap_or_else(Vector3::z);
+    assert!(rel.angle() < 1e-6 || axis.z.abs() > 1.0 - 1e-6, "relative rotation not a yaw: {rel}");
+}
+
+/// Scale error (relative) and gravity error (degrees) of one noisy run.
+fn noisy_run(duration: f64, seed: u64) -> (f64, f64) {
+    let s = scenario(Motion { excite: 1.0, translate: true }, duration, &EUROC, seed);
+    let mut o = options(&s);
+    o.keyframe_position_sigma = EUROC.keyframe_pos;
+    o.keyframe_rotation_sigma = EUROC.keyframe_rot;
+    let a = imu_initialize(&s.keyframes, &s.imu, &o).unwrap();
+    (
+        (a.scale / s.truth.scale - 1.0).abs(),
+        gravity_error_deg(&s, &a.gravity_slam),
+    )
+}
+
+#[test]
+fn euroc_grade_noise_ten_seconds() {
+    for seed in 0..5 {
+        let (es, eg) = noisy_run(10.0, seed);
+        assert!(es < 0.01, "seed {seed}: scale error {es}");
+        assert!(eg < 0.5, "seed {seed}: gravity error {eg}°");
+    }
+}
+
+#[test]
+fn longer_windows_do_better() {
+    let mut curve = Vec::new();
+    for w in [5.0, 10.0, 20.0, 40.0] {
+        let runs: Vec<(f64, f64)> = (0..6).map(|seed| noisy_run(w, 100 + seed)).collect();
+        let rms = |f: fn(&(f64, f64)) -> f64| {
+            (runs.iter().map(|r| f(r).powi(2)).sum::<f64>() / runs.len() as f64).sqrt()
+        };
+        let (es, eg) = (rms(|r| r.0), rms(|r| r.1));
+        eprintln!("window {w:>4} s: scale error rms {:.4} %, gravity error rms {eg:.4}°", es * 100.0);
+        curve.push((es, eg));
+    }
+    assert!(curve[3].0 < curve[0].0, "scale: {curve:?}");
+    assert!(curve[3].1 < curve[0].1, "gravity: {curve:?}");
+}
