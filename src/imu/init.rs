@@ -113,7 +113,10 @@ impl ImuInitOptions {
         ];
         for (what, v) in positive {
             if !(v.is_finite() && v > 0.0) {
-                return Err(Error::invalid(what, format!("must be finite and > 0, got {v}")));
+                return Err(Error::invalid(
+                    what,
+                    format!("must be finite and > 0, got {v}"),
+                ));
             }
         }
         let non_negative = [
@@ -128,7 +131,10 @@ impl ImuInitOptions {
         ];
         for (what, v) in non_negative {
             if !(v.is_finite() && v >= 0.0) {
-                return Err(Error::invalid(what, format!("must be finite and ≥ 0, got {v}")));
+                return Err(Error::invalid(
+                    what,
+                    format!("must be finite and ≥ 0, got {v}"),
+                ));
             }
         }
         if !self.time_offset.is_finite() {
@@ -224,6 +230,9 @@ struct Interval {
     w_v: f64,
 }
 
+/// The rows of one interval: `(G_p, y_p, G_v, y_v)` (see [`solve`]).
+type Rows = (DMatrix<f64>, Vector3<f64>, DMatrix<f64>, Vector3<f64>);
+
 /// Gravity handling in a solve.
 enum GravityMode {
     /// `g` free (3 unknowns).
@@ -248,8 +257,12 @@ struct Solution {
 /// Metric scale, gravity direction, biases and velocities of the keyframes
 /// `T_slam_cam` (orientations required) from raw IMU samples.
 ///
-/// Errors: [`Error::InvalidArgument`] (no orientations, bad options, keyframe
-/// times not strictly increasing), [`Error::TooFew`] (fewer than 4 keyframes
+/// Keyframes outside the IMU's time span are dropped, and keyframes that
+/// follow the previous used one by less than `min_interval` (or share its
+/// stamp) are skipped; the diagnostics count both.
+///
+/// Errors: [`Error::InvalidArgument`] (no orientations, bad options),
+/// [`Error::TooFew`] (fewer than 4 keyframes
 /// inside the IMU's time span), [`Error::OutOfRange`] (an IMU gap longer than
 /// `max_gap` between two keyframes), [`Error::Degenerate`] (window too short,
 /// no acceleration — constant velocity or pure rotation —, or a scale that the
@@ -281,20 +294,15 @@ pub fn imu_initialize(
         })
         .collect();
     let n_dropped = keyframes.len() - covered.len();
-    for w in covered.windows(2) {
-        let (ta, tb) = (keyframes.timestamps[w[0]], keyframes.timestamps[w[1]]);
-        if tb <= ta {
-            return Err(Error::invalid(
-                "keyframe timestamps",
-                format!("must increase strictly (keyframe {}: {tb} after {ta})", w[1]),
-            ));
-        }
-    }
+    // Trajectory times do not decrease; a repeated stamp is skipped like a
+    // keyframe closer than min_interval.
     let mut used: Vec<usize> = Vec::with_capacity(covered.len());
     for &i in &covered {
         let t = keyframes.timestamps[i];
         match used.last() {
-            Some(&j) if t - keyframes.timestamps[j] < opts.min_interval => {}
+            Some(&j)
+                if t <= keyframes.timestamps[j]
+                    || t - keyframes.timestamps[j] < opts.min_interval => {}
             _ => used.push(i),
         }
     }
@@ -380,25 +388,10 @@ pub fn imu_initialize(
     let gyro_cov = h_g.try_inverse().unwrap_or_else(Matrix3::zeros) * gyro_var;
     let gyro_bias_sigma = gyro_cov.diagonal().map(|v| v.max(0.0).sqrt());
 
-    // Excitation: the interval mean accelerations in SLAM axes (gravity
-    // included); constant for constant velocity and for pure rotation.
-    let means: Vec<Vector3<f64>> = pres
-        .iter()
-        .enumerate()
-        .map(|(k, p)| r_slam_imu[k] * p.delta_v / p.dt())
-        .collect();
-    let mean = means.iter().sum::<Vector3<f64>>() / m as f64;
-    let excitation = (means.iter().map(|a| (a - mean).norm_squared()).sum::<f64>() / m as f64).sqrt();
-    if excitation < opts.min_excitation {
-        return Err(Error::Degenerate {
-            reason: format!(
-                "{}: the accelerations vary by {excitation:.4} m/s² rms (min_excitation {} m/s²), so the scale is unobservable",
-                no_acceleration_kind(&times, &positions),
-                opts.min_excitation
-            ),
-            value: excitation,
-        });
-    }
+    // Excitation before any accelerometer bias is known (a rotating bias adds
+    // to it; checked again below with the estimated bias).
+    let excitation_raw = excitation(&pres, &r_slam_imu, &Vector3::zeros());
+    check_excitation(excitation_raw, opts, &times, &positions)?;
 
     // Step 3: the weighted linear system.
     let s2 = opts.keyframe_position_sigma.powi(2);
@@ -407,8 +400,8 @@ pub fn imu_initialize(
         .enumerate()
         .map(|(k, pre)| {
             let dt = pre.dt();
-            let rot_var = opts.keyframe_rotation_sigma.powi(2)
-                + opts.gyro_noise_density.powi(2) * dt;
+            let rot_var =
+                opts.keyframe_rotation_sigma.powi(2) + opts.gyro_noise_density.powi(2) * dt;
             let na = opts.accel_noise_density.powi(2);
             let nw = opts.accel_random_walk.powi(2);
             let var_p = 2.0 * s2
@@ -428,11 +421,16 @@ pub fn imu_initialize(
         })
         .collect();
     let with_ba = opts.estimate_accel_bias;
-    let free = solve(&intervals, &GravityMode::Free, with_ba, opts.accel_bias_prior)?;
+    let free = solve(
+        &intervals,
+        &GravityMode::Free,
+        with_ba,
+        opts.accel_bias_prior,
+    )?;
     let initial_scale = free.theta[3];
     let g_free = Vector3::new(free.theta[0], free.theta[1], free.theta[2]);
     let initial_gravity_norm = g_free.norm();
-    if !(initial_gravity_norm > 1e-9) {
+    if initial_gravity_norm.is_nan() || initial_gravity_norm <= 1e-9 {
         return Err(Error::Degenerate {
             reason: "the gravity vector came out zero".into(),
             value: initial_gravity_norm,
@@ -456,7 +454,19 @@ pub fn imu_initialize(
     }
     let gravity_slam = dir * opts.gravity;
     let scale = sol.theta[2];
-    let variance_factor = if sol.dof > 0.0 { sol.chi2 / sol.dof } else { f64::NAN };
+    let ba_est = if with_ba {
+        Vector3::new(sol.theta[3], sol.theta[4], sol.theta[5])
+    } else {
+        Vector3::zeros()
+    };
+    let pres: Vec<Preintegrated> = intervals.iter().map(|iv| iv.pre.clone()).collect();
+    let excitation = excitation(&pres, &r_slam_imu, &ba_est);
+    check_excitation(excitation, opts, &times, &positions)?;
+    let variance_factor = if sol.dof > 0.0 {
+        sol.chi2 / sol.dof
+    } else {
+        f64::NAN
+    };
     let inflate = if variance_factor.is_finite() {
         variance_factor.max(1.0)
     } else {
@@ -464,7 +474,10 @@ pub fn imu_initialize(
     };
     let scale_sigma = (sol.cov[(2, 2)].max(0.0) * inflate).sqrt();
     let relative_scale_sigma = scale_sigma / scale.abs();
-    if !(scale > 0.0) || !(relative_scale_sigma <= opts.max_relative_scale_sigma) {
+    if scale <= 0.0
+        || relative_scale_sigma.is_nan()
+        || relative_scale_sigma > opts.max_relative_scale_sigma
+    {
         return Err(Error::Degenerate {
             reason: format!(
                 "the motion does not determine the scale (scale {scale:.4e} ± {scale_sigma:.3e}, relative σ {relative_scale_sigma:.3e} > max_relative_scale_sigma {})",
@@ -530,6 +543,43 @@ pub fn imu_initialize(
     })
 }
 
+/// Rms variation of the interval mean accelerations in SLAM axes (gravity
+/// included, accelerometer bias `ba` removed), m/s²: zero for constant
+/// velocity and for pure rotation about the IMU.
+fn excitation(
+    pres: &[Preintegrated],
+    r_slam_imu: &[UnitQuaternion<f64>],
+    ba: &Vector3<f64>,
+) -> f64 {
+    let means: Vec<Vector3<f64>> = pres
+        .iter()
+        .enumerate()
+        .map(|(k, p)| r_slam_imu[k] * p.delta_v_at(&p.gyro_bias, ba) / p.dt())
+        .collect();
+    let m = means.len().max(1) as f64;
+    let mean = means.iter().sum::<Vector3<f64>>() / m;
+    (means.iter().map(|a| (a - mean).norm_squared()).sum::<f64>() / m).sqrt()
+}
+
+fn check_excitation(
+    value: f64,
+    opts: &ImuInitOptions,
+    times: &[f64],
+    positions: &[Vector3<f64>],
+) -> Result<()> {
+    if value.is_nan() || value < opts.min_excitation {
+        return Err(Error::Degenerate {
+            reason: format!(
+                "{}: the accelerations vary by {value:.4} m/s² rms (min_excitation {} m/s²), so the scale is unobservable",
+                no_acceleration_kind(times, positions),
+                opts.min_excitation
+            ),
+            value,
+        });
+    }
+    Ok(())
+}
+
 /// "pure rotation" when the SLAM positions barely move compared with their
 /// jitter about a straight line, "constant velocity" otherwise.
 fn no_acceleration_kind(times: &[f64], positions: &[Vector3<f64>]) -> &'static str {
@@ -588,7 +638,7 @@ fn solve(
     let kf = intervals.len() + 1;
     // Per interval: position rows Gp·θ + (−Δt)·v_k = y_p; velocity rows
     // Gv·θ − v_k + v_{k+1} = y_v.
-    let rows: Vec<(DMatrix<f64>, Vector3<f64>, DMatrix<f64>, Vector3<f64>)> = intervals
+    let rows: Vec<Rows> = intervals
         .iter()
         .map(|iv| {
             let dt = iv.dt;
@@ -606,7 +656,8 @@ fn solve(
                 GravityMode::Tangent { g0, basis } => {
                     yp += 0.5 * dt * dt * g0;
                     yv += dt * g0;
-                    gp.view_mut((0, 0), (3, 2)).copy_from(&(-0.5 * dt * dt * basis));
+                    gp.view_mut((0, 0), (3, 2))
+                        .copy_from(&(-0.5 * dt * dt * basis));
                     gv.view_mut((0, 0), (3, 2)).copy_from(&(-dt * basis));
                 }
             }
@@ -666,9 +717,11 @@ fn solve(
         let prev = x[k - 1].clone();
         x[k] -= prev * l;
     }
-    if let Some(k) = dp.iter().position(|v| !(*v > 0.0)) {
+    if let Some(k) = dp.iter().position(|v| v.is_nan() || *v <= 0.0) {
         return Err(Error::Degenerate {
-            reason: format!("the velocity block of the normal equations is singular at keyframe {k}"),
+            reason: format!(
+                "the velocity block of the normal equations is singular at keyframe {k}"
+            ),
             value: dp[k],
         });
     }
@@ -689,7 +742,9 @@ fn solve(
     let chol = s.clone().cholesky().ok_or_else(|| {
         let ev = s.symmetric_eigenvalues();
         Error::Degenerate {
-            reason: "the scale/gravity normal matrix is singular: the motion does not determine them".into(),
+            reason:
+                "the scale/gravity normal matrix is singular: the motion does not determine them"
+                    .into(),
             value: ev.min(),
         }
     })?;
@@ -737,7 +792,11 @@ mod tests {
 
     #[test]
     fn tangent_basis_is_orthonormal() {
-        for d in [Vector3::z(), Vector3::x(), Vector3::new(0.3, -0.5, 0.8).normalize()] {
+        for d in [
+            Vector3::z(),
+            Vector3::x(),
+            Vector3::new(0.3, -0.5, 0.8).normalize(),
+        ] {
             let b = tangent_basis(&d);
             let (b1, b2) = (b.column(0), b.column(1));
             assert!(b1.dot(&d).abs() < 1e-12 && b2.dot(&d).abs() < 1e-12);
