@@ -294,6 +294,19 @@ pub fn imu_initialize(
         })
         .collect();
     let n_dropped = keyframes.len() - covered.len();
+    let duration = match (covered.first(), covered.last()) {
+        (Some(&a), Some(&b)) => keyframes.timestamps[b] - keyframes.timestamps[a],
+        _ => 0.0,
+    };
+    if covered.len() >= 2 && duration < opts.min_duration {
+        return Err(Error::Degenerate {
+            reason: format!(
+                "the keyframes span {duration:.3} s, less than min_duration {} s: too short to observe the scale",
+                opts.min_duration
+            ),
+            value: duration,
+        });
+    }
     // Trajectory times do not decrease; a repeated stamp is skipped like a
     // keyframe closer than min_interval.
     let mut used: Vec<usize> = Vec::with_capacity(covered.len());
@@ -317,19 +330,6 @@ pub fn imu_initialize(
             got: used.len(),
         });
     }
-    let first = used[0];
-    let last = used[used.len() - 1];
-    let duration = keyframes.timestamps[last] - keyframes.timestamps[first];
-    if duration < opts.min_duration {
-        return Err(Error::Degenerate {
-            reason: format!(
-                "the keyframes span {duration:.3} s, less than min_duration {} s: too short to observe the scale",
-                opts.min_duration
-            ),
-            value: duration,
-        });
-    }
-
     let r_ic = opts.imu_from_cam.rotation;
     let p_ci = -(r_ic.inverse() * opts.imu_from_cam.translation);
     let r_slam_cam: Vec<UnitQuaternion<f64>> = used.iter().map(|&i| orientations[i]).collect();
@@ -338,6 +338,7 @@ pub fn imu_initialize(
     let positions: Vec<Vector3<f64>> = used.iter().map(|&i| keyframes.positions[i]).collect();
     let times: Vec<f64> = used.iter().map(|&i| keyframes.timestamps[i]).collect();
     let imu_times: Vec<f64> = times.iter().map(|t| t + opts.time_offset).collect();
+    let used_duration = times[times.len() - 1] - times[0];
 
     // Step 2: gyroscope bias (Gauss-Newton, re-integrating each iteration).
     let zero = Vector3::zeros();
@@ -530,7 +531,7 @@ pub fn imu_initialize(
             n_keyframes: used.len(),
             n_dropped,
             n_skipped,
-            duration,
+            duration: used_duration,
             excitation,
             initial_scale,
             initial_gravity_norm,

@@ -9,6 +9,7 @@ mod convert;
 mod core;
 mod errors;
 mod geometry;
+mod imu;
 mod mcap;
 
 #[pymodule]
@@ -20,5 +21,6 @@ fn _slam2world(m: &Bound<'_, PyModule>) -> PyResult<()> {
     cloud::register(m)?;
     cli::register(m)?;
     mcap::register(m)?;
+    imu::register(m)?;
     Ok(())
 }
