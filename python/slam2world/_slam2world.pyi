@@ -333,9 +333,7 @@ def write_world_mcap(
 
 @final
 class ImuSamples:
-    def __new__(
-        cls, timestamps: _ArrayLike, gyro: _ArrayLike, accel: _ArrayLike
-    ) -> ImuSamples: ...
+    def __new__(cls, timestamps: _ArrayLike, gyro: _ArrayLike, accel: _ArrayLike) -> ImuSamples: ...
     @staticmethod
     def read_euroc(path: str | os.PathLike[str]) -> ImuSamples: ...
     @property
