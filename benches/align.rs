@@ -1,1 +1,53 @@
-fn main() {}
+//! Closed-form alignment throughput (pairs per second), 1e3 … 1e6 pairs.
+//! Peers (numpy, evo) are measured side by side by `benches/compare.py`.
+
+use std::hint::black_box;
+use std::time::Duration;
+
+use criterion::{criterion_group, criterion_main, BenchmarkId, Criterion, Throughput};
+use nalgebra::Vector3;
+use rand::{Rng, SeedableRng};
+use rand_chacha::ChaCha8Rng;
+use slam2world::align::{align, AlignMethod, AlignOptions};
+use slam2world::Sim3;
+
+fn pairs(n: usize) -> (Vec<Vector3<f64>>, Vec<Vector3<f64>>) {
+    let mut rng = ChaCha8Rng::seed_from_u64(1);
+    let t = Sim3::from_quaternion_xyzw([0.1, 0.2, 0.3, 0.9], Vector3::new(1.0, 2.0, 3.0), 15.49)
+        .expect("a valid transform");
+    let a: Vec<Vector3<f64>> = (0..n)
+        .map(|_| Vector3::new(rng.random(), rng.random(), rng.random()))
+        .collect();
+    let b = a
+        .iter()
+        .map(|p| t.transform_point(p) + Vector3::new(rng.random::<f64>() * 1e-3, 0.0, 0.0))
+        .collect();
+    (a, b)
+}
+
+fn bench_align(c: &mut Criterion) {
+    let mut g = c.benchmark_group("align");
+    g.measurement_time(Duration::from_secs(3))
+        .warm_up_time(Duration::from_millis(500))
+        .sample_size(20);
+    for n in [1_000usize, 10_000, 100_000, 1_000_000] {
+        let (a, b) = pairs(n);
+        g.throughput(Throughput::Elements(n as u64));
+        for (name, method) in [
+            ("horn", AlignMethod::Horn),
+            ("umeyama", AlignMethod::Umeyama),
+        ] {
+            let opts = AlignOptions {
+                method,
+                ..Default::default()
+            };
+            g.bench_with_input(BenchmarkId::new(name, n), &n, |bench, _| {
+                bench.iter(|| align(black_box(&a), black_box(&b), &opts))
+            });
+        }
+    }
+    g.finish();
+}
+
+criterion_group!(benches, bench_align);
+criterion_main!(benches);

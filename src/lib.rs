@@ -19,6 +19,7 @@ pub mod geometry;
 pub mod imu;
 pub mod io;
 pub mod keyframe;
+pub mod map;
 pub mod trajectory;
 
 #[cfg(feature = "python")]

@@ -98,6 +98,27 @@ pub struct Interpolated {
 type Bracket = (usize, usize, f64);
 
 impl Trajectory {
+    /// Checks that positions and orientations have one entry per timestamp
+    /// (the fields are public, so a literal can break what `try_new` checks).
+    pub fn check_lengths(&self) -> Result<()> {
+        let n = self.timestamps.len();
+        if self.positions.len() != n {
+            return Err(Error::ShapeMismatch {
+                what: "positions".into(),
+                expected: format!("({n}, 3), one row per timestamp"),
+                got: format!("({}, 3)", self.positions.len()),
+            });
+        }
+        match &self.orientations {
+            Some(o) if o.len() != n => Err(Error::ShapeMismatch {
+                what: "orientations".into(),
+                expected: format!("({n}, 4), one row per timestamp"),
+                got: format!("({}, 4)", o.len()),
+            }),
+            _ => Ok(()),
+        }
+    }
+
     /// Reads a TUM file (`timestamp tx ty tz qx qy qz qw`, seconds, metres,
     /// quaternion `(x, y, z, w)`).
     pub fn read_tum(path: impl AsRef<Path>) -> Result<Trajectory> {
@@ -120,6 +141,7 @@ impl Trajectory {
     /// time outside `[first, last]` or between two poses more than `max_gap`
     /// seconds apart (a time equal to a pose's stamp is always answered).
     pub fn interpolate(&self, times: &[f64], max_gap: f64) -> Result<Trajectory> {
+        self.check_lengths()?;
         check_times(times)?;
         let mut brackets = Vec::with_capacity(times.len());
         for &t in times {
@@ -137,6 +159,7 @@ impl Trajectory {
     /// Like [`Trajectory::interpolate`], but times that cannot be answered are
     /// skipped and reported instead of refused.
     pub fn interpolate_where_covered(&self, times: &[f64], max_gap: f64) -> Result<Interpolated> {
+        self.check_lengths()?;
         check_times(times)?;
         let (mut kept, mut missing, mut brackets, mut stamps) =
             (Vec::new(), Vec::new(), Vec::new(), Vec::new());
@@ -411,6 +434,8 @@ pub fn align_trajectories(
     reference: &Trajectory,
     opts: &TrajectoryAlignOptions,
 ) -> Result<TrajectoryAlignment> {
+    slam.check_lengths()?;
+    reference.check_lengths()?;
     let pairs: Vec<(usize, usize)> = associate(reference, slam, opts.max_diff, opts.offset)
         .into_iter()
         .map(|(r, s)| (s, r))
@@ -537,6 +562,20 @@ mod tests {
         assert_eq!(w.kept, vec![1, 3]);
         assert_eq!(w.missing, vec![0, 2]);
         assert_eq!(w.trajectory.len(), 2);
+    }
+
+    #[test]
+    fn inconsistent_literals_are_refused_not_panicking() {
+        let mut t = line(&[0.0, 1.0, 2.0]);
+        t.positions.pop();
+        assert!(matches!(
+            t.interpolate(&[0.5], 1.0),
+            Err(Error::ShapeMismatch { .. })
+        ));
+        let r = line(&[0.0, 1.0, 2.0]);
+        let opts = TrajectoryAlignOptions::default();
+        assert!(align_trajectories(&t, &r, &opts).is_err());
+        assert!(align_trajectories(&r, &t, &opts).is_err());
     }
 
     #[test]

@@ -6,7 +6,7 @@ use nalgebra::{Matrix4, UnitQuaternion, Vector3, Vector4};
 use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 use rand_distr::{Distribution, StandardNormal, UnitSphere};
-use slam2world::align::{align, align_flat, AlignMethod, AlignOptions};
+use slam2world::align::{align, align_flat, align_flat_into, AlignMethod, AlignOptions};
 use slam2world::{Error, Sim3};
 
 fn random_rotation(rng: &mut ChaCha8Rng) -> UnitQuaternion<f64> {
@@ -184,6 +184,20 @@ fn large_inputs_parallel_path_and_far_from_origin() {
     assert_eq!(f.residuals, r.residuals);
     assert!(matches!(
         align_flat(&[0.0; 10], &[0.0; 10], &AlignOptions::default()),
+        Err(Error::ShapeMismatch { .. })
+    ));
+    // Residuals into a caller's buffer: the same numbers.
+    let mut out = vec![f64::NAN; a.len()];
+    let fit = align_flat_into(&flat(&a), &flat(&b), &AlignOptions::default(), &mut out).unwrap();
+    assert_eq!((fit.transform, fit.rmse), (r.transform, r.rmse));
+    assert_eq!(out, r.residuals);
+    assert!(matches!(
+        align_flat_into(
+            &flat(&a),
+            &flat(&b),
+            &AlignOptions::default(),
+            &mut out[1..]
+        ),
         Err(Error::ShapeMismatch { .. })
     ));
 }

@@ -13,27 +13,47 @@ const ROWS_PER_TASK: usize = 1 << 15;
 /// Rows sampled to choose the shift.
 const SHIFT_SAMPLES: usize = 64;
 
-/// A read-only sequence of 3-D points, addressed by index.
+/// A read-only sequence of 3-D points, addressed by index or by range.
 pub trait Rows: Sync {
+    /// Iterator over a range of rows.
+    type Iter<'a>: Iterator<Item = [f64; 3]>
+    where
+        Self: 'a;
     /// Number of points.
     fn n_rows(&self) -> usize;
     /// Point `i` (`i < n_rows()`).
     fn row(&self, i: usize) -> [f64; 3];
+    /// Points `lo..hi` (`lo <= hi <= n_rows()`), in order.
+    fn rows(&self, lo: usize, hi: usize) -> Self::Iter<'_>;
+}
+
+type VecRows<'a> =
+    std::iter::Map<std::slice::Iter<'a, Vector3<f64>>, fn(&Vector3<f64>) -> [f64; 3]>;
+
+fn vector_row(v: &Vector3<f64>) -> [f64; 3] {
+    [v.x, v.y, v.z]
 }
 
 impl Rows for [Vector3<f64>] {
+    type Iter<'a> = VecRows<'a>;
     #[inline(always)]
     fn n_rows(&self) -> usize {
         self.len()
     }
     #[inline(always)]
     fn row(&self, i: usize) -> [f64; 3] {
-        let v = &self[i];
-        [v.x, v.y, v.z]
+        vector_row(&self[i])
+    }
+    #[inline(always)]
+    fn rows(&self, lo: usize, hi: usize) -> Self::Iter<'_> {
+        self[lo..hi]
+            .iter()
+            .map(vector_row as fn(&Vector3<f64>) -> [f64; 3])
     }
 }
 
 impl Rows for Vec<Vector3<f64>> {
+    type Iter<'a> = VecRows<'a>;
     #[inline(always)]
     fn n_rows(&self) -> usize {
         self.len()
@@ -42,20 +62,39 @@ impl Rows for Vec<Vector3<f64>> {
     fn row(&self, i: usize) -> [f64; 3] {
         self.as_slice().row(i)
     }
+    #[inline(always)]
+    fn rows(&self, lo: usize, hi: usize) -> Self::Iter<'_> {
+        self.as_slice().rows(lo, hi)
+    }
 }
 
 /// A flat row-major `(N, 3)` slice (length a multiple of 3).
 pub(crate) struct FlatRows<'a>(pub &'a [f64]);
 
+type FlatIter<'a> = std::iter::Map<std::slice::ChunksExact<'a, f64>, fn(&[f64]) -> [f64; 3]>;
+
+fn flat_row(c: &[f64]) -> [f64; 3] {
+    [c[0], c[1], c[2]]
+}
+
 impl Rows for FlatRows<'_> {
+    type Iter<'a>
+        = FlatIter<'a>
+    where
+        Self: 'a;
     #[inline(always)]
     fn n_rows(&self) -> usize {
         self.0.len() / 3
     }
     #[inline(always)]
     fn row(&self, i: usize) -> [f64; 3] {
-        let r = &self.0[3 * i..3 * i + 3];
-        [r[0], r[1], r[2]]
+        flat_row(&self.0[3 * i..3 * i + 3])
+    }
+    #[inline(always)]
+    fn rows(&self, lo: usize, hi: usize) -> Self::Iter<'_> {
+        self.0[3 * lo..3 * hi]
+            .chunks_exact(3)
+            .map(flat_row as fn(&[f64]) -> [f64; 3])
     }
 }
 
@@ -192,8 +231,11 @@ fn reduce<F: Fn(usize, usize) -> Sums + Sync>(n: usize, f: F) -> Sums {
         return f(0, n);
     }
     let tasks = n.div_ceil(ROWS_PER_TASK);
+    // One task per leaf: a thread that is descheduled on a busy machine then
+    // holds back at most one block, the others are stolen.
     (0..tasks)
         .into_par_iter()
+        .with_max_len(1)
         .map(|t| f(t * ROWS_PER_TASK, ((t + 1) * ROWS_PER_TASK).min(n)))
         .reduce(Sums::default, Sums::add)
 }
@@ -209,10 +251,8 @@ fn block<A: Rows + ?Sized, B: Rows + ?Sized, W: Fn(usize) -> f64>(
     weight: W,
 ) -> Sums {
     let mut s = Sums::default();
-    for i in lo..hi {
+    for (i, (p, q)) in (lo..hi).zip(a.rows(lo, hi).zip(b.rows(lo, hi))) {
         let w = weight(i);
-        let p = a.row(i);
-        let q = b.row(i);
         let pa = [p[0] - ca[0], p[1] - ca[1], p[2] - ca[2]];
         let qb = [q[0] - cb[0], q[1] - cb[1], q[2] - cb[2]];
         let wp = [w * pa[0], w * pa[1], w * pa[2]];

@@ -219,8 +219,11 @@ impl Sim3 {
         if src.len() <= chunk {
             kernel((src, dst));
         } else {
+            // One task per chunk, so that a descheduled thread holds back at
+            // most one chunk on a busy machine.
             src.par_chunks(chunk)
                 .zip(dst.par_chunks_mut(chunk))
+                .with_max_len(1)
                 .for_each(kernel);
         }
         Ok(())
@@ -237,7 +240,7 @@ impl Sim3 {
         }
         let (m, t) = self.affine();
         let chunk = 3 * POINTS_PER_TASK;
-        pts.par_chunks_mut(chunk).for_each(|c| {
+        pts.par_chunks_mut(chunk).with_max_len(1).for_each(|c| {
             for p in c.chunks_exact_mut(3) {
                 let q = map(&m, &t, [p[0].to_f64(), p[1].to_f64(), p[2].to_f64()]);
                 p[0] = T::from_f64(q[0]);

@@ -158,6 +158,7 @@ pub fn read_euroc(path: &Path) -> Result<Trajectory> {
 /// Numbers are written in the shortest form that reads back exactly; poses
 /// without orientation get the identity quaternion.
 pub fn write_tum(traj: &Trajectory, path: &Path) -> Result<()> {
+    traj.check_lengths()?;
     let dir = match path.parent() {
         Some(d) if !d.as_os_str().is_empty() => d,
         _ => Path::new("."),

@@ -5,15 +5,15 @@ use std::path::PathBuf;
 
 use nalgebra::{UnitQuaternion, Vector3};
 use numpy::{
-    AllowTypeChange, IntoPyArray, PyArray1, PyArray2, PyArrayLike2, PyUntypedArrayMethods,
-    ToPyArray,
+    AllowTypeChange, IntoPyArray, PyArray1, PyArray2, PyArrayLike2, PyArrayMethods,
+    PyUntypedArrayMethods, ToPyArray,
 };
 use pyo3::prelude::*;
 use pyo3::types::{PyDict, PyTuple};
 
 use super::convert::{rows_f64, to_array2, vec_f64};
 use super::geometry::PySim3;
-use crate::align::{align_flat, AlignDiagnostics, AlignMethod, AlignOptions, Alignment};
+use crate::align::{align_flat_into, AlignDiagnostics, AlignMethod, AlignOptions, Alignment};
 use crate::error::Error;
 use crate::geometry::unit_quaternion_xyzw;
 use crate::trajectory::{
@@ -157,12 +157,26 @@ fn align_py(
         method,
         weights,
     };
-    let a = with_points(source, "source", |s| {
+    with_points(source, "source", |s| {
         with_points(target, "target", |t| {
-            Ok(py.detach(|| align_flat(s, t, &opts))?)
+            // NumPy allocates the residuals (huge pages for large arrays);
+            // the fit writes into them without the GIL.
+            let residuals = PyArray1::<f64>::zeros(py, s.len() / 3, false);
+            let fit = {
+                let mut rw = residuals.readwrite();
+                let out = rw
+                    .as_slice_mut()
+                    .map_err(|e| PyErr::from(Error::invalid("residuals", e.to_string())))?;
+                py.detach(|| align_flat_into(s, t, &opts, out))?
+            };
+            Ok(PyAlignment {
+                transform: fit.transform,
+                rmse: fit.rmse,
+                residuals: residuals.unbind(),
+                diagnostics: fit.diagnostics,
+            })
         })
-    })?;
-    Ok(PyAlignment::new(py, a))
+    })
 }
 
 /// Timestamped positions (seconds, metres) with optional orientations `(x, y, z, w)`.

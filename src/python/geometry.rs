@@ -1,11 +1,11 @@
 //! `Sim3` for Python.
 
 use nalgebra::Vector3;
-use numpy::{PyArray1, PyArray2, ToPyArray};
+use numpy::{PyArray1, PyArray2, PyArrayMethods, ToPyArray};
 use pyo3::prelude::*;
 use pyo3::types::PyTuple;
 
-use super::convert::{matrix3, matrix4, matrix_to_array, to_array2, vec_f64, vector3, Points};
+use super::convert::{matrix3, matrix4, matrix_to_array, vec_f64, vector3, Points};
 use crate::geometry::{rotation_from_matrix, PointScalar, Sim3};
 
 /// A similarity transform `p ↦ s·R·p + t`; `T_a_b` maps frame-b coordinates into frame a.
@@ -31,8 +31,18 @@ fn apply_typed<T: PointScalar + numpy::Element>(
     t: &Sim3,
     src: &[T],
 ) -> PyResult<Py<PyAny>> {
-    let out = py.detach(|| t.transform_points(src))?;
-    Ok(to_array2(py, out, 3)?.into_any().unbind())
+    // The output is allocated by NumPy (which asks the kernel for huge pages
+    // on large arrays: a fresh Rust vector would spend more time in page
+    // faults than in the arithmetic) and filled in parallel without the GIL.
+    let out = PyArray2::<T>::zeros(py, [src.len() / 3, 3], false);
+    {
+        let mut rw = out.readwrite();
+        let dst = rw
+            .as_slice_mut()
+            .map_err(|e| PyErr::from(crate::error::Error::invalid("points", e.to_string())))?;
+        py.detach(|| t.transform_points_into(src, dst))?;
+    }
+    Ok(out.into_any().unbind())
 }
 
 /// Maps `(N, 3)` points, keeping float32 as float32; the GIL is released.

@@ -10,6 +10,7 @@ mod core;
 mod errors;
 mod geometry;
 mod imu;
+mod map;
 mod mcap;
 
 #[pymodule]
@@ -17,6 +18,7 @@ fn _slam2world(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add("__version__", env!("CARGO_PKG_VERSION"))?;
     errors::register(m)?;
     geometry::register(m)?;
+    map::register(m)?;
     core::register(m)?;
     cloud::register(m)?;
     cli::register(m)?;

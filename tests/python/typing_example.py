@@ -24,6 +24,20 @@ def test_typing_example() -> None:
     np.testing.assert_allclose(out, pts, rtol=1e-6)
 
 
+def occupancy(points: npt.NDArray[np.float64]) -> npt.NDArray[np.int8]:
+    m = s2w.OccupancyMap(0.1, max_range=10.0)
+    free, occupied = m.insert(points, np.zeros(3))
+    hit: npt.NDArray[np.float64] | None = m.cast_ray([0.0, 0.0, 0.0], [1.0, 0.0, 0.0], 5.0)
+    assert hit is None or hit.shape == (3,)
+    assert free + occupied == m.free_centers().shape[0] + m.occupied_centers().shape[0]
+    return m.state(points)
+
+
+def test_occupancy_typing_example() -> None:
+    pts = np.array([[1.05, 0.05, 0.05], [0.05, 2.05, 0.05]])
+    np.testing.assert_array_equal(occupancy(pts), [1, 1])
+
+
 def fit(slam: npt.NDArray[np.float64], world: npt.NDArray[np.float64]) -> tuple[float, float]:
     a: s2w.Alignment = s2w.align(slam, world, scale=True, method="horn")
     traj = s2w.Trajectory(np.arange(len(slam), dtype=np.float64), slam)

@@ -1,0 +1,73 @@
+//! Occupancy insertion throughput (points/s): scans of a 20 × 20 × 4 m room
+//! seen from inside, resolution 0.1 m, max range 10 m; parallel (rayon) and
+//! sequential. OctoMap's figure on the same points: `benches/octree_compare.py`.
+
+use std::hint::black_box;
+
+use criterion::{criterion_group, criterion_main, Criterion, Throughput};
+use rand::{Rng, SeedableRng};
+use rand_chacha::ChaCha8Rng;
+use slam2world::map::{MapParams, OccupancyMap};
+
+/// Points where rays from `origin` in random directions meet the room's walls.
+fn room_scan(rng: &mut ChaCha8Rng, origin: [f32; 3], n: usize) -> Vec<f32> {
+    let lo = [-10.0f32, -10.0, 0.0];
+    let hi = [10.0f32, 10.0, 4.0];
+    let mut pts = Vec::with_capacity(3 * n);
+    for _ in 0..n {
+        let d: [f32; 3] = [0, 1, 2].map(|_| rng.random_range(-1.0f32..1.0));
+        let norm = (d[0] * d[0] + d[1] * d[1] + d[2] * d[2]).sqrt().max(1e-6);
+        let d = d.map(|v| v / norm);
+        let mut t = f32::INFINITY;
+        for i in 0..3 {
+            if d[i] > 0.0 {
+                t = t.min((hi[i] - origin[i]) / d[i]);
+            } else if d[i] < 0.0 {
+                t = t.min((lo[i] - origin[i]) / d[i]);
+            }
+        }
+        pts.extend((0..3).map(|i| origin[i] + t * d[i]));
+    }
+    pts
+}
+
+fn bench_insert(c: &mut Criterion) {
+    let mut rng = ChaCha8Rng::seed_from_u64(1);
+    let scans: Vec<([f32; 3], Vec<f32>)> = (0..4)
+        .map(|k| {
+            let o = [-6.0 + 4.0 * k as f32, 1.0, 1.5];
+            let pts = room_scan(&mut rng, o, 20_000);
+            (o, pts)
+        })
+        .collect();
+    let n: usize = scans.iter().map(|s| s.1.len() / 3).sum();
+    let params = MapParams {
+        max_range: Some(10.0),
+        ..MapParams::new(0.1)
+    };
+    let mut g = c.benchmark_group("octree_insert");
+    g.throughput(Throughput::Elements(n as u64));
+    g.sample_size(10);
+    g.bench_function("parallel", |b| {
+        b.iter(|| {
+            let mut m = OccupancyMap::try_new(params).unwrap();
+            for (o, pts) in &scans {
+                m.insert_scan(black_box(pts), *o).unwrap();
+            }
+            m
+        })
+    });
+    g.bench_function("sequential", |b| {
+        b.iter(|| {
+            let mut m = OccupancyMap::try_new(params).unwrap();
+            for (o, pts) in &scans {
+                m.insert_scan_sequential(black_box(pts), *o).unwrap();
+            }
+            m
+        })
+    });
+    g.finish();
+}
+
+criterion_group!(benches, bench_insert);
+criterion_main!(benches);
