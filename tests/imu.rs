@@ -585,3 +585,34 @@ fn euroc_v102_imu_file_reads() {
     let mean = first.iter().sum::<f64>() / 200.0;
     assert!((mean - 9.8034).abs() < 1e-3, "{mean}");
 }
+
+#[test]
+fn inconsistent_public_fields_are_refused() {
+    let s = scenario(
+        Motion {
+            excite: 1.0,
+            translate: true,
+        },
+        5.0,
+        &QUIET,
+        4,
+    );
+    let mut imu = s.imu.clone();
+    imu.accel.pop();
+    assert!(matches!(
+        imu_initialize(&s.keyframes, &imu, &options(&s)),
+        Err(Error::ShapeMismatch { .. })
+    ));
+    let mut kf = s.keyframes.clone();
+    kf.positions[3].x = f64::NAN;
+    assert!(matches!(
+        imu_initialize(&kf, &s.imu, &options(&s)),
+        Err(Error::NonFinite { index: 3, .. })
+    ));
+    let mut kf = s.keyframes.clone();
+    kf.positions.pop();
+    assert!(matches!(
+        imu_initialize(&kf, &s.imu, &options(&s)),
+        Err(Error::ShapeMismatch { .. })
+    ));
+}

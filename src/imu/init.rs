@@ -273,12 +273,24 @@ pub fn imu_initialize(
     opts: &ImuInitOptions,
 ) -> Result<ImuAlignment> {
     opts.validate()?;
+    keyframes.check_lengths()?;
+    imu.check()?;
     let orientations = keyframes.orientations.as_ref().ok_or_else(|| {
         Error::invalid(
             "keyframes",
             "orientations are required for the inertial initialisation",
         )
     })?;
+    if let Some(i) = (0..keyframes.len()).find(|&i| {
+        !keyframes.timestamps[i].is_finite()
+            || keyframes.positions[i].iter().any(|v| !v.is_finite())
+            || orientations[i].coords.iter().any(|v| !v.is_finite())
+    }) {
+        return Err(Error::NonFinite {
+            what: "keyframes".into(),
+            index: i,
+        });
+    }
     if imu.len() < 2 {
         return Err(Error::TooFew {
             what: "IMU samples".into(),

@@ -40,6 +40,21 @@ impl ImuSamples {
         gyro: Vec<Vector3<f64>>,
         accel: Vec<Vector3<f64>>,
     ) -> Result<Self> {
+        ImuSamples::validate(&timestamps, &gyro, &accel)?;
+        Ok(ImuSamples {
+            timestamps,
+            gyro,
+            accel,
+        })
+    }
+
+    /// Checks what [`ImuSamples::try_new`] checks on a value built from its
+    /// public fields (lengths, finiteness, strictly increasing times).
+    pub fn check(&self) -> Result<()> {
+        ImuSamples::validate(&self.timestamps, &self.gyro, &self.accel)
+    }
+
+    fn validate(timestamps: &[f64], gyro: &[Vector3<f64>], accel: &[Vector3<f64>]) -> Result<()> {
         let n = timestamps.len();
         if gyro.len() != n || accel.len() != n {
             return Err(Error::ShapeMismatch {
@@ -71,11 +86,7 @@ impl ImuSamples {
                 ));
             }
         }
-        Ok(ImuSamples {
-            timestamps,
-            gyro,
-            accel,
-        })
+        Ok(())
     }
 
     /// Number of samples.
