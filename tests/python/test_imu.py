@@ -7,11 +7,11 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from conftest import data_path
 from numpy.testing import assert_allclose
 from scipy.spatial.transform import Rotation
 
 import slam2world as s2w
-from conftest import data_path
 
 G = 9.81
 
