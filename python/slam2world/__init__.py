@@ -6,6 +6,7 @@ Conventions: metres and seconds; ``T_a_b`` maps frame-b coordinates into frame a
 
 from slam2world._slam2world import (
     Alignment,
+    Conversion,
     DegenerateError,
     FileError,
     FormatError,
@@ -14,7 +15,6 @@ from slam2world._slam2world import (
     InvalidInputError,
     Keyframe,
     Log,
-    LogKeyframe,
     OccupancyMap,
     PinholeCamera,
     PointCloud,
@@ -29,6 +29,7 @@ from slam2world._slam2world import (
     associate,
     backproject,
     imu_initialize,
+    convert,
     read_bt,
     read_mcap,
     read_ply,
@@ -39,6 +40,7 @@ from slam2world._slam2world import (
 
 __all__ = [
     "Alignment",
+    "Conversion",
     "DegenerateError",
     "FileError",
     "FormatError",
@@ -48,7 +50,6 @@ __all__ = [
     "PointCloud",
     "PointFilter",
     "Log",
-    "LogKeyframe",
     "OccupancyMap",
     "Sim3",
     "Slam2WorldError",
@@ -63,6 +64,7 @@ __all__ = [
     "read_bt",
     "read_ply",
     "read_xyz_text",
+    "convert",
     "read_mcap",
     "write_world_mcap",
     "ImuSamples",

@@ -8,6 +8,7 @@ use std::ffi::OsString;
 use clap::{Parser, Subcommand};
 
 pub mod align;
+pub mod convert;
 pub mod imu_init;
 pub mod inspect;
 pub mod transform_cloud;
@@ -28,6 +29,8 @@ enum Command {
     Align(align::AlignArgs),
     /// Metric scale, gravity direction and IMU biases of SLAM keyframes from raw IMU samples.
     ImuInit(imu_init::ImuInitArgs),
+    /// Convert an MCAP log into world.mcap, cloud.ply and report.json.
+    Convert(convert::ConvertArgs),
     /// List the topics of an MCAP log and what slam2world can use.
     Inspect(inspect::InspectArgs),
     /// Align EST to REF and carry a SLAM-frame point cloud (PLY or x y z text) into the world frame.
@@ -38,6 +41,7 @@ fn run(cli: Cli) -> Result<()> {
     match cli.command {
         Command::Align(args) => align::run(args),
         Command::ImuInit(args) => imu_init::run(args),
+        Command::Convert(args) => convert::run(&args),
         Command::Inspect(args) => inspect::run(&args),
         Command::TransformCloud(args) => transform_cloud::run(args),
     }
