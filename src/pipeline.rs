@@ -29,6 +29,9 @@ pub struct ConvertOptions {
     pub align: TrajectoryAlignOptions,
     /// Which pixels become points (the LSD-SLAM viewer's defaults by default).
     pub filter: PointFilter,
+    /// Inertial initialisation, used when the log has raw IMU samples: for
+    /// `T_world_slam` without reference poses, as a consistency check with them.
+    pub imu: crate::imu::ImuInitOptions,
 }
 
 /// `T_world_slam` as the report writes it.
@@ -109,6 +112,9 @@ pub struct Report {
     pub points: usize,
     /// Stage timings.
     pub timing: Timing,
+    /// The inertial initialisation, when the log has raw IMU samples.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub imu: Option<crate::imu::convert::ImuReport>,
 }
 
 /// APE statistics, metres.
@@ -148,7 +154,7 @@ fn secs(t: Instant) -> f64 {
 }
 
 /// The keyframe poses as a trajectory sorted by time, with the keyframe index of each row.
-fn keyframe_trajectory(log: &Log) -> Result<(Trajectory, Vec<usize>)> {
+pub(crate) fn keyframe_trajectory(log: &Log) -> Result<(Trajectory, Vec<usize>)> {
     let mut order: Vec<usize> = (0..log.keyframes.len()).collect();
     order.sort_by(|&a, &b| {
         log.keyframes[a]
@@ -195,9 +201,12 @@ pub fn convert(log: &Log, opts: &ConvertOptions) -> Result<Conversion> {
         ));
     }
     let Some(reference) = &log.reference else {
+        if let Some(imu) = &log.imu {
+            return crate::imu::convert::convert_imu(log, imu, opts);
+        }
         return Err(mcap_err(
             &log.path,
-            "no reference pose topic in the log".into(),
+            "no reference pose topic and no raw IMU topic in the log".into(),
         ));
     };
     let ref_topic = log.reference_topic.clone().unwrap_or_default();
@@ -267,6 +276,9 @@ pub fn convert(log: &Log, opts: &ConvertOptions) -> Result<Conversion> {
             *v = m[(r, c)];
         }
     }
+    let imu = log.imu.as_ref().map(|imu| {
+        crate::imu::convert::consistency_report(&slam, imu, log.imu_topic.clone(), &opts.imu, &t)
+    });
     let report = Report {
         input: log.path.clone(),
         keyframe_topic: log.keyframe_topic.clone(),
@@ -302,6 +314,7 @@ pub fn convert(log: &Log, opts: &ConvertOptions) -> Result<Conversion> {
             backproject_s,
             write_s: 0.0,
         },
+        imu,
     };
     Ok(Conversion {
         alignment: ta,

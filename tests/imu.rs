@@ -616,3 +616,138 @@ fn inconsistent_public_fields_are_refused() {
         Err(Error::ShapeMismatch { .. })
     ));
 }
+
+/// The scenario as a LSD-SLAM log: keyframes (tiny depth maps) + raw IMU,
+/// with or without the reference poses.
+fn write_log(s: &Scenario, path: &Path, with_reference: bool) {
+    use slam2world::io::mcap::{write_slam_log, SlamLogOptions};
+    use slam2world::{Keyframe, PinholeCamera};
+    let camera = PinholeCamera::try_new(4.0, 4.0, 2.0, 2.0, 4, 4).unwrap();
+    let o = s.keyframes.orientations.as_ref().unwrap();
+    let kfs: Vec<Keyframe> = (0..s.keyframes.len())
+        .map(|i| {
+            let pose = Sim3::try_new(o[i], s.keyframes.positions[i], 1.0).unwrap();
+            Keyframe::try_new(
+                i as i32,
+                s.keyframes.timestamps[i],
+                pose,
+                camera,
+                vec![0.5; 16],
+                Some(vec![1e-6; 16]),
+                None,
+            )
+            .unwrap()
+        })
+        .collect();
+    let reference = with_reference.then(|| {
+        // T_world_cam of the keyframes = truth · T_slam_cam.
+        s.keyframes.transformed(&s.truth)
+    });
+    write_slam_log(
+        path,
+        &kfs,
+        reference.as_ref(),
+        Some(&s.imu),
+        &[],
+        &SlamLogOptions::default(),
+    )
+    .unwrap();
+}
+
+#[test]
+fn convert_takes_the_imu_path_without_reference_poses() {
+    use slam2world::io::mcap::{read_mcap, ReadOptions};
+    use slam2world::pipeline::{convert, ConvertOptions};
+    let s = scenario(
+        Motion {
+            excite: 1.0,
+            translate: true,
+        },
+        10.0,
+        &QUIET,
+        5,
+    );
+    let dir = tempfile::tempdir().unwrap();
+    let opts = ConvertOptions {
+        imu: ImuInitOptions {
+            imu_from_cam: s.imu_from_cam,
+            keyframe_position_sigma: 1e-4,
+            ..ImuInitOptions::default()
+        },
+        ..ConvertOptions::default()
+    };
+    // No reference: T_world_slam from the IMU.
+    let p = dir.path().join("imu_only.mcap");
+    write_log(&s, &p, false);
+    let log = read_mcap(&p, &ReadOptions::default()).unwrap();
+    assert!(log.reference.is_none() && log.imu.is_some());
+    let c = convert(&log, &opts).unwrap();
+    assert!((c.transform().scale / s.truth.scale - 1.0).abs() < 1e-3);
+    let imu = c.report.imu.as_ref().unwrap();
+    assert!(imu.used_for_transform);
+    assert!(c.cloud.len() > 0);
+    let json = serde_json::to_value(&c.report).unwrap();
+    assert!(json["imu"]["scale"][0].as_f64().unwrap() > 0.0);
+    assert!(c.report.frames_used >= 4);
+    // Both: the pose fit gives T_world_slam, the IMU is the consistency check.
+    let p = dir.path().join("both.mcap");
+    write_log(&s, &p, true);
+    let log = read_mcap(&p, &ReadOptions::default()).unwrap();
+    let c = convert(&log, &opts).unwrap();
+    let imu = c.report.imu.as_ref().unwrap();
+    assert!(!imu.used_for_transform);
+    let chk = imu.pose_check.as_ref().unwrap();
+    assert!(
+        chk.scale_difference.abs() < 1e-3,
+        "{}",
+        chk.scale_difference
+    );
+    assert!(chk.gravity_angle_deg < 0.05, "{}", chk.gravity_angle_deg);
+}
+
+#[test]
+fn convert_command_with_imu_topic() {
+    let s = scenario(
+        Motion {
+            excite: 1.0,
+            translate: true,
+        },
+        10.0,
+        &QUIET,
+        6,
+    );
+    let dir = tempfile::tempdir().unwrap();
+    let p = dir.path().join("imu_only.mcap");
+    write_log(&s, &p, false);
+    let m = s.imu_from_cam.matrix();
+    let m: Vec<String> = (0..16).map(|k| format!("{}", m[(k / 4, k % 4)])).collect();
+    let out = dir.path().join("out");
+    let o = std::process::Command::new(env!("CARGO_BIN_EXE_slam2world"))
+        .args(["convert", p.to_str().unwrap(), "-o", out.to_str().unwrap()])
+        .args(["--imu-topic", "/imu0", "--imu-from-cam", &m.join(",")])
+        .output()
+        .unwrap();
+    let stdout = String::from_utf8_lossy(&o.stdout);
+    assert_eq!(
+        o.status.code(),
+        Some(0),
+        "{}",
+        String::from_utf8_lossy(&o.stderr)
+    );
+    assert!(
+        stdout.contains("IMU (gives T_world_slam): scale"),
+        "{stdout}"
+    );
+    let report: serde_json::Value =
+        serde_json::from_slice(&std::fs::read(out.join("report.json")).unwrap()).unwrap();
+    let scale = report["t_world_slam"]["scale"].as_f64().unwrap();
+    assert!((scale / s.truth.scale - 1.0).abs() < 0.01, "{scale}");
+    assert_eq!(report["imu"]["used_for_transform"], true);
+    // A topic that is not in the log is a data error (exit 1).
+    let o = std::process::Command::new(env!("CARGO_BIN_EXE_slam2world"))
+        .args(["convert", p.to_str().unwrap(), "-o", out.to_str().unwrap()])
+        .args(["--imu-topic", "/nope"])
+        .output()
+        .unwrap();
+    assert_eq!(o.status.code(), Some(1));
+}

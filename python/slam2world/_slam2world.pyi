@@ -457,4 +457,6 @@ def convert(
     n_to_align: int | None = None,
     scale: bool = True,
     filter: PointFilter | None = None,
+    imu_topic: str | None = None,
+    imu_from_cam: Sim3 | None = None,
 ) -> Conversion: ...

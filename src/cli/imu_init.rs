@@ -82,7 +82,7 @@ fn read(path: &Path, format: Format) -> Result<Trajectory> {
     }
 }
 
-fn parse_matrix(s: &str) -> Result<Sim3> {
+pub(crate) fn parse_matrix(s: &str) -> Result<Sim3> {
     let v: std::result::Result<Vec<f64>, _> =
         s.split(',').map(|f| f.trim().parse::<f64>()).collect();
     let v = v.map_err(|_| Error::invalid("--imu-from-cam", format!("not numbers: {s:?}")))?;

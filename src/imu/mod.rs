@@ -16,6 +16,7 @@ use nalgebra::Vector3;
 
 use crate::error::{Error, Result};
 
+pub mod convert;
 pub mod init;
 pub mod preintegration;
 

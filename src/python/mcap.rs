@@ -281,9 +281,12 @@ impl PyConversion {
 
 /// Aligns a log's keyframes with its reference and builds the world cloud.
 /// `log_or_path` is a `Log` or a path (read with the topic arguments);
-/// `filter=None` means the LSD-SLAM viewer's defaults.
+/// `filter=None` means the LSD-SLAM viewer's defaults. Without reference poses
+/// and with raw IMU (`imu_topic`, found by schema when None), `T_world_slam`
+/// comes from the IMU (`imu_from_cam` = `T_imu_cam`); with both, the report's
+/// `imu` entry compares them.
 #[pyfunction(name = "convert")]
-#[pyo3(signature = (log_or_path, *, keyframe_topic=None, graph_topic=None, pose_topic=None, tf_parent=None, tf_child=None, max_diff=0.01, offset=0.0, n_to_align=None, scale=true, filter=None))]
+#[pyo3(signature = (log_or_path, *, keyframe_topic=None, graph_topic=None, pose_topic=None, tf_parent=None, tf_child=None, max_diff=0.01, offset=0.0, n_to_align=None, scale=true, filter=None, imu_topic=None, imu_from_cam=None))]
 #[allow(clippy::too_many_arguments)]
 fn convert_py(
     py: Python<'_>,
@@ -298,13 +301,15 @@ fn convert_py(
     n_to_align: Option<usize>,
     scale: bool,
     filter: Option<PyRef<'_, PyPointFilter>>,
+    imu_topic: Option<String>,
+    imu_from_cam: Option<PyRef<'_, super::geometry::PySim3>>,
 ) -> PyResult<PyConversion> {
     let opts = ConvertOptions {
         read: ReadOptions {
             keyframe_topic,
             graph_topic,
             pose_topic,
-            imu_topic: None,
+            imu_topic,
             tf_parent,
             tf_child,
         },
@@ -316,6 +321,10 @@ fn convert_py(
             ..TrajectoryAlignOptions::default()
         },
         filter: filter.map(|f| f.inner).unwrap_or_default(),
+        imu: crate::imu::ImuInitOptions {
+            imu_from_cam: imu_from_cam.map_or_else(crate::geometry::Sim3::identity, |t| t.inner),
+            ..crate::imu::ImuInitOptions::default()
+        },
     };
     let conversion = if let Ok(log) = log_or_path.cast::<PyLog>() {
         let log = log.get();
