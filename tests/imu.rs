@@ -685,7 +685,7 @@ fn convert_takes_the_imu_path_without_reference_poses() {
     assert!((c.transform().scale / s.truth.scale - 1.0).abs() < 1e-3);
     let imu = c.report.imu.as_ref().unwrap();
     assert!(imu.used_for_transform);
-    assert!(c.cloud.len() > 0);
+    assert!(!c.cloud.is_empty());
     let json = serde_json::to_value(&c.report).unwrap();
     assert!(json["imu"]["scale"][0].as_f64().unwrap() > 0.0);
     assert!(c.report.frames_used >= 4);
