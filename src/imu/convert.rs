@@ -14,8 +14,8 @@ use crate::cloud::backproject;
 use crate::error::Result;
 use crate::io::mcap::Log;
 use crate::pipeline::{
-    keyframe_trajectory, ApeReport, Conversion, ConvertOptions, PairReport, Report, Timing,
-    TransformReport,
+    build_octree, keyframe_trajectory, ApeReport, Conversion, ConvertOptions, PairReport, Report,
+    Timing, TransformReport,
 };
 use crate::trajectory::{ApeStats, Trajectory, TrajectoryAlignment};
 
@@ -161,6 +161,7 @@ fn transform_report(t: &crate::geometry::Sim3) -> TransformReport {
 /// NaN, `null` in the report); keyframes the initialisation did not use are
 /// listed as dropped.
 pub fn convert_imu(log: &Log, imu: &ImuSamples, opts: &ConvertOptions) -> Result<Conversion> {
+    let octree_params = opts.octree_params()?;
     let t0 = Instant::now();
     let (slam, order) = keyframe_trajectory(log)?;
     let a = imu_initialize(&slam, imu, &opts.imu)?;
@@ -169,6 +170,13 @@ pub fn convert_imu(log: &Log, imu: &ImuSamples, opts: &ConvertOptions) -> Result
     let t1 = Instant::now();
     let cloud = backproject(&log.keyframes, &opts.filter, Some(&t))?;
     let backproject_s = t1.elapsed().as_secs_f64();
+    let (octree, octree_report) = match octree_params {
+        Some(params) => {
+            let (map, report) = build_octree(log, &t, &cloud, params)?;
+            (Some(map), Some(report))
+        }
+        None => (None, None),
+    };
     let world_slam = slam.transformed(&t);
     let nan = f64::NAN;
     let alignment = TrajectoryAlignment {
@@ -239,6 +247,7 @@ pub fn convert_imu(log: &Log, imu: &ImuSamples, opts: &ConvertOptions) -> Result
             write_s: 0.0,
         },
         imu: Some(ImuReport::new(log.imu_topic.clone(), true, &a, None)),
+        octree: octree_report,
     };
     Ok(Conversion {
         alignment,
@@ -246,5 +255,6 @@ pub fn convert_imu(log: &Log, imu: &ImuSamples, opts: &ConvertOptions) -> Result
         slam_trajectory: world_slam,
         reference: Trajectory::default(),
         report,
+        octree,
     })
 }

@@ -180,3 +180,23 @@ def test_euroc_v102_agrees_with_the_pose_fit() -> None:
     assert abs(a.scale / fit.transform.scale - 1.0) < 0.02
     g_ref = fit.transform.inverse().rotation @ np.array([0.0, 0.0, -1.0])
     assert _angle_deg(a.gravity_slam, g_ref) < 1.0
+
+
+def test_simulation_ten_second_window() -> None:
+    """The simulation's keyframes (unknown Sim(3)) and EuRoC-grade raw IMU."""
+    sim = s2w.simulate(seed=1, width=32, height=24, gyro_bias=0.01, accel_bias=0.05)
+    kf = sim.keyframe_trajectory
+    o = kf.orientations
+    assert o is not None
+    t = kf.timestamps
+    keep = (t >= t[0] + 30.0) & (t <= t[0] + 40.0)
+    keyframes = s2w.Trajectory(t[keep], kf.positions[keep], o[keep])
+    imu = s2w.ImuSamples(sim.imu_timestamps, sim.gyro, sim.accel)
+    truth = sim.t_world_slam
+    a = s2w.imu_initialize(
+        keyframes, imu, keyframe_position_sigma=0.003, keyframe_rotation_sigma=2e-4
+    )
+    assert abs(a.scale / truth.scale - 1.0) < 0.01
+    g_true = truth.inverse().rotation @ np.array([0.0, 0.0, -1.0])
+    assert _angle_deg(a.gravity_slam, g_true) < 0.5
+    assert_allclose(a.gyro_bias, [0.01, 0.01, 0.01], atol=2e-3)
