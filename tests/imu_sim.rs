@@ -77,6 +77,12 @@ fn simulated_windows_scale_and_gravity() {
         );
         curve.push((rs, rg));
     }
-    assert!(curve[3].0 < curve[0].0, "scale error should fall with the window: {curve:?}");
-    assert!(curve[3].1 < curve[0].1, "gravity error should fall with the window: {curve:?}");
+    assert!(
+        curve[3].0 < curve[0].0,
+        "scale error should fall with the window: {curve:?}"
+    );
+    assert!(
+        curve[3].1 < curve[0].1,
+        "gravity error should fall with the window: {curve:?}"
+    );
 }
