@@ -8,12 +8,14 @@ use slam2world::sim::{simulate, SimConfig, Simulation};
 use slam2world::Trajectory;
 
 fn run() -> Simulation {
-    let mut cfg = SimConfig::default();
     // Only the poses and the IMU are used: tiny images keep rendering cheap.
-    cfg.width = 32;
-    cfg.height = 24;
-    cfg.gyro_bias = [-0.002, 0.021, 0.076];
-    cfg.accel_bias = [-0.013, 0.103, 0.093];
+    let cfg = SimConfig {
+        width: 32,
+        height: 24,
+        gyro_bias: [-0.002, 0.021, 0.076],
+        accel_bias: [-0.013, 0.103, 0.093],
+        ..SimConfig::default()
+    };
     simulate(&cfg).unwrap()
 }
 
