@@ -21,6 +21,7 @@ use serde_json::{json, Value};
 use crate::cloud::backproject;
 use crate::error::{Error, Result};
 use crate::geometry::Sim3;
+use crate::io::atomic::write_bytes_atomic;
 use crate::io::mcap::{read_mcap, write_slam_log, SlamLogOptions, WorldFlavor};
 use crate::pipeline::{convert, ConvertOptions};
 use crate::sim::evaluate::{ape, point_distances, transform_error, ErrorStats};
@@ -184,26 +185,6 @@ fn truth_json(sim: &Simulation, frames: bool) -> Value {
     v
 }
 
-/// Writes `bytes` to `path` through a temporary file in the same folder.
-fn write_atomic(path: &Path, bytes: &[u8]) -> Result<()> {
-    let dir = match path.parent() {
-        Some(d) if !d.as_os_str().is_empty() => d.to_path_buf(),
-        _ => PathBuf::from("."),
-    };
-    let mut tmp = tempfile::NamedTempFile::new_in(&dir).map_err(|e| Error::io(&dir, e))?;
-    tmp.write_all(bytes).map_err(|e| Error::io(path, e))?;
-    // A temporary file is private (0600); the result is an ordinary file.
-    #[cfg(unix)]
-    {
-        use std::os::unix::fs::PermissionsExt;
-        tmp.as_file()
-            .set_permissions(std::fs::Permissions::from_mode(0o644))
-            .map_err(|e| Error::io(path, e))?;
-    }
-    tmp.persist(path).map_err(|e| Error::io(path, e.error))?;
-    Ok(())
-}
-
 fn json_bytes(v: &Value) -> Result<Vec<u8>> {
     let mut b = serde_json::to_vec_pretty(v).map_err(|e| Error::invalid("json", e.to_string()))?;
     b.push(b'\n');
@@ -226,7 +207,7 @@ fn write_log(sim: &Simulation, log: &Path, truth: &Path) -> Result<()> {
         &[("truth".to_string(), truth_meta)],
         &SlamLogOptions::default(),
     )?;
-    write_atomic(truth, &json_bytes(&truth_json(sim, true))?)
+    write_bytes_atomic(truth, &json_bytes(&truth_json(sim, true))?)
 }
 
 /// `slam2world simulate`.
@@ -304,7 +285,7 @@ pub fn run_evaluate(args: &EvaluateArgs) -> Result<()> {
     }
     let bytes = json_bytes(&out)?;
     if let Some(o) = &args.output {
-        write_atomic(o, &bytes)?;
+        write_bytes_atomic(o, &bytes)?;
     }
     std::io::stdout()
         .write_all(&bytes)
@@ -455,7 +436,7 @@ pub fn run_demo(args: &DemoArgs) -> Result<()> {
     ];
     let mut names = serde_json::Map::new();
     for (key, name, bytes) in &files {
-        write_atomic(&dir.join(name), bytes)?;
+        write_bytes_atomic(&dir.join(name), bytes)?;
         names.insert((*key).into(), json!(name));
     }
     let report = json!({
@@ -481,7 +462,7 @@ pub fn run_demo(args: &DemoArgs) -> Result<()> {
         "files": Value::Object(names),
         "seconds": {"simulate": t_sim, "write_log": t_log, "convert": t_convert, "score": t_score},
     });
-    write_atomic(&dir.join("demo.json"), &json_bytes(&report)?)?;
+    write_bytes_atomic(&dir.join("demo.json"), &json_bytes(&report)?)?;
 
     let plots = if args.no_plots {
         None

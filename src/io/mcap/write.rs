@@ -90,22 +90,15 @@ fn write_atomic(
     options: mcap::WriteOptions,
     body: impl FnOnce(&mut mcap::Writer<BufWriter<&std::fs::File>>) -> Result<()>,
 ) -> Result<()> {
-    let dir = match path.parent() {
-        Some(d) if !d.as_os_str().is_empty() => d,
-        _ => Path::new("."),
-    };
-    let tmp = tempfile::NamedTempFile::new_in(dir).map_err(|e| Error::io(path, e))?;
-    {
+    crate::io::atomic::write_atomic(path, |file| {
         let mut w = options
-            .create(BufWriter::new(tmp.as_file()))
+            .create(BufWriter::new(file))
             .map_err(|e| mcap_err(path, "create", e))?;
         body(&mut w)?;
         w.finish().map_err(|e| mcap_err(path, "finish", e))?;
         let mut inner = w.into_inner();
-        inner.flush().map_err(|e| Error::io(path, e))?;
-    }
-    tmp.persist(path).map_err(|e| Error::io(path, e.error))?;
-    Ok(())
+        inner.flush().map_err(|e| Error::io(path, e))
+    })
 }
 
 struct Chan {
