@@ -46,6 +46,9 @@ pub struct ConvertOptions {
     /// Also fit a windowed (drift-aware) alignment and compare it with the
     /// single Sim(3) in the report (the cloud still uses the single Sim(3)).
     pub compare_windowed: Option<Window>,
+    /// Inertial initialisation, used when the log has raw IMU samples: for
+    /// `T_world_slam` without reference poses, as a consistency check with them.
+    pub imu: crate::imu::ImuInitOptions,
     /// Voxel edge (metres) of the occupancy octree built from the world cloud;
     /// `None` builds none.
     pub octree_resolution: Option<f64>,
@@ -176,6 +179,9 @@ pub struct Report {
     pub points: usize,
     /// Stage timings.
     pub timing: Timing,
+    /// The inertial initialisation, when the log has raw IMU samples.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub imu: Option<crate::imu::convert::ImuReport>,
     /// The occupancy octree, when one was built.
     #[serde(skip_serializing_if = "Option::is_none")]
     pub octree: Option<OctreeReport>,
@@ -220,7 +226,7 @@ fn secs(t: Instant) -> f64 {
 }
 
 /// The keyframe poses as a trajectory sorted by time, with the keyframe index of each row.
-fn keyframe_trajectory(log: &Log) -> Result<(Trajectory, Vec<usize>)> {
+pub(crate) fn keyframe_trajectory(log: &Log) -> Result<(Trajectory, Vec<usize>)> {
     let mut order: Vec<usize> = (0..log.keyframes.len()).collect();
     order.sort_by(|&a, &b| {
         log.keyframes[a]
@@ -268,9 +274,12 @@ pub fn convert(log: &Log, opts: &ConvertOptions) -> Result<Conversion> {
         ));
     }
     let Some(reference) = &log.reference else {
+        if let Some(imu) = &log.imu {
+            return crate::imu::convert::convert_imu(log, imu, opts);
+        }
         return Err(mcap_err(
             &log.path,
-            "no reference pose topic in the log".into(),
+            "no reference pose topic and no raw IMU topic in the log".into(),
         ));
     };
     let ref_topic = log.reference_topic.clone().unwrap_or_default();
@@ -381,6 +390,9 @@ pub fn convert(log: &Log, opts: &ConvertOptions) -> Result<Conversion> {
             *v = m[(r, c)];
         }
     }
+    let imu = log.imu.as_ref().map(|imu| {
+        crate::imu::convert::consistency_report(&slam, imu, log.imu_topic.clone(), &opts.imu, &t)
+    });
     let report = Report {
         input: log.path.clone(),
         keyframe_topic: log.keyframe_topic.clone(),
@@ -418,6 +430,7 @@ pub fn convert(log: &Log, opts: &ConvertOptions) -> Result<Conversion> {
             backproject_s,
             write_s: 0.0,
         },
+        imu,
         octree: octree_report,
     };
     Ok(Conversion {
@@ -443,7 +456,7 @@ pub fn camera_centers(log: &Log, t_world_slam: &Sim3) -> BTreeMap<i32, [f32; 3]>
 }
 
 /// Inserts the world cloud keyframe by keyframe, each from its camera centre.
-fn build_octree(
+pub(crate) fn build_octree(
     log: &Log,
     t_world_slam: &Sim3,
     cloud: &PointCloud,

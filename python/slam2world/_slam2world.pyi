@@ -534,6 +534,69 @@ def write_world_mcap(
     ros2: bool = False,
 ) -> None: ...
 
+# ---------------------------------------------------------------- raw IMU
+
+@final
+class ImuSamples:
+    def __new__(cls, timestamps: _ArrayLike, gyro: _ArrayLike, accel: _ArrayLike) -> ImuSamples: ...
+    @staticmethod
+    def read_euroc(path: str | os.PathLike[str]) -> ImuSamples: ...
+    @property
+    def timestamps(self) -> npt.NDArray[np.float64]: ...
+    @property
+    def gyro(self) -> npt.NDArray[np.float64]: ...
+    @property
+    def accel(self) -> npt.NDArray[np.float64]: ...
+    def __len__(self) -> int: ...
+
+@final
+class ImuAlignment:
+    @property
+    def transform(self) -> Sim3: ...
+    @property
+    def scale(self) -> float: ...
+    @property
+    def scale_sigma(self) -> float: ...
+    @property
+    def gravity_slam(self) -> npt.NDArray[np.float64]: ...
+    @property
+    def gravity_sigma(self) -> float: ...
+    @property
+    def gyro_bias(self) -> npt.NDArray[np.float64]: ...
+    @property
+    def gyro_bias_sigma(self) -> npt.NDArray[np.float64]: ...
+    @property
+    def accel_bias(self) -> npt.NDArray[np.float64]: ...
+    @property
+    def accel_bias_sigma(self) -> npt.NDArray[np.float64]: ...
+    @property
+    def timestamps(self) -> npt.NDArray[np.float64]: ...
+    @property
+    def velocities(self) -> npt.NDArray[np.float64]: ...
+    @property
+    def diagnostics(self) -> dict[str, float]: ...
+
+def imu_initialize(
+    keyframes: Trajectory,
+    imu: ImuSamples,
+    *,
+    imu_from_cam: Sim3 | None = None,
+    gravity: float = 9.81,
+    time_offset: float = 0.0,
+    estimate_accel_bias: bool = True,
+    accel_bias_prior: float = 0.2,
+    keyframe_position_sigma: float = 0.01,
+    keyframe_rotation_sigma: float = 2e-3,
+    gyro_noise_density: float = 1.6968e-4,
+    accel_noise_density: float = 2.0e-3,
+    accel_random_walk: float = 3.0e-3,
+    min_interval: float = 0.5,
+    max_gap: float = 0.05,
+    min_duration: float = 2.0,
+    min_excitation: float = 0.05,
+    max_relative_scale_sigma: float = 0.05,
+) -> ImuAlignment: ...
+
 @final
 class Conversion:
     @property
@@ -567,6 +630,8 @@ def convert(
     n_to_align: int | None = None,
     scale: bool = True,
     filter: PointFilter | None = None,
+    imu_topic: str | None = None,
+    imu_from_cam: Sim3 | None = None,
     octree_resolution: float | None = None,
     octree_max_range: float | None = None,
 ) -> Conversion: ...

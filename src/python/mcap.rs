@@ -301,8 +301,11 @@ impl PyConversion {
 /// `filter=None` means the LSD-SLAM viewer's defaults. `octree_resolution`
 /// (metres) also builds the occupancy octree, each keyframe's points inserted
 /// from its camera centre; `octree_max_range` (metres) truncates its rays.
+/// Without reference poses and with raw IMU (`imu_topic`, found by schema when
+/// None), `T_world_slam` comes from the IMU (`imu_from_cam` = `T_imu_cam`);
+/// with both, the report's `imu` entry compares them.
 #[pyfunction(name = "convert")]
-#[pyo3(signature = (log_or_path, *, keyframe_topic=None, graph_topic=None, pose_topic=None, tf_parent=None, tf_child=None, max_diff=0.01, offset=0.0, n_to_align=None, scale=true, filter=None, octree_resolution=None, octree_max_range=None))]
+#[pyo3(signature = (log_or_path, *, keyframe_topic=None, graph_topic=None, pose_topic=None, tf_parent=None, tf_child=None, max_diff=0.01, offset=0.0, n_to_align=None, scale=true, filter=None, octree_resolution=None, octree_max_range=None, imu_topic=None, imu_from_cam=None))]
 #[allow(clippy::too_many_arguments)]
 fn convert_py(
     py: Python<'_>,
@@ -319,13 +322,15 @@ fn convert_py(
     filter: Option<PyRef<'_, PyPointFilter>>,
     octree_resolution: Option<f64>,
     octree_max_range: Option<f64>,
+    imu_topic: Option<String>,
+    imu_from_cam: Option<PyRef<'_, super::geometry::PySim3>>,
 ) -> PyResult<PyConversion> {
     let opts = ConvertOptions {
         read: ReadOptions {
             keyframe_topic,
             graph_topic,
             pose_topic,
-            imu_topic: None,
+            imu_topic,
             tf_parent,
             tf_child,
         },
@@ -337,6 +342,10 @@ fn convert_py(
             ..TrajectoryAlignOptions::default()
         },
         filter: filter.map(|f| f.inner).unwrap_or_default(),
+        imu: crate::imu::ImuInitOptions {
+            imu_from_cam: imu_from_cam.map_or_else(crate::geometry::Sim3::identity, |t| t.inner),
+            ..crate::imu::ImuInitOptions::default()
+        },
         octree_resolution,
         octree_max_range,
         ..ConvertOptions::default()

@@ -10,6 +10,7 @@ mod convert;
 mod core;
 mod errors;
 mod geometry;
+mod imu;
 mod map;
 mod mcap;
 mod sim;
@@ -26,5 +27,6 @@ fn _slam2world(m: &Bound<'_, PyModule>) -> PyResult<()> {
     cloud::register(m)?;
     cli::register(m)?;
     mcap::register(m)?;
+    imu::register(m)?;
     Ok(())
 }
