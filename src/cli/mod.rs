@@ -32,7 +32,7 @@ enum Command {
     /// Metric scale, gravity direction and IMU biases of SLAM keyframes from raw IMU samples.
     ImuInit(imu_init::ImuInitArgs),
     /// Convert an MCAP log into world.mcap, cloud.ply and report.json.
-    Convert(convert::ConvertArgs),
+    Convert(Box<convert::ConvertArgs>),
     /// List the topics of an MCAP log and what slam2world can use.
     Inspect(inspect::InspectArgs),
     /// Simulate the paper's experiment and write the LSD-SLAM log (MCAP) and its truth.

@@ -170,6 +170,18 @@ impl PyWindowedAlignment {
     }
 }
 
+/// A window given as an int (matched poses) or a float (metres of reference
+/// path); `what` names the argument in the error (`align_windowed`, `convert`).
+pub(crate) fn window_arg(w: &Bound<'_, PyAny>, what: &str) -> PyResult<Window> {
+    if w.is_instance_of::<pyo3::types::PyInt>() {
+        return Ok(Window::Poses(w.extract()?));
+    }
+    match w.extract::<f64>() {
+        Ok(d) => Ok(Window::Distance(d)),
+        Err(_) => Err(Error::invalid(what, "expected an int (poses) or a float (metres)").into()),
+    }
+}
+
 /// Windowed Sim(3) along the path: `window` an int (matched poses) or a float
 /// (metres of reference path).
 #[pyfunction(name = "align_windowed")]
@@ -185,15 +197,7 @@ fn align_windowed_py(
 ) -> PyResult<PyWindowedAlignment> {
     let window = match window {
         None => Window::default(),
-        Some(w) if w.is_instance_of::<pyo3::types::PyInt>() => Window::Poses(w.extract()?),
-        Some(w) => match w.extract::<f64>() {
-            Ok(d) => Window::Distance(d),
-            Err(_) => {
-                return Err(
-                    Error::invalid("window", "expected an int (poses) or a float (metres)").into(),
-                )
-            }
-        },
+        Some(w) => window_arg(w, "window")?,
     };
     let opts = WindowedOptions {
         window,

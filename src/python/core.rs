@@ -14,7 +14,9 @@ use pyo3::types::{PyDict, PyTuple};
 use super::convert::{rows_f64, to_array2, vec_f64};
 use super::geometry::PySim3;
 use crate::align::covariance::{covariance, Covariance};
-use crate::align::extended::{align_trajectories_extended, ExtendedOptions, SkipInit};
+use crate::align::extended::{
+    align_trajectories_extended, ExtendedAlignment, ExtendedOptions, SkipInit,
+};
 use crate::align::robust::{align_robust, RobustOptions};
 use crate::align::stages::Stages;
 use crate::align::time_offset::TimeOffsetOptions;
@@ -278,22 +280,7 @@ fn align_py(
         method,
         weights,
     };
-    if robust.is_none() && inlier_threshold.is_some() {
-        return Err(Error::invalid("inlier_threshold", "only with robust=\"ransac\"").into());
-    }
-    if let Some(r) = robust {
-        if !r.eq_ignore_ascii_case("ransac") {
-            return Err(Error::invalid(
-                "robust",
-                format!("expected None or \"ransac\", got {r:?}"),
-            )
-            .into());
-        }
-        let ropts = RobustOptions {
-            inlier_threshold,
-            loss: loss.parse()?,
-            ..Default::default()
-        };
+    if let Some(ropts) = robust_arg(robust, inlier_threshold, loss)? {
         let a = vectors(source, "source")?;
         let b = vectors(target, "target")?;
         let (fit, cov) = py.detach(|| -> crate::error::Result<_> {
@@ -680,12 +667,59 @@ fn skip_init_arg(obj: Option<&Bound<'_, PyAny>>) -> PyResult<SkipInit> {
     Err(Error::invalid("skip_init", "expected None, \"auto\" or a pair count >= 0").into())
 }
 
+/// `robust=None|"ransac"`, `inlier_threshold` (only with `"ransac"`) and
+/// `loss` (`"huber"` or `"cauchy"`) as the core's robust options.
+pub(crate) fn robust_arg(
+    robust: Option<&str>,
+    inlier_threshold: Option<f64>,
+    loss: &str,
+) -> PyResult<Option<RobustOptions>> {
+    match robust {
+        None if inlier_threshold.is_some() => {
+            Err(Error::invalid("inlier_threshold", "only with robust=\"ransac\"").into())
+        }
+        None => Ok(None),
+        Some(r) if r.eq_ignore_ascii_case("ransac") => Ok(Some(RobustOptions {
+            inlier_threshold,
+            loss: loss.parse()?,
+            ..Default::default()
+        })),
+        Some(r) => {
+            Err(Error::invalid("robust", format!("expected None or \"ransac\", got {r:?}")).into())
+        }
+    }
+}
+
+/// The keyword options beyond one fit (`align_trajectories`, `convert`) as
+/// the core's [`ExtendedOptions`]; `max_offset` (seconds) is `Some` when the
+/// time offset is to be estimated.
+pub(crate) fn extended_options(
+    skip_init: Option<&Bound<'_, PyAny>>,
+    robust: Option<&str>,
+    inlier_threshold: Option<f64>,
+    loss: &str,
+    use_orientations: bool,
+    max_offset: Option<f64>,
+    body_from_cam: Option<crate::geometry::Sim3>,
+) -> PyResult<ExtendedOptions> {
+    Ok(ExtendedOptions {
+        skip_init: skip_init_arg(skip_init)?,
+        robust: robust_arg(robust, inlier_threshold, loss)?,
+        use_orientations,
+        estimate_offset: max_offset.map(|max_offset| TimeOffsetOptions {
+            max_offset,
+            ..Default::default()
+        }),
+        body_from_cam,
+    })
+}
+
 /// Associates by time, fits `T_world_slam` on the positions (the first
 /// `first_n` pairs when given) and reports the APE over all pairs. The
 /// keyword options beyond `method` are those of the extended fit: start-up
 /// cut (`skip_init`), robust fit, orientations, time offset, extrinsic.
 #[pyfunction(name = "align_trajectories")]
-#[pyo3(signature = (slam, reference, *, max_diff=0.01, offset=0.0, scale=true, first_n=None, method="horn", skip_init=None, robust=None, inlier_threshold=None, use_orientations=false, estimate_offset=false, max_offset=0.5, body_from_cam=None))]
+#[pyo3(signature = (slam, reference, *, max_diff=0.01, offset=0.0, scale=true, first_n=None, method="horn", skip_init=None, robust=None, inlier_threshold=None, loss="huber", use_orientations=false, estimate_offset=false, max_offset=0.5, body_from_cam=None))]
 #[allow(clippy::too_many_arguments)]
 fn align_trajectories_py(
     py: Python<'_>,
@@ -699,6 +733,7 @@ fn align_trajectories_py(
     skip_init: Option<&Bound<'_, PyAny>>,
     robust: Option<&str>,
     inlier_threshold: Option<f64>,
+    loss: &str,
     use_orientations: bool,
     estimate_offset: bool,
     max_offset: f64,
@@ -711,83 +746,46 @@ fn align_trajectories_py(
         first_n,
         method: method.parse()?,
     };
-    let robust = match robust {
-        None if inlier_threshold.is_some() => {
-            return Err(Error::invalid("inlier_threshold", "only with robust=\"ransac\"").into())
-        }
-        None => None,
-        Some(r) if r.eq_ignore_ascii_case("ransac") => Some(RobustOptions {
-            inlier_threshold,
-            ..Default::default()
-        }),
-        Some(r) => {
-            return Err(
-                Error::invalid("robust", format!("expected None or \"ransac\", got {r:?}")).into(),
-            )
-        }
-    };
-    let ext = ExtendedOptions {
-        skip_init: skip_init_arg(skip_init)?,
+    let ext = extended_options(
+        skip_init,
         robust,
+        inlier_threshold,
+        loss,
         use_orientations,
-        estimate_offset: estimate_offset.then(|| TimeOffsetOptions {
-            max_offset,
-            ..Default::default()
-        }),
-        body_from_cam: body_from_cam.map(|b| b.inner),
-    };
+        estimate_offset.then_some(max_offset),
+        body_from_cam.map(|b| b.inner),
+    )?;
     let (s, r) = (&slam.inner, &reference.inner);
     let out = py.detach(|| align_trajectories_extended(s, r, &opts, &ext))?;
-    let TrajectoryAlignment {
-        alignment,
-        pairs,
-        ape,
-        errors,
-    } = out.trajectory;
-    let transform = alignment.transform;
-    let inliers = out.inliers;
-    Ok(PyTrajectoryAlignment {
-        alignment: Py::new(
-            py,
-            PyAlignment::with_extras(py, alignment, inliers.clone(), out.covariance.clone()),
-        )?,
-        transform,
-        ape,
-        pairs,
-        residuals: errors.into_pyarray(py).unbind(),
-        offset: out.offset,
-        fit_start: out.fit_start,
-        skip_reason: out.skip_reason,
-        stages: out.stages,
-        inliers: inliers.map(|m| m.into_pyarray(py).unbind()),
-        covariance: out.covariance,
-    })
+    PyTrajectoryAlignment::from_extended(py, out)
 }
 
 impl PyTrajectoryAlignment {
-    /// Wraps a core result (also used by `convert` in `mcap.rs`): `offset` is
-    /// the one the fit was asked for; no start-up cut, no robust fit; the
-    /// covariance from the fitted pairs when they determine it.
-    pub fn from_core(py: Python<'_>, ta: TrajectoryAlignment, offset: f64) -> PyResult<Self> {
+    /// Wraps a core extended fit (also used by `convert` in `mcap.rs`).
+    pub(crate) fn from_extended(py: Python<'_>, out: ExtendedAlignment) -> PyResult<Self> {
         let TrajectoryAlignment {
             alignment,
             pairs,
             ape,
             errors,
-        } = ta;
+        } = out.trajectory;
         let transform = alignment.transform;
+        let inliers = out.inliers;
         Ok(PyTrajectoryAlignment {
-            alignment: Py::new(py, PyAlignment::new(py, alignment))?,
+            alignment: Py::new(
+                py,
+                PyAlignment::with_extras(py, alignment, inliers.clone(), out.covariance.clone()),
+            )?,
             transform,
             ape,
             pairs,
             residuals: errors.into_pyarray(py).unbind(),
-            offset,
-            fit_start: 0,
-            skip_reason: "no start-up cut asked for".into(),
-            stages: None,
-            inliers: None,
-            covariance: None,
+            offset: out.offset,
+            fit_start: out.fit_start,
+            skip_reason: out.skip_reason,
+            stages: out.stages,
+            inliers: inliers.map(|m| m.into_pyarray(py).unbind()),
+            covariance: out.covariance,
         })
     }
 }
