@@ -20,7 +20,7 @@ use std::time::Instant;
 
 use serde::Serialize;
 
-use crate::align::extended::{align_trajectories_extended, ExtendedOptions};
+use crate::align::extended::{align_trajectories_extended, ExtendedAlignment, ExtendedOptions};
 use crate::align::windowed::{align_windowed, Window, WindowedOptions};
 use crate::cloud::{backproject, PointCloud, PointFilter};
 use crate::error::{Error, Result};
@@ -29,7 +29,7 @@ use crate::io::mcap::{
     read_mcap, write_world_mcap_with_octomap, Log, ReadOptions, WorldFlavor, WorldScene,
 };
 use crate::map::{MapParams, OccupancyMap, VoxelState};
-use crate::trajectory::{Trajectory, TrajectoryAlignOptions, TrajectoryAlignment};
+use crate::trajectory::{Trajectory, TrajectoryAlignOptions};
 
 /// Everything `convert` can be told.
 #[derive(Clone, Debug, Default)]
@@ -207,8 +207,10 @@ pub struct ApeReport {
 /// The result of [`convert`].
 #[derive(Clone, Debug)]
 pub struct Conversion {
-    /// The fit: `alignment.alignment.transform` is `T_world_slam`.
-    pub alignment: TrajectoryAlignment,
+    /// The fit with what the options beyond one fit found (start-up cut,
+    /// inliers, offset, covariance): `alignment.trajectory.alignment.transform`
+    /// is `T_world_slam`.
+    pub alignment: ExtendedAlignment,
     /// The world cloud (metres, world frame).
     pub cloud: PointCloud,
     /// Keyframe positions and orientations (`T_world_cam`) in the world frame, by time.
@@ -303,7 +305,7 @@ pub fn convert(log: &Log, opts: &ConvertOptions) -> Result<Conversion> {
     let fit_start = ext.fit_start;
     let inliers = ext.inliers.clone();
     let offset = ext.offset;
-    let ta = ext.trajectory;
+    let ta = &ext.trajectory;
     let windowed = match opts.compare_windowed {
         Some(window) => {
             let w = align_windowed(
@@ -434,7 +436,7 @@ pub fn convert(log: &Log, opts: &ConvertOptions) -> Result<Conversion> {
         octree: octree_report,
     };
     Ok(Conversion {
-        alignment: ta,
+        alignment: ext,
         cloud,
         slam_trajectory: world_slam,
         reference: reference.clone(),
@@ -507,7 +509,7 @@ pub const MAP_BT: &str = "map.bt";
 impl Conversion {
     /// `T_world_slam`.
     pub fn transform(&self) -> crate::geometry::Sim3 {
-        self.alignment.alignment.transform
+        self.alignment.trajectory.alignment.transform
     }
 
     /// Writes `world.mcap` (cloud, both trajectories, `world → slam`, and the

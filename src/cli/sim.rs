@@ -451,8 +451,8 @@ pub fn run_demo(args: &DemoArgs) -> Result<()> {
         "ape_keyframes": stats_json(&ape_kf),
         "alignment": {
             "fit": "keyframes vs reference (the convert pipeline, report.json)",
-            "pairs": conv.alignment.pairs.len(),
-            "rmse": conv.alignment.ape.rmse,
+            "pairs": conv.alignment.trajectory.pairs.len(),
+            "rmse": conv.alignment.trajectory.ape.rmse,
             "scale_error_all_frames": all_frames.alignment.transform.scale / sim.truth.t_world_slam.scale - 1.0,
             "scale_error_stable_frames": stable_fit.alignment.transform.scale / sim.truth.t_world_slam.scale - 1.0,
         },

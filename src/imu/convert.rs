@@ -252,6 +252,17 @@ pub fn convert_imu(log: &Log, imu: &ImuSamples, opts: &ConvertOptions) -> Result
         imu: Some(ImuReport::new(log.imu_topic.clone(), true, &a, None)),
         octree: octree_report,
     };
+    // No pose pairs: nothing was cut, flagged or searched.
+    let alignment = crate::align::extended::ExtendedAlignment {
+        trajectory: alignment,
+        offset: opts.align.offset,
+        offset_estimate: None,
+        stages: None,
+        fit_start: 0,
+        skip_reason: String::new(),
+        inliers: None,
+        covariance: None,
+    };
     Ok(Conversion {
         alignment,
         cloud,

@@ -13,11 +13,10 @@ use super::convert::to_array2;
 use super::core::{extended_options, PyTrajectory, PyTrajectoryAlignment};
 use super::geometry::PySim3;
 use super::map::PyOccupancyMap;
-use crate::align::extended::align_trajectories_extended;
 use crate::geometry::Sim3;
 use crate::io::mcap::{self as io_mcap, ReadOptions, WorldFlavor, WorldScene};
 use crate::pipeline::{self, ConvertOptions};
-use crate::trajectory::{Trajectory, TrajectoryAlignOptions};
+use crate::trajectory::TrajectoryAlignOptions;
 
 type Series<'py> = (
     Bound<'py, PyArray1<f64>>,
@@ -298,18 +297,6 @@ impl PyConversion {
     }
 }
 
-/// The keyframe poses as a SLAM trajectory sorted by time (the order and the
-/// values `pipeline::convert` fits, so that refitting gives the same answer).
-fn keyframe_trajectory(log: &io_mcap::Log) -> crate::error::Result<Trajectory> {
-    let mut kfs: Vec<_> = log.keyframes.iter().collect();
-    kfs.sort_by(|a, b| a.timestamp.total_cmp(&b.timestamp));
-    Trajectory::try_new(
-        kfs.iter().map(|k| k.timestamp).collect(),
-        kfs.iter().map(|k| k.pose.translation).collect(),
-        Some(kfs.iter().map(|k| k.pose.rotation).collect()),
-    )
-}
-
 /// Aligns a log's keyframes with its reference and builds the world cloud.
 /// `log_or_path` is a `Log` or a path (read with the topic arguments);
 /// `filter=None` means the LSD-SLAM viewer's defaults. `octree_resolution`
@@ -392,19 +379,9 @@ fn convert_py(
         octree_resolution,
         octree_max_range,
     };
-    // `pipeline::Conversion` keeps only the plain fit, so the extended fit
-    // (inliers, stages, covariance) is run again on the same keyframe
-    // trajectory: deterministic (seeded RANSAC), and cheap next to the cloud.
-    let run = |log: &io_mcap::Log| -> crate::error::Result<_> {
-        let conversion = pipeline::convert(log, &opts)?;
-        let slam = keyframe_trajectory(log)?;
-        let ext =
-            align_trajectories_extended(&slam, &conversion.reference, &opts.align, &opts.beyond)?;
-        Ok((conversion, ext))
-    };
-    let (conversion, ext) = if let Ok(log) = log_or_path.cast::<PyLog>() {
+    let conversion = if let Ok(log) = log_or_path.cast::<PyLog>() {
         let log = log.get();
-        py.detach(|| run(&log.log))?
+        py.detach(|| pipeline::convert(&log.log, &opts))?
     } else {
         let path: PathBuf = log_or_path.extract().map_err(|_| {
             PyErr::from(crate::Error::invalid(
@@ -412,17 +389,12 @@ fn convert_py(
                 "expected a Log or a path (str or os.PathLike)",
             ))
         })?;
-        py.detach(|| -> crate::error::Result<_> {
-            opts.octree_params()?;
-            let t = std::time::Instant::now();
-            let log = io_mcap::read_mcap(&path, &opts.read)?;
-            let read_s = t.elapsed().as_secs_f64();
-            let (mut conversion, ext) = run(&log)?;
-            conversion.report.timing.read_s = read_s;
-            Ok((conversion, ext))
-        })?
+        py.detach(|| pipeline::convert_file(&path, &opts))?
     };
-    let alignment = Py::new(py, PyTrajectoryAlignment::from_extended(py, ext)?)?;
+    let alignment = Py::new(
+        py,
+        PyTrajectoryAlignment::from_extended(py, conversion.alignment.clone())?,
+    )?;
     Ok(PyConversion {
         inner: conversion,
         alignment,
