@@ -77,23 +77,42 @@ class Timing:
     repeats: int
 
 
+def _once(fn: Thunk) -> tuple[float, float]:
+    c0, t0 = time.process_time(), time.perf_counter()
+    fn()
+    return time.perf_counter() - t0, time.process_time() - c0
+
+
 def measure(fn: Thunk, budget_s: float, max_repeats: int) -> Timing:
     """Median wall time of ``fn``: one warm-up call, then repeats within the
     budget (at least 3 unless ``max_repeats`` is smaller; a call longer than the
     budget is measured once, its warm-up being the measurement)."""
-    c0, t0 = time.process_time(), time.perf_counter()
-    fn()
-    first, first_cpu = time.perf_counter() - t0, time.process_time() - c0
-    if first >= budget_s or max_repeats <= 1:
-        return Timing(first, first_cpu, 1)
-    n = int(min(max_repeats, max(3, budget_s / max(first, 1e-9))))
-    walls, cpus = [], []
-    for _ in range(n):
-        c0, t0 = time.process_time(), time.perf_counter()
-        fn()
-        walls.append(time.perf_counter() - t0)
-        cpus.append(time.process_time() - c0)
-    return Timing(statistics.median(walls), statistics.median(cpus), n)
+    return measure_pair(fn, None, budget_s, max_repeats)[0]
+
+
+def measure_pair(
+    ours: Thunk, peer: Thunk | None, budget_s: float, max_repeats: int
+) -> tuple[Timing, Timing | None]:
+    """Median wall and CPU times of ``ours`` and ``peer``, their calls
+    interleaved (ours, peer, ours, …) so that a change of the machine's load
+    during the row weighs on both sides alike. One warm-up call each; then as
+    many rounds as fit the budget (at least 3, at most ``max_repeats``; none
+    when a warm-up alone exceeds the budget: the warm-ups are the measurement)."""
+    thunks = [ours] if peer is None else [ours, peer]
+    first = [_once(f) for f in thunks]
+    if sum(w for w, _ in first) >= budget_s or max_repeats <= 1:
+        out = [Timing(w, c, 1) for w, c in first]
+    else:
+        n = int(min(max_repeats, max(3, budget_s / max(sum(w for w, _ in first), 1e-9))))
+        samples: list[list[tuple[float, float]]] = [[] for _ in thunks]
+        for _ in range(n):
+            for f, acc in zip(thunks, samples):
+                acc.append(_once(f))
+        out = [
+            Timing(statistics.median(w for w, _ in acc), statistics.median(c for _, c in acc), n)
+            for acc in samples
+        ]
+    return out[0], (out[1] if peer is not None else None)
 
 
 @dataclass
@@ -134,7 +153,8 @@ def run_row(row: Row, size: int, mode: Mode, ours_only: bool = False) -> dict[st
         case: Case = row.setup(size)
     except Skip as e:
         return {**rec, "skipped": str(e)}
-    ours = measure(case.ours, mode.budget_s, mode.max_repeats)
+    paired = case.peer if (case.values is None and not ours_only) else None
+    ours, peer = measure_pair(case.ours, paired, mode.budget_s, mode.max_repeats)
     rec.update(
         ours_s=ours.median_s,
         ours_cpu_s=ours.cpu_s,
@@ -148,8 +168,7 @@ def run_row(row: Row, size: int, mode: Mode, ours_only: bool = False) -> dict[st
     if case.values is not None:
         v_ours, v_peer = case.values
         rec.update(ours_value=v_ours, peer_value=v_peer, ratio=v_peer / v_ours, cpu_ratio=None)
-    elif case.peer is not None:
-        peer = measure(case.peer, mode.budget_s, mode.max_repeats)
+    elif peer is not None:
         peer_work = case.peer_work or case.ours_work
         per_ours, per_peer = ours.median_s / case.ours_work, peer.median_s / peer_work
         cpu_ours, cpu_peer = ours.cpu_s / case.ours_work, peer.cpu_s / peer_work
@@ -256,10 +275,10 @@ def curves(rows: list[Row], mode: Mode, out_dir: Path, max_size: int | None) -> 
             except Skip as e:
                 series["skipped"] = str(e)
                 break
-            ours = measure(case.ours, mode.budget_s / 4, mode.max_repeats)
+            paired = None if peer_too_slow else case.peer
+            ours, peer = measure_pair(case.ours, paired, mode.budget_s / 2, mode.max_repeats)
             point: dict[str, Any] = {"size": n, "ours_s": ours.median_s / case.ours_work * n}
-            if case.peer is not None and not peer_too_slow:
-                peer = measure(case.peer, mode.budget_s / 4, mode.max_repeats)
+            if peer is not None:
                 per = peer.median_s / (case.peer_work or case.ours_work)
                 point["peer_s"] = per * n
                 peer_too_slow = peer.median_s > peer_limit_s
