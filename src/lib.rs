@@ -21,6 +21,7 @@ pub mod imu;
 pub mod io;
 pub mod keyframe;
 pub mod map;
+pub mod pipeline;
 pub mod trajectory;
 
 #[cfg(feature = "python")]

@@ -84,7 +84,7 @@ fn conformance_suite_yields_exactly_the_listed_messages() {
                 .scan(|_| true)
                 .unwrap_or_else(|e| panic!("{}: {e}", path.display()));
             let got: Vec<_> = scan
-                .messages
+                .messages()
                 .iter()
                 .map(|m| {
                     (
@@ -97,6 +97,24 @@ fn conformance_suite_yields_exactly_the_listed_messages() {
                 })
                 .collect();
             assert_eq!(got, expected, "{}", path.display());
+            // The mapping reader (read_mcap's path) sees the same messages.
+            let mapped = file
+                .scan_map(|_| true, |_, m| m.data.to_vec())
+                .unwrap_or_else(|e| panic!("{}: {e}", path.display()));
+            let got_mapped: Vec<_> = mapped
+                .messages
+                .into_iter()
+                .map(|m| {
+                    (
+                        m.channel_id,
+                        m.sequence,
+                        m.log_time,
+                        m.publish_time,
+                        m.value,
+                    )
+                })
+                .collect();
+            assert_eq!(got_mapped, expected, "scan_map {}", path.display());
             files += 1;
             messages += got.len();
             if scan.mode == ReadMode::Indexed {
@@ -535,4 +553,99 @@ fn world_mcap_reads_back() {
     // No temporary file is left beside the outputs.
     let left: Vec<_> = std::fs::read_dir(dir.path()).unwrap().collect();
     assert_eq!(left.len(), 2);
+}
+
+/// A small deterministic mutation fuzz on stable Rust (the cargo-fuzz targets
+/// under fuzz/ go further): decoders and the reader return errors, never panic.
+#[test]
+fn mutated_inputs_never_panic() {
+    use slam2world::io::mcap::decode::{self, MessageKind};
+    let dir = tempfile::tempdir().unwrap();
+    let kf = slam2world::io::mcap::write::keyframe_msg_ros1(&test_keyframes(1, 3, 2)[0]);
+    let pose = slam2world::io::mcap::write::pose_stamped_ros1(
+        3,
+        1.5,
+        "world",
+        [1.0, 2.0, 3.0],
+        [0.0, 0.0, 0.0, 1.0],
+    );
+    let imu = slam2world::io::mcap::write::imu_ros1(1, 2.0, "imu", [0.1; 3], [9.8; 3]);
+    let graph = slam2world::io::mcap::write::graph_msg_ros1(&test_keyframes(2, 2, 2));
+    let seeds = [kf, pose, imu, graph];
+    let kinds = [
+        MessageKind::PoseStamped,
+        MessageKind::PoseWithCovarianceStamped,
+        MessageKind::Odometry,
+        MessageKind::PoseInFrame,
+        MessageKind::PosesInFrame,
+        MessageKind::Tf,
+    ];
+    let mut state = 0x2545f4914f6cdd1du64;
+    let mut next = move || {
+        state ^= state << 13;
+        state ^= state >> 7;
+        state ^= state << 17;
+        state
+    };
+    for round in 0..3000 {
+        let mut m = seeds[round % seeds.len()].clone();
+        for _ in 0..1 + next() % 4 {
+            let i = (next() as usize) % m.len().max(1);
+            match next() % 3 {
+                0 if !m.is_empty() => m[i] = next() as u8,
+                1 => m.truncate(i),
+                _ => m.insert(i.min(m.len()), next() as u8),
+            }
+        }
+        for k in kinds {
+            for enc in ["ros1", "cdr", "protobuf", "json"] {
+                let _ = decode::poses(k, enc, &m);
+                let _ = decode::pose_sample(k, enc, &m);
+            }
+        }
+        let _ = decode::imu("ros1", &m);
+        let _ = decode::imu("cdr", &m);
+        if let Ok(k) = decode::keyframe_ros1(&m) {
+            let _ = decode::split_pointcloud(k.pointcloud);
+        }
+        let _ = decode::graph_ros1(&m);
+    }
+    // Whole files: flip bytes of a small zstd log and read it.
+    let path = written_log(dir.path(), Some(mcap::Compression::Zstd));
+    let bytes = std::fs::read(&path).unwrap();
+    let p = dir.path().join("mutated.mcap");
+    for _ in 0..300 {
+        let mut b = bytes.clone();
+        for _ in 0..1 + next() % 3 {
+            let i = (next() as usize) % b.len();
+            b[i] = next() as u8;
+        }
+        std::fs::write(&p, &b).unwrap();
+        let _ = read_mcap(&p, &ReadOptions::default());
+    }
+}
+
+#[test]
+fn inspect_exits_0_on_a_log_and_1_on_bad_input() {
+    let dir = tempfile::tempdir().unwrap();
+    let path = written_log(dir.path(), Some(mcap::Compression::Lz4));
+    let inv = slam2world::io::mcap::inspect_mcap(&path).unwrap();
+    let topics: Vec<&str> = inv.topics.iter().map(|t| t.topic.as_str()).collect();
+    assert_eq!(topics.len(), 3, "{topics:?}");
+    assert!(inv
+        .picks
+        .iter()
+        .any(|(role, t)| *role == "keyframes" && t == "/lsd_slam/keyframes"));
+    let kf = inv
+        .topics
+        .iter()
+        .find(|t| t.topic == "/lsd_slam/keyframes")
+        .unwrap();
+    assert_eq!(kf.count, 2);
+    let code = slam2world::cli::main_with_args(["slam2world", "inspect", path.to_str().unwrap()]);
+    assert_eq!(code, 0);
+    let bad = dir.path().join("bad.mcap");
+    std::fs::write(&bad, b"nope").unwrap();
+    let code = slam2world::cli::main_with_args(["slam2world", "inspect", bad.to_str().unwrap()]);
+    assert_eq!(code, 1);
 }

@@ -6,13 +6,13 @@ Conventions: metres and seconds; ``T_a_b`` maps frame-b coordinates into frame a
 
 from slam2world._slam2world import (
     Alignment,
+    Conversion,
     DegenerateError,
     FileError,
     FormatError,
     InvalidInputError,
     Keyframe,
     Log,
-    LogKeyframe,
     OccupancyMap,
     PinholeCamera,
     PointCloud,
@@ -26,6 +26,7 @@ from slam2world._slam2world import (
     align_trajectories,
     associate,
     backproject,
+    convert,
     read_bt,
     read_mcap,
     read_ply,
@@ -36,6 +37,7 @@ from slam2world._slam2world import (
 
 __all__ = [
     "Alignment",
+    "Conversion",
     "DegenerateError",
     "FileError",
     "FormatError",
@@ -45,7 +47,6 @@ __all__ = [
     "PointCloud",
     "PointFilter",
     "Log",
-    "LogKeyframe",
     "OccupancyMap",
     "Sim3",
     "Slam2WorldError",
@@ -60,6 +61,7 @@ __all__ = [
     "read_bt",
     "read_ply",
     "read_xyz_text",
+    "convert",
     "read_mcap",
     "write_world_mcap",
 ]

@@ -8,6 +8,7 @@ use std::ffi::OsString;
 use clap::{Parser, Subcommand};
 
 pub mod align;
+pub mod convert;
 pub mod inspect;
 pub mod transform_cloud;
 
@@ -25,6 +26,8 @@ pub struct Cli {
 enum Command {
     /// Fit the Sim(3) between two trajectory files and print the error statistics.
     Align(align::AlignArgs),
+    /// Convert an MCAP log into world.mcap, cloud.ply and report.json.
+    Convert(convert::ConvertArgs),
     /// List the topics of an MCAP log and what slam2world can use.
     Inspect(inspect::InspectArgs),
     /// Align EST to REF and carry a SLAM-frame point cloud (PLY or x y z text) into the world frame.
@@ -34,6 +37,7 @@ enum Command {
 fn run(cli: Cli) -> Result<()> {
     match cli.command {
         Command::Align(args) => align::run(args),
+        Command::Convert(args) => convert::run(&args),
         Command::Inspect(args) => inspect::run(&args),
         Command::TransformCloud(args) => transform_cloud::run(args),
     }

@@ -467,20 +467,28 @@ fn align_trajectories_py(
         method: method.parse()?,
     };
     let (s, r) = (&slam.inner, &reference.inner);
-    let TrajectoryAlignment {
-        alignment,
-        pairs,
-        ape,
-        errors,
-    } = py.detach(|| align_trajectories(s, r, &opts))?;
-    let transform = alignment.transform;
-    Ok(PyTrajectoryAlignment {
-        alignment: Py::new(py, PyAlignment::new(py, alignment))?,
-        transform,
-        ape,
-        pairs,
-        residuals: errors.into_pyarray(py).unbind(),
-    })
+    let ta = py.detach(|| align_trajectories(s, r, &opts))?;
+    PyTrajectoryAlignment::from_core(py, ta)
+}
+
+impl PyTrajectoryAlignment {
+    /// Wraps a core result (also used by `convert` in `mcap.rs`).
+    pub fn from_core(py: Python<'_>, ta: TrajectoryAlignment) -> PyResult<Self> {
+        let TrajectoryAlignment {
+            alignment,
+            pairs,
+            ape,
+            errors,
+        } = ta;
+        let transform = alignment.transform;
+        Ok(PyTrajectoryAlignment {
+            alignment: Py::new(py, PyAlignment::new(py, alignment))?,
+            transform,
+            ape,
+            pairs,
+            residuals: errors.into_pyarray(py).unbind(),
+        })
+    }
 }
 
 /// The paper's frame-to-frame factors `p_k = ‖t'_{k+1} − t'_k‖² / ‖t_{k+1} − t_k‖²`

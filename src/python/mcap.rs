@@ -2,89 +2,19 @@
 
 use std::path::PathBuf;
 
-use numpy::ndarray::{Array1, Array3};
-use numpy::{IntoPyArray, PyArray1, PyArray2, PyArray3, PyUntypedArrayMethods};
+use numpy::ndarray::Array1;
+use numpy::{IntoPyArray, PyArray1, PyArray2, PyUntypedArrayMethods};
 use pyo3::prelude::*;
+use pyo3::sync::PyOnceLock;
 
+use super::cloud::{PyKeyframe, PyPointCloud, PyPointFilter};
 use super::convert::to_array2;
+use super::core::{PyTrajectory, PyTrajectoryAlignment};
 use super::geometry::PySim3;
 use crate::geometry::Sim3;
 use crate::io::mcap::{self as io_mcap, ReadOptions, WorldFlavor, WorldScene};
-use crate::keyframe::Keyframe;
-
-/// One keyframe read from a log: `pose` is `T_slam_cam`, per-pixel arrays are `(height, width)`.
-#[pyclass(name = "LogKeyframe", module = "slam2world._slam2world", frozen)]
-pub struct PyLogKeyframe {
-    pub inner: Keyframe,
-}
-
-fn image<'py, T: numpy::Element + Copy>(
-    py: Python<'py>,
-    data: &[T],
-    h: usize,
-    w: usize,
-    c: usize,
-) -> PyResult<Bound<'py, PyArray3<T>>> {
-    let a = Array3::from_shape_vec((h, w, c), data.to_vec())
-        .map_err(|e| PyErr::from(crate::Error::invalid("image", e.to_string())))?;
-    Ok(a.into_pyarray(py))
-}
-
-#[pymethods]
-impl PyLogKeyframe {
-    /// Keyframe id.
-    #[getter]
-    fn id(&self) -> i32 {
-        self.inner.id
-    }
-    /// The message's own time, seconds.
-    #[getter]
-    fn timestamp(&self) -> f64 {
-        self.inner.timestamp
-    }
-    /// `T_slam_cam` (LSD-SLAM camToWorld, with its scale).
-    #[getter]
-    fn pose(&self) -> PySim3 {
-        PySim3::from(self.inner.pose)
-    }
-    /// `(fx, fy, cx, cy, width, height)`, pixels.
-    #[getter]
-    fn camera(&self) -> (f64, f64, f64, f64, u32, u32) {
-        let c = &self.inner.camera;
-        (c.fx, c.fy, c.cx, c.cy, c.width, c.height)
-    }
-    /// Inverse depth, `(height, width)` float32.
-    #[getter]
-    fn idepth<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyArray2<f32>>> {
-        let c = &self.inner.camera;
-        to_array2(py, self.inner.idepth.clone(), c.width as usize)
-    }
-    /// Inverse-depth variance, `(height, width)` float32, or None.
-    #[getter]
-    fn idepth_var<'py>(&self, py: Python<'py>) -> PyResult<Option<Bound<'py, PyArray2<f32>>>> {
-        let c = &self.inner.camera;
-        match &self.inner.idepth_var {
-            Some(v) => Ok(Some(to_array2(py, v.clone(), c.width as usize)?)),
-            None => Ok(None),
-        }
-    }
-    /// Colour, `(height, width, 3)` uint8 in the message's byte order, or None.
-    #[getter]
-    fn color<'py>(&self, py: Python<'py>) -> PyResult<Option<Bound<'py, PyArray3<u8>>>> {
-        let c = &self.inner.camera;
-        match &self.inner.color {
-            Some(v) => Ok(Some(image(py, v, c.height as usize, c.width as usize, 3)?)),
-            None => Ok(None),
-        }
-    }
-    fn __repr__(&self) -> String {
-        let c = &self.inner.camera;
-        format!(
-            "LogKeyframe(id={}, timestamp={}, {}x{})",
-            self.inner.id, self.inner.timestamp, c.width, c.height
-        )
-    }
-}
+use crate::pipeline::{self, ConvertOptions};
+use crate::trajectory::TrajectoryAlignOptions;
 
 type Series<'py> = (
     Bound<'py, PyArray1<f64>>,
@@ -96,7 +26,8 @@ type Series<'py> = (
 #[pyclass(name = "Log", module = "slam2world._slam2world", frozen)]
 pub struct PyLog {
     log: io_mcap::Log,
-    keyframes: Vec<Py<PyLogKeyframe>>,
+    /// The Python objects of the keyframes, made on first access.
+    keyframes: PyOnceLock<Vec<Py<PyKeyframe>>>,
 }
 
 #[pymethods]
@@ -108,30 +39,23 @@ impl PyLog {
     }
     /// Keyframes: latest version of each id, in order of first arrival.
     #[getter]
-    fn keyframes(&self, py: Python<'_>) -> Vec<Py<PyLogKeyframe>> {
-        self.keyframes.iter().map(|k| k.clone_ref(py)).collect()
+    fn keyframes(&self, py: Python<'_>) -> PyResult<Vec<Py<PyKeyframe>>> {
+        let list = self.keyframes.get_or_try_init(py, || {
+            self.log
+                .keyframes
+                .iter()
+                .map(|k| Py::new(py, PyKeyframe { inner: k.clone() }))
+                .collect::<PyResult<Vec<_>>>()
+        })?;
+        Ok(list.iter().map(|k| k.clone_ref(py)).collect())
     }
-    /// Reference poses `T_world_body` as `(timestamps (N,), positions (N, 3),
-    /// orientations (N, 4) x, y, z, w)`, or None.
+    /// Reference poses `T_world_body`, or None.
     #[getter]
-    fn reference<'py>(&self, py: Python<'py>) -> PyResult<Option<Series<'py>>> {
-        let Some(r) = &self.log.reference else {
-            return Ok(None);
-        };
-        let t = Array1::from_vec(r.timestamps.clone()).into_pyarray(py);
-        let p: Vec<f64> = r.positions.iter().flat_map(|v| [v.x, v.y, v.z]).collect();
-        let q: Vec<f64> = match &r.orientations {
-            Some(o) => o
-                .iter()
-                .flat_map(|q| [q.coords[0], q.coords[1], q.coords[2], q.coords[3]])
-                .collect(),
-            None => r
-                .timestamps
-                .iter()
-                .flat_map(|_| [0.0, 0.0, 0.0, 1.0])
-                .collect(),
-        };
-        Ok(Some((t, to_array2(py, p, 3)?, to_array2(py, q, 4)?)))
+    fn reference(&self) -> Option<PyTrajectory> {
+        self.log
+            .reference
+            .as_ref()
+            .map(|r| PyTrajectory { inner: r.clone() })
     }
     /// Raw IMU as `(timestamps (N,), gyro (N, 3) rad/s, accel (N, 3) m/s²)`, or None.
     #[getter]
@@ -218,13 +142,11 @@ fn read_mcap_py(
         tf_parent,
         tf_child,
     };
-    let mut log = py.detach(|| io_mcap::read_mcap(&path, &options))?;
-    let kfs = std::mem::take(&mut log.keyframes);
-    let keyframes = kfs
-        .into_iter()
-        .map(|k| Py::new(py, PyLogKeyframe { inner: k }))
-        .collect::<PyResult<Vec<_>>>()?;
-    Ok(PyLog { log, keyframes })
+    let log = py.detach(|| io_mcap::read_mcap(&path, &options))?;
+    Ok(PyLog {
+        log,
+        keyframes: PyOnceLock::new(),
+    })
 }
 
 /// Writes `world.mcap`: points `(N, 3)` in the world frame, optional colours
@@ -282,10 +204,147 @@ fn write_world_mcap_py(
     Ok(())
 }
 
+/// The result of `convert`: the alignment, the world cloud, the report, and
+/// methods that write each output.
+#[pyclass(name = "Conversion", module = "slam2world._slam2world", frozen)]
+pub struct PyConversion {
+    inner: pipeline::Conversion,
+    alignment: Py<PyTrajectoryAlignment>,
+    cloud: PyOnceLock<Py<PyPointCloud>>,
+}
+
+fn flavor_of(ros2: bool) -> WorldFlavor {
+    if ros2 {
+        WorldFlavor::Ros2
+    } else {
+        WorldFlavor::Foxglove
+    }
+}
+
+#[pymethods]
+impl PyConversion {
+    /// The fit: `.transform` is `T_world_slam`; APE statistics over all pairs.
+    #[getter]
+    fn alignment(&self, py: Python<'_>) -> Py<PyTrajectoryAlignment> {
+        self.alignment.clone_ref(py)
+    }
+    /// `T_world_slam`.
+    #[getter]
+    fn transform(&self) -> PySim3 {
+        PySim3::from(self.inner.transform())
+    }
+    /// The world cloud (metres, world frame).
+    #[getter]
+    fn cloud(&self, py: Python<'_>) -> PyResult<Py<PyPointCloud>> {
+        let c = self.cloud.get_or_try_init(py, || {
+            Py::new(py, PyPointCloud::from_core(py, self.inner.cloud.clone())?)
+        })?;
+        Ok(c.clone_ref(py))
+    }
+    /// The keyframe trajectory in the world frame.
+    #[getter]
+    fn slam_trajectory(&self) -> PyTrajectory {
+        PyTrajectory {
+            inner: self.inner.slam_trajectory.clone(),
+        }
+    }
+    /// The report (as `report.json` holds it) as a dict.
+    #[getter]
+    fn report(&self, py: Python<'_>) -> PyResult<Py<PyAny>> {
+        let text = serde_json::to_string(&self.inner.report)
+            .map_err(|e| PyErr::from(crate::Error::invalid("report", e.to_string())))?;
+        Ok(py.import("json")?.call_method1("loads", (text,))?.unbind())
+    }
+    /// Writes `world.mcap` (Foxglove schemas, or ROS 2 with `ros2=True`).
+    #[pyo3(signature = (path, *, ros2=false))]
+    fn write_world_mcap(&self, py: Python<'_>, path: PathBuf, ros2: bool) -> PyResult<()> {
+        py.detach(|| self.inner.write_world_mcap(&path, flavor_of(ros2)))?;
+        Ok(())
+    }
+    /// Writes the world cloud as binary PLY.
+    fn write_ply(&self, py: Python<'_>, path: PathBuf) -> PyResult<()> {
+        py.detach(|| self.inner.write_ply(&path))?;
+        Ok(())
+    }
+    /// Writes `report.json`.
+    fn write_report(&self, py: Python<'_>, path: PathBuf) -> PyResult<()> {
+        py.detach(|| self.inner.write_report(&path))?;
+        Ok(())
+    }
+    /// Writes `world.mcap`, `cloud.ply` and `report.json` into `directory`.
+    #[pyo3(signature = (directory, *, ros2=false))]
+    fn write_all(&self, py: Python<'_>, directory: PathBuf, ros2: bool) -> PyResult<()> {
+        py.detach(|| self.inner.write_all(&directory, flavor_of(ros2)))?;
+        Ok(())
+    }
+}
+
+/// Aligns a log's keyframes with its reference and builds the world cloud.
+/// `log_or_path` is a `Log` or a path (read with the topic arguments);
+/// `filter=None` means the LSD-SLAM viewer's defaults.
+#[pyfunction(name = "convert")]
+#[pyo3(signature = (log_or_path, *, keyframe_topic=None, graph_topic=None, pose_topic=None, tf_parent=None, tf_child=None, max_diff=0.01, offset=0.0, n_to_align=None, scale=true, filter=None))]
+#[allow(clippy::too_many_arguments)]
+fn convert_py(
+    py: Python<'_>,
+    log_or_path: &Bound<'_, PyAny>,
+    keyframe_topic: Option<String>,
+    graph_topic: Option<String>,
+    pose_topic: Option<String>,
+    tf_parent: Option<String>,
+    tf_child: Option<String>,
+    max_diff: f64,
+    offset: f64,
+    n_to_align: Option<usize>,
+    scale: bool,
+    filter: Option<PyRef<'_, PyPointFilter>>,
+) -> PyResult<PyConversion> {
+    let opts = ConvertOptions {
+        read: ReadOptions {
+            keyframe_topic,
+            graph_topic,
+            pose_topic,
+            imu_topic: None,
+            tf_parent,
+            tf_child,
+        },
+        align: TrajectoryAlignOptions {
+            max_diff,
+            offset,
+            first_n: n_to_align,
+            scale,
+            ..TrajectoryAlignOptions::default()
+        },
+        filter: filter.map(|f| f.inner).unwrap_or_default(),
+    };
+    let conversion = if let Ok(log) = log_or_path.cast::<PyLog>() {
+        let log = log.get();
+        py.detach(|| pipeline::convert(&log.log, &opts))?
+    } else {
+        let path: PathBuf = log_or_path.extract().map_err(|_| {
+            PyErr::from(crate::Error::invalid(
+                "log_or_path",
+                "expected a Log or a path (str or os.PathLike)",
+            ))
+        })?;
+        py.detach(|| pipeline::convert_file(&path, &opts))?
+    };
+    let alignment = Py::new(
+        py,
+        PyTrajectoryAlignment::from_core(py, conversion.alignment.clone())?,
+    )?;
+    Ok(PyConversion {
+        inner: conversion,
+        alignment,
+        cloud: PyOnceLock::new(),
+    })
+}
+
 /// Adds the MCAP classes and functions to the module.
 pub fn register(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_class::<PyLog>()?;
-    m.add_class::<PyLogKeyframe>()?;
+    m.add_class::<PyConversion>()?;
+    m.add_function(wrap_pyfunction!(convert_py, m)?)?;
     m.add_function(wrap_pyfunction!(read_mcap_py, m)?)?;
     m.add_function(wrap_pyfunction!(write_world_mcap_py, m)?)?;
     Ok(())

@@ -203,16 +203,18 @@ def test_lsd_slam_log_written_by_python_decodes(tmp_path: Path) -> None:
         assert k.idepth_var is not None and k.color is not None
         np.testing.assert_array_equal(k.idepth_var, var)
         np.testing.assert_array_equal(k.color, color[..., :3])
-        assert k.camera == (5.0, 5.5, 2.5, 1.5, W, H)
+        cam = k.camera
+        assert (cam.fx, cam.fy, cam.cx, cam.cy, cam.width, cam.height) == (5.0, 5.5, 2.5, 1.5, W, H)
         c2w = exp["graph"].get(k.id, c2w)
         want = s2w.Sim3.from_lsd_slam(np.array(c2w, dtype=np.float32).astype(np.float64))
         np.testing.assert_allclose(k.pose.matrix(), want.matrix(), atol=1e-9)
     ref = log.reference
     assert ref is not None
     ts, pos = exp["ref"]
-    np.testing.assert_allclose(ref[0], ts, atol=1e-9)
-    np.testing.assert_array_equal(ref[1], pos)
-    np.testing.assert_array_equal(ref[2], np.tile([0.0, 0.0, 0.0, 1.0], (len(ts), 1)))
+    np.testing.assert_allclose(ref.timestamps, ts, atol=1e-9)
+    np.testing.assert_array_equal(ref.positions, pos)
+    assert ref.orientations is not None
+    np.testing.assert_array_equal(ref.orientations, np.tile([0.0, 0.0, 0.0, 1.0], (len(ts), 1)))
     imu = log.imu
     assert imu is not None
     np.testing.assert_allclose(imu[0], exp["imu"][0], atol=1e-9)
@@ -225,10 +227,11 @@ def test_nav2_sim_odometry() -> None:
     log = s2w.read_mcap(path, pose_topic="/odom")
     ref = log.reference
     assert ref is not None
-    assert ref[0].shape == (2639,)
-    assert ref[1].shape == (2639, 3)
-    assert np.all(np.diff(ref[0]) >= 0)
-    np.testing.assert_allclose(np.linalg.norm(ref[2], axis=1), 1.0, atol=1e-9)
+    assert ref.timestamps.shape == (2639,)
+    assert ref.positions.shape == (2639, 3)
+    assert np.all(np.diff(ref.timestamps) >= 0)
+    assert ref.orientations is not None
+    np.testing.assert_allclose(np.linalg.norm(ref.orientations, axis=1), 1.0, atol=1e-9)
 
 
 ROS2_POSE_STAMPED = """std_msgs/Header header
@@ -281,10 +284,11 @@ def test_ros2_pose_stamped_log(tmp_path: Path) -> None:
     log = s2w.read_mcap(path)
     ref = log.reference
     assert ref is not None
-    np.testing.assert_allclose(ref[0], 50.25 + np.arange(15), atol=1e-9)
-    np.testing.assert_array_equal(ref[1], pos)
+    np.testing.assert_allclose(ref.timestamps, 50.25 + np.arange(15), atol=1e-9)
+    np.testing.assert_array_equal(ref.positions, pos)
     # same rotation (q and -q are one rotation)
-    dots = np.abs(np.sum(ref[2] * q, axis=1))
+    assert ref.orientations is not None
+    dots = np.abs(np.sum(ref.orientations * q, axis=1))
     np.testing.assert_allclose(dots, 1.0, atol=1e-12)
 
 
@@ -316,10 +320,11 @@ def test_foxglove_pose_in_frame_protobuf(tmp_path: Path) -> None:
         w.finish()
     ref = s2w.read_mcap(path).reference
     assert ref is not None
-    np.testing.assert_allclose(ref[0], 10.5 + np.arange(8), atol=1e-9)
-    np.testing.assert_array_equal(ref[1][:, 0], np.arange(8.0))
-    np.testing.assert_array_equal(ref[1][:, 1], -2.0 * np.arange(8.0))
-    np.testing.assert_allclose(ref[2][:, 3], np.cos(0.1 * np.arange(8)), atol=1e-12)
+    np.testing.assert_allclose(ref.timestamps, 10.5 + np.arange(8), atol=1e-9)
+    np.testing.assert_array_equal(ref.positions[:, 0], np.arange(8.0))
+    np.testing.assert_array_equal(ref.positions[:, 1], -2.0 * np.arange(8.0))
+    assert ref.orientations is not None
+    np.testing.assert_allclose(ref.orientations[:, 3], np.cos(0.1 * np.arange(8)), atol=1e-12)
 
 
 def test_foxglove_pose_in_frame_json(tmp_path: Path) -> None:
@@ -342,8 +347,8 @@ def test_foxglove_pose_in_frame_json(tmp_path: Path) -> None:
         w.finish()
     ref = s2w.read_mcap(path).reference
     assert ref is not None
-    np.testing.assert_allclose(ref[0], 3.0 + 0.1 * np.arange(6), atol=1e-9)
-    np.testing.assert_array_equal(ref[1][:, 2], -np.arange(6.0))
+    np.testing.assert_allclose(ref.timestamps, 3.0 + 0.1 * np.arange(6), atol=1e-9)
+    np.testing.assert_array_equal(ref.positions[:, 2], -np.arange(6.0))
 
 
 def test_world_mcap_reads_back_with_python_mcap(tmp_path: Path) -> None:
@@ -404,3 +409,101 @@ def test_errors(tmp_path: Path) -> None:
             tmp_path / "w.mcap", np.zeros((4, 3)), np.zeros((3, 3), dtype=np.uint8)
         )
     assert not (tmp_path / "w.mcap").exists()
+
+
+def _rot(q: np.ndarray) -> np.ndarray:
+    x, y, z, w = q / np.linalg.norm(q)
+    return np.array(
+        [
+            [1 - 2 * (y * y + z * z), 2 * (x * y - z * w), 2 * (x * z + y * w)],
+            [2 * (x * y + z * w), 1 - 2 * (x * x + z * z), 2 * (y * z - x * w)],
+            [2 * (x * z - y * w), 2 * (y * z + x * w), 1 - 2 * (x * x + y * y)],
+        ]
+    )
+
+
+def test_convert_writes_a_world_the_python_reader_decodes(tmp_path: Path) -> None:
+    """An LSD-SLAM log written with mcap-ros1-support, its reference made with a known
+    T_world_slam: convert recovers it and world.mcap holds the world points."""
+    rng = np.random.default_rng(21)
+    s_true, r_true, t_true = 2.0, _rot(np.array([0.1, -0.3, 0.4, 0.85])), np.array([1.0, -2.0, 0.5])
+    Kf = _cls("lsd_slam_viewer/keyframeMsg", KEYFRAME_MSG)
+    Pose = _cls("geometry_msgs/PoseStamped", POSE_STAMPED)
+    fx, fy, cx, cy = 5.0, 5.0, 2.5, 1.5
+    expected = []
+    path = tmp_path / "lsd.mcap"
+    with open(path, "wb") as f:
+        w = Ros1Writer(f)
+        for i in range(8):
+            a = 0.5 * i
+            q = np.array([0.0, np.sin(0.05 * a), 0.0, np.cos(0.05 * a)], dtype=np.float32)
+            tr = np.array([np.cos(a), np.sin(a), 0.3 * a], dtype=np.float32)
+            idepth = rng.uniform(0.5, 2.0, (H, W)).astype(np.float32)
+            idepth[0, 0] = 0.0  # no depth: no point
+            rec = np.zeros((H, W), dtype=[("d", "<f4"), ("v", "<f4"), ("c", "u1", (4,))])
+            rec["d"] = idepth
+            rec["c"] = 200
+            c2w = [float(v) for v in q] + [float(v) for v in tr]
+            w.write_message(
+                "/lsd_slam/keyframes",
+                Kf(
+                    id=i,
+                    time=20.0 + i,
+                    isKeyframe=True,
+                    camToWorld=c2w,
+                    fx=fx,
+                    fy=fy,
+                    cx=cx,
+                    cy=cy,
+                    height=H,
+                    width=W,
+                    pointcloud=rec.tobytes(),
+                ),
+                log_time=i,
+            )
+            # reference: the camera position in the world
+            p_world = s_true * r_true @ tr.astype(np.float64) + t_true
+            m = Pose()
+            m.header.stamp.secs = 20 + i
+            m.header.frame_id = "world"
+            m.pose.position.x, m.pose.position.y, m.pose.position.z = p_world
+            m.pose.orientation.w = 1.0
+            w.write_message("/mocap/pose", m, log_time=i)
+            ys, xs = np.nonzero(idepth > 0)
+            d = 1.0 / idepth[ys, xs].astype(np.float64)
+            p_cam = np.stack([(xs - cx) / fx * d, (ys - cy) / fy * d, d], axis=1)
+            r_kf = _rot(q.astype(np.float64))
+            s_kf = float(np.linalg.norm(q.astype(np.float64)))
+            p_slam = s_kf * p_cam @ r_kf.T + tr.astype(np.float64)
+            expected.append(s_true * p_slam @ r_true.T + t_true)
+        w.finish()
+    want = np.concatenate(expected)
+
+    conv = s2w.convert(path, filter=s2w.PointFilter.none())
+    assert conv.transform.scale == pytest.approx(s_true, rel=1e-5)
+    np.testing.assert_allclose(conv.transform.rotation, r_true, atol=1e-5)
+    assert conv.report["frames_used"] == 8
+    assert conv.report["reference_topic"] == "/mocap/pose"
+    assert conv.cloud.points.shape == want.shape
+    conv.write_all(tmp_path / "out")
+    for name in ["world.mcap", "cloud.ply", "report.json"]:
+        assert (tmp_path / "out" / name).exists()
+
+    with open(tmp_path / "out" / "world.mcap", "rb") as f:
+        reader = make_reader(f, decoder_factories=[ProtobufDecoderFactory()])
+        clouds = [
+            msg
+            for schema, _, _, msg in reader.iter_decoded_messages()
+            if schema.name == "foxglove.PointCloud"
+        ]
+    assert len(clouds) == 1
+    rec = np.frombuffer(clouds[0].data, dtype=[("p", "<f4", (3,)), ("c", "u1", (4,))])
+    assert len(rec) == len(want) == 8 * (W * H - 1)
+    np.testing.assert_allclose(rec["p"], want, atol=1e-3)
+    assert np.all(rec["c"][:, :3] == 200)
+
+    # The same from a Log object; no reference match: a FormatError naming the topics.
+    log = s2w.read_mcap(path)
+    assert len(s2w.convert(log, filter=s2w.PointFilter.none()).cloud.points) == len(want)
+    with pytest.raises(s2w.FormatError, match="/mocap/pose"):
+        s2w.convert(log, offset=100.0)

@@ -263,6 +263,8 @@ pub fn imu(encoding: &str, data: &[u8]) -> WireResult<ImuMsg> {
 /// Reads `f64`s from ROS 1 or CDR alike.
 trait Prim {
     fn f64(&mut self) -> WireResult<f64>;
+    fn stamp_skip_frame(&mut self) -> WireResult<f64>;
+    fn skip_string(&mut self) -> WireResult<()>;
     fn header(&mut self) -> WireResult<(f64, String)>;
     fn string(&mut self) -> WireResult<String>;
     fn count(&mut self) -> WireResult<usize>;
@@ -271,6 +273,15 @@ trait Prim {
 impl Prim for Ros1<'_> {
     fn f64(&mut self) -> WireResult<f64> {
         Ros1::f64(self)
+    }
+    fn stamp_skip_frame(&mut self) -> WireResult<f64> {
+        let _seq = self.u32()?;
+        let t = self.time()?;
+        Ros1::skip_string(self)?;
+        Ok(t)
+    }
+    fn skip_string(&mut self) -> WireResult<()> {
+        Ros1::skip_string(self)
     }
     fn header(&mut self) -> WireResult<(f64, String)> {
         Ros1::header(self)
@@ -287,6 +298,15 @@ impl Prim for Cdr<'_> {
     fn f64(&mut self) -> WireResult<f64> {
         Cdr::f64(self)
     }
+    fn stamp_skip_frame(&mut self) -> WireResult<f64> {
+        let sec = self.i32()?;
+        let nsec = self.u32()?;
+        Cdr::skip_string(self)?;
+        Ok(sec as f64 + nsec as f64 * 1e-9)
+    }
+    fn skip_string(&mut self) -> WireResult<()> {
+        Cdr::skip_string(self)
+    }
     fn header(&mut self) -> WireResult<(f64, String)> {
         Cdr::header(self)
     }
@@ -295,6 +315,44 @@ impl Prim for Cdr<'_> {
     }
     fn count(&mut self) -> WireResult<usize> {
         self.seq_len()
+    }
+}
+
+/// `(time, position, orientation xyzw)` of a single-pose message.
+pub type PoseSample = (f64, [f64; 3], [f64; 4]);
+
+fn ros_sample<R: Prim>(kind: MessageKind, r: &mut R) -> WireResult<PoseSample> {
+    let time = r.stamp_skip_frame()?;
+    if kind == MessageKind::Odometry {
+        r.skip_string()?;
+    }
+    let (p, q) = pose_fields(r)?;
+    Ok((time, p, q))
+}
+
+/// Decodes the one pose of a message of any pose kind but TF, without
+/// allocating (the fast path of reference reading).
+pub fn pose_sample(kind: MessageKind, encoding: &str, data: &[u8]) -> WireResult<PoseSample> {
+    match (kind, encoding) {
+        (
+            MessageKind::PoseStamped
+            | MessageKind::PoseWithCovarianceStamped
+            | MessageKind::Odometry,
+            "ros1",
+        ) => ros_sample(kind, &mut Ros1::new(data)),
+        (
+            MessageKind::PoseStamped
+            | MessageKind::PoseWithCovarianceStamped
+            | MessageKind::Odometry,
+            "cdr",
+        ) => ros_sample(kind, &mut Cdr::new(data)?),
+        _ => {
+            let v = poses(kind, encoding, data)?;
+            match v.last() {
+                Some(s) => Ok((s.time, s.position, s.orientation)),
+                None => Err("message without a pose".into()),
+            }
+        }
     }
 }
 

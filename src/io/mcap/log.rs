@@ -3,12 +3,14 @@
 
 use std::collections::{BTreeMap, HashMap};
 use std::path::{Path, PathBuf};
+use std::sync::atomic::{AtomicU8, Ordering};
 
 use nalgebra::{Quaternion, UnitQuaternion, Vector3};
 use rayon::prelude::*;
 
 use super::decode::{self, KeyframeMsg, MessageKind, StampedPose};
 use super::reader::{ChannelInfo, McapFile, RawMessage, ReadMode};
+use super::stream::MappedMessage;
 use crate::error::{Error, Result};
 use crate::geometry::{PinholeCamera, Sim3};
 use crate::imu::ImuSamples;
@@ -105,6 +107,42 @@ fn kind_of(c: &ChannelInfo) -> Option<MessageKind> {
     MessageKind::from_schema(&c.schema_name)
 }
 
+/// Counts and time ranges per channel, as topics and as a count map;
+/// `messages` yields `(channel id, log time)`.
+fn topic_inventory(
+    channels: &BTreeMap<u16, ChannelInfo>,
+    messages: impl Iterator<Item = (u16, u64)>,
+) -> (Vec<TopicInfo>, HashMap<u16, u64>) {
+    // (count, first, last) per channel id
+    let mut stats = vec![(0u64, u64::MAX, 0u64); 1 << 16];
+    for (id, t) in messages {
+        let s = &mut stats[id as usize];
+        s.0 += 1;
+        s.1 = s.1.min(t);
+        s.2 = s.2.max(t);
+    }
+    let topics = channels
+        .values()
+        .map(|c| {
+            let (count, first, last) = stats[c.id as usize];
+            TopicInfo {
+                topic: c.topic.clone(),
+                schema_name: c.schema_name.clone(),
+                schema_encoding: c.schema_encoding.clone(),
+                message_encoding: c.message_encoding.clone(),
+                count,
+                time_range: (count > 0).then_some((first, last)),
+                kind: kind_of(c),
+            }
+        })
+        .collect();
+    let counts = channels
+        .keys()
+        .map(|id| (*id, stats[*id as usize].0))
+        .collect();
+    (topics, counts)
+}
+
 /// Picks the channel for a role: the named topic (which must exist and carry
 /// one of `kinds`), else the channel of the first kind in `kinds` present (most
 /// messages first, then topic name).
@@ -194,48 +232,38 @@ fn check_encoding(path: &Path, c: &ChannelInfo, kind: MessageKind) -> Result<()>
 pub fn read_mcap(path: impl AsRef<Path>, options: &ReadOptions) -> Result<Log> {
     let path = path.as_ref();
     let file = McapFile::open(path)?;
-    let named: Vec<&str> = [
-        &options.keyframe_topic,
-        &options.graph_topic,
-        &options.pose_topic,
-        &options.imu_topic,
-    ]
-    .into_iter()
-    .flatten()
-    .map(String::as_str)
-    .collect();
-    let scan = file.scan(|c| kind_of(c).is_some() || named.contains(&c.topic.as_str()))?;
-
-    let mut counts: HashMap<u16, u64> = HashMap::new();
-    let mut ranges: HashMap<u16, (u64, u64)> = HashMap::new();
-    for m in &scan.messages {
-        *counts.entry(m.channel_id).or_default() += 1;
-        let r = ranges
-            .entry(m.channel_id)
-            .or_insert((m.log_time, m.log_time));
-        r.0 = r.0.min(m.log_time);
-        r.1 = r.1.max(m.log_time);
-    }
-    let topics = scan
-        .channels
-        .values()
-        .map(|c| TopicInfo {
-            topic: c.topic.clone(),
-            schema_name: c.schema_name.clone(),
-            schema_encoding: c.schema_encoding.clone(),
-            message_encoding: c.message_encoding.clone(),
-            count: counts.get(&c.id).copied().unwrap_or(0),
-            time_range: ranges.get(&c.id).copied(),
-            kind: kind_of(c),
-        })
-        .collect();
+    // Every message is counted; those of a known schema are decoded inside the
+    // parallel chunk tasks (decompressed buffers are reused, not kept).
+    // The kind of each channel, found once (0 not yet, 1 none, 2 + index in KINDS).
+    let kinds: Vec<AtomicU8> = (0..1 << 16).map(|_| AtomicU8::new(0)).collect();
+    let kind_cached = |c: &ChannelInfo| {
+        let slot = &kinds[c.id as usize];
+        match slot.load(Ordering::Relaxed) {
+            0 => {
+                let k = kind_of(c);
+                let code = k
+                    .and_then(|k| KINDS.iter().position(|x| *x == k))
+                    .map_or(1, |i| i as u8 + 2);
+                slot.store(code, Ordering::Relaxed);
+                k
+            }
+            1 => None,
+            code => KINDS.get(code as usize - 2).copied(),
+        }
+    };
+    let scan = file.scan_map(|_| true, |c, m| decode_message(kind_cached(c), c, m))?;
+    let (topics, counts) = topic_inventory(
+        &scan.channels,
+        scan.messages.iter().map(|m| (m.channel_id, m.log_time)),
+    );
 
     use MessageKind as K;
     let ch = &scan.channels;
+    let named = |o: &Option<String>| o.clone();
     let kf = choose(
         path,
         "keyframe",
-        options.keyframe_topic.as_deref(),
+        named(&options.keyframe_topic).as_deref(),
         &[K::Keyframe],
         ch,
         &counts,
@@ -243,31 +271,23 @@ pub fn read_mcap(path: impl AsRef<Path>, options: &ReadOptions) -> Result<Log> {
     let graph = choose(
         path,
         "graph",
-        options.graph_topic.as_deref(),
+        named(&options.graph_topic).as_deref(),
         &[K::KeyframeGraph],
         ch,
         &counts,
     )?;
-    let pose_kinds = [
-        K::PoseStamped,
-        K::PoseWithCovarianceStamped,
-        K::Odometry,
-        K::PoseInFrame,
-        K::PosesInFrame,
-        K::Tf,
-    ];
     let pose = choose(
         path,
         "pose",
-        options.pose_topic.as_deref(),
-        &pose_kinds,
+        named(&options.pose_topic).as_deref(),
+        &POSE_KINDS,
         ch,
         &counts,
     )?;
     let imu_ch = choose(
         path,
         "imu",
-        options.imu_topic.as_deref(),
+        named(&options.imu_topic).as_deref(),
         &[K::Imu],
         ch,
         &counts,
@@ -288,21 +308,102 @@ pub fn read_mcap(path: impl AsRef<Path>, options: &ReadOptions) -> Result<Log> {
         indexed: scan.mode == ReadMode::Indexed,
         ..Log::default()
     };
-
+    let mut messages = scan.messages;
     if let Some(kf) = kf {
-        read_keyframes(path, &scan.messages, kf, graph, &mut log)?;
+        read_keyframes(path, &mut messages, kf, graph, &mut log)?;
     }
     if let Some(pc) = pose {
-        log.reference = Some(read_reference(path, &scan.messages, pc, options)?);
+        log.reference = Some(read_reference(path, &messages, pc, options)?);
     }
     if let Some(ic) = imu_ch {
-        log.imu = Some(read_imu(path, &scan.messages, ic)?);
+        log.imu = Some(read_imu(path, &messages, ic)?);
     }
     Ok(log)
 }
 
-struct Entry<'a> {
-    msg: KeyframeMsg<'a>,
+/// A keyframe message without its point cloud, and the cloud split into
+/// inverse depth, variance and RGB (for keyframes; live frames have none).
+type DecodedKeyframe = (KeyframeMsg<'static>, Option<(Vec<f32>, Vec<f32>, Vec<u8>)>);
+
+/// What a message becomes inside the chunk task. Errors keep their text; the
+/// file, topic and message index are added when the message is used.
+#[derive(Default)]
+enum Decoded {
+    Keyframe(Box<std::result::Result<DecodedKeyframe, String>>),
+    Graph(std::result::Result<Vec<(i32, [f64; 7])>, String>),
+    /// A checked, normalised pose sample.
+    Pose(decode::PoseSample),
+    Tf(Vec<StampedPose>),
+    Imu(decode::ImuMsg),
+    Error(String),
+    #[default]
+    Other,
+}
+
+/// Every kind, for the per-channel cache of `read_mcap`.
+const KINDS: [MessageKind; 9] = [
+    MessageKind::Keyframe,
+    MessageKind::KeyframeGraph,
+    MessageKind::PoseStamped,
+    MessageKind::PoseWithCovarianceStamped,
+    MessageKind::Odometry,
+    MessageKind::PoseInFrame,
+    MessageKind::PosesInFrame,
+    MessageKind::Tf,
+    MessageKind::Imu,
+];
+
+fn decode_message(kind: Option<MessageKind>, c: &ChannelInfo, m: &RawMessage<'_>) -> Decoded {
+    use MessageKind as K;
+    let enc = c.message_encoding.as_str();
+    let err = Decoded::Error;
+    match kind {
+        Some(K::Keyframe) => Decoded::Keyframe(Box::new(decode::keyframe_ros1(m.data).map(|k| {
+            let arrays = k
+                .is_keyframe
+                .then(|| decode::split_pointcloud(k.pointcloud));
+            (
+                KeyframeMsg {
+                    pointcloud: &[],
+                    ..k
+                },
+                arrays,
+            )
+        }))),
+        Some(K::KeyframeGraph) => Decoded::Graph(decode::graph_ros1(m.data)),
+        Some(K::Tf) => match decode::poses(K::Tf, enc, m.data) {
+            Ok(v) => Decoded::Tf(v),
+            Err(e) => err(e),
+        },
+        Some(K::Imu) => match decode::imu(enc, m.data) {
+            Ok(s) => Decoded::Imu(s),
+            Err(e) => err(e),
+        },
+        Some(k) if k.is_pose() => {
+            match decode::pose_sample(k, enc, m.data).and_then(checked_sample) {
+                Ok(s) => Decoded::Pose(s),
+                Err(e) => err(e),
+            }
+        }
+        _ => Decoded::Other,
+    }
+}
+
+type Mapped = MappedMessage<Decoded>;
+
+fn at(path: &Path, topic: &str, i: usize, m: &Mapped, e: &str) -> Error {
+    mcap_err(
+        path,
+        format!(
+            "topic {topic}: message {i} (log time {} ns): {e}",
+            m.log_time
+        ),
+    )
+}
+
+struct Entry {
+    msg: KeyframeMsg<'static>,
+    arrays: (Vec<f32>, Vec<f32>, Vec<u8>),
     topic_index: usize,
     pose: [f64; 7],
     pose_source: String,
@@ -310,62 +411,67 @@ struct Entry<'a> {
 
 fn read_keyframes(
     path: &Path,
-    messages: &[RawMessage<'_>],
+    messages: &mut [Mapped],
     kf: &ChannelInfo,
     graph: Option<&ChannelInfo>,
     log: &mut Log,
 ) -> Result<()> {
     let graph_id = graph.map(|g| g.id);
+    let graph_topic = graph.map(|g| g.topic.as_str()).unwrap_or_default();
     let mut order: Vec<i32> = Vec::new();
-    let mut latest: HashMap<i32, Entry<'_>> = HashMap::new();
+    let mut latest: HashMap<i32, Entry> = HashMap::new();
     let mut kf_index = 0usize;
     let mut graph_index = 0usize;
-    for m in messages {
+    for m in messages.iter_mut() {
         if m.channel_id == kf.id {
             let i = kf_index;
             kf_index += 1;
-            let msg = decode::keyframe_ros1(&m.data).map_err(|e| {
+            let log_time = m.log_time;
+            let fail = |e: &str| {
                 mcap_err(
                     path,
                     format!(
-                        "topic {}: message {i} (log time {} ns): {e}",
-                        kf.topic, m.log_time
+                        "topic {}: message {i} (log time {log_time} ns): {e}",
+                        kf.topic
                     ),
                 )
-            })?;
-            if !msg.is_keyframe {
+            };
+            let (msg, arrays) = match &mut m.value {
+                Decoded::Keyframe(r) => match r.as_mut() {
+                    Ok((msg, arrays)) => (msg, arrays),
+                    Err(e) => return Err(fail(e)),
+                },
+                _ => return Err(fail("not a keyframe message")),
+            };
+            // Moved out: each version's arrays are used once (the latest wins).
+            let Some(arrays) = arrays.take() else {
                 continue;
-            }
+            };
             if !latest.contains_key(&msg.id) {
                 order.push(msg.id);
             }
-            let pose = msg.cam_to_world;
             latest.insert(
                 msg.id,
                 Entry {
-                    msg,
+                    msg: msg.clone(),
+                    arrays,
                     topic_index: i,
-                    pose,
+                    pose: msg.cam_to_world,
                     pose_source: format!("topic {}: message {i}", kf.topic),
                 },
             );
         } else if Some(m.channel_id) == graph_id {
             let i = graph_index;
             graph_index += 1;
-            let topic = graph.map(|g| g.topic.as_str()).unwrap_or_default();
-            let frames = decode::graph_ros1(&m.data).map_err(|e| {
-                mcap_err(
-                    path,
-                    format!(
-                        "topic {topic}: message {i} (log time {} ns): {e}",
-                        m.log_time
-                    ),
-                )
-            })?;
+            let frames = match &m.value {
+                Decoded::Graph(Ok(f)) => f,
+                Decoded::Graph(Err(e)) => return Err(at(path, graph_topic, i, m, e)),
+                _ => return Err(at(path, graph_topic, i, m, "not a graph message")),
+            };
             for (id, c2w) in frames {
-                if let Some(e) = latest.get_mut(&id) {
-                    e.pose = c2w;
-                    e.pose_source = format!("topic {topic}: message {i}");
+                if let Some(e) = latest.get_mut(id) {
+                    e.pose = *c2w;
+                    e.pose_source = format!("topic {graph_topic}: message {i}");
                     log.graph_updates += 1;
                 }
             }
@@ -373,16 +479,16 @@ fn read_keyframes(
     }
     log.keyframe_messages = kf_index;
     log.graph_messages = graph_index;
-    let entries: Vec<&Entry<'_>> = order.iter().filter_map(|id| latest.get(id)).collect();
+    let mut entries: Vec<Entry> = order.iter().filter_map(|id| latest.remove(id)).collect();
     let keyframes: Result<Vec<Keyframe>> = entries
-        .par_iter()
+        .par_iter_mut()
         .map(|e| to_keyframe(path, &kf.topic, e))
         .collect();
     log.keyframes = keyframes?;
     Ok(())
 }
 
-fn to_keyframe(path: &Path, topic: &str, e: &Entry<'_>) -> Result<Keyframe> {
+fn to_keyframe(path: &Path, topic: &str, e: &mut Entry) -> Result<Keyframe> {
     let m = &e.msg;
     let what = |reason: String| {
         mcap_err(
@@ -403,7 +509,7 @@ fn to_keyframe(path: &Path, topic: &str, e: &Entry<'_>) -> Result<Keyframe> {
         .map_err(|err| what(format!("camToWorld {:?}: {err}", e.pose)))?;
     let camera = PinholeCamera::try_new(m.fx, m.fy, m.cx, m.cy, m.width, m.height)
         .map_err(|err| what(format!("camera: {err}")))?;
-    let (idepth, var, color) = decode::split_pointcloud(m.pointcloud);
+    let (idepth, var, color) = std::mem::take(&mut e.arrays);
     Keyframe::try_new(m.id, m.time, pose, camera, idepth, Some(var), Some(color))
         .map_err(|err| what(err.to_string()))
 }
@@ -411,151 +517,188 @@ fn to_keyframe(path: &Path, topic: &str, e: &Entry<'_>) -> Result<Keyframe> {
 /// The pose samples of a reference channel, with TF narrowed to one frame pair.
 fn read_reference(
     path: &Path,
-    messages: &[RawMessage<'_>],
+    messages: &[Mapped],
     c: &ChannelInfo,
     options: &ReadOptions,
 ) -> Result<Trajectory> {
-    let Some(kind) = kind_of(c) else {
-        return Err(mcap_err(
-            path,
-            format!("topic {}: not a pose schema", c.topic),
-        ));
-    };
-    let mine: Vec<&RawMessage<'_>> = messages.iter().filter(|m| m.channel_id == c.id).collect();
-    let decoded: Result<Vec<Vec<StampedPose>>> = mine
-        .par_iter()
-        .enumerate()
-        .map(|(i, m)| {
-            decode::poses(kind, &c.message_encoding, &m.data).map_err(|e| {
-                mcap_err(
-                    path,
-                    format!(
-                        "topic {}: message {i} (log time {} ns): {e}",
-                        c.topic, m.log_time
-                    ),
-                )
-            })
-        })
-        .collect();
-    let decoded = decoded?;
-    let mut samples: Vec<(usize, StampedPose)> = Vec::new();
-    if kind == MessageKind::Tf {
-        let pair = match (&options.tf_parent, &options.tf_child) {
-            (Some(p), Some(ch)) => (p.clone(), ch.clone()),
-            (p, ch) => {
-                let mut freq: BTreeMap<(String, String), usize> = BTreeMap::new();
-                for s in decoded.iter().flatten() {
-                    let ok_p = p.as_ref().is_none_or(|p| *p == s.frame_id);
-                    let ok_c = ch.as_ref().is_none_or(|ch| *ch == s.child_frame_id);
-                    if ok_p && ok_c {
-                        *freq
-                            .entry((s.frame_id.clone(), s.child_frame_id.clone()))
-                            .or_default() += 1;
-                    }
+    let mine = messages.iter().filter(|m| m.channel_id == c.id);
+    if kind_of(c) != Some(MessageKind::Tf) {
+        let mut times: Vec<f64> = Vec::new();
+        let mut positions: Vec<Vector3<f64>> = Vec::new();
+        let mut orientations: Vec<UnitQuaternion<f64>> = Vec::new();
+        for (i, m) in mine.enumerate() {
+            match &m.value {
+                Decoded::Pose((t, p, [x, y, z, w])) => {
+                    times.push(*t);
+                    positions.push(Vector3::from(*p));
+                    orientations.push(UnitQuaternion::new_unchecked(Quaternion::new(
+                        *w, *x, *y, *z,
+                    )));
                 }
-                match freq
-                    .into_iter()
-                    .max_by(|a, b| a.1.cmp(&b.1).then_with(|| b.0.cmp(&a.0)))
-                {
-                    Some((pair, _)) => pair,
-                    None => {
-                        return Err(mcap_err(
-                            path,
-                            format!(
-                                "topic {}: no transform with parent {:?} and child {:?}",
-                                c.topic, p, ch
-                            ),
-                        ))
-                    }
-                }
-            }
-        };
-        for (i, v) in decoded.into_iter().enumerate() {
-            for s in v {
-                if s.frame_id == pair.0 && s.child_frame_id == pair.1 {
-                    samples.push((i, s));
-                }
+                Decoded::Error(e) => return Err(at(path, &c.topic, i, m, e)),
+                _ => return Err(at(path, &c.topic, i, m, "not a pose message")),
             }
         }
-        if samples.is_empty() {
-            return Err(mcap_err(
-                path,
-                format!(
-                    "topic {}: no transform from {:?} to {:?}",
-                    c.topic, pair.0, pair.1
-                ),
-            ));
+        if !times.is_sorted_by(|a, b| a <= b) {
+            let mut order: Vec<usize> = (0..times.len()).collect();
+            order.sort_by(|&a, &b| times[a].total_cmp(&times[b]));
+            times = order.iter().map(|&k| times[k]).collect();
+            positions = order.iter().map(|&k| positions[k]).collect();
+            orientations = order.iter().map(|&k| orientations[k]).collect();
         }
-    } else {
-        for (i, v) in decoded.into_iter().enumerate() {
-            samples.extend(v.into_iter().map(|s| (i, s)));
+        return Trajectory::try_new(times, positions, Some(orientations))
+            .map_err(|e| mcap_err(path, format!("topic {}: {e}", c.topic)));
+    }
+    let mut decoded: Vec<&Vec<StampedPose>> = Vec::new();
+    for (i, m) in mine.enumerate() {
+        match &m.value {
+            Decoded::Tf(v) => decoded.push(v),
+            Decoded::Error(e) => return Err(at(path, &c.topic, i, m, e)),
+            _ => return Err(at(path, &c.topic, i, m, "not a TF message")),
         }
     }
+    let pair = match (&options.tf_parent, &options.tf_child) {
+        (Some(p), Some(ch)) => (p.clone(), ch.clone()),
+        (p, ch) => {
+            let mut freq: BTreeMap<(String, String), usize> = BTreeMap::new();
+            for s in decoded.iter().copied().flatten() {
+                let ok_p = p.as_ref().is_none_or(|p| *p == s.frame_id);
+                let ok_c = ch.as_ref().is_none_or(|ch| *ch == s.child_frame_id);
+                if ok_p && ok_c {
+                    *freq
+                        .entry((s.frame_id.clone(), s.child_frame_id.clone()))
+                        .or_default() += 1;
+                }
+            }
+            match freq
+                .into_iter()
+                .max_by(|a, b| a.1.cmp(&b.1).then_with(|| b.0.cmp(&a.0)))
+            {
+                Some((pair, _)) => pair,
+                None => {
+                    return Err(mcap_err(
+                        path,
+                        format!(
+                            "topic {}: no transform with parent {:?} and child {:?}",
+                            c.topic, p, ch
+                        ),
+                    ))
+                }
+            }
+        }
+    };
+    let mut samples: Vec<(usize, &StampedPose)> = Vec::new();
+    for (i, v) in decoded.iter().enumerate() {
+        for s in v.iter() {
+            if s.frame_id == pair.0 && s.child_frame_id == pair.1 {
+                samples.push((i, s));
+            }
+        }
+    }
+    if samples.is_empty() {
+        return Err(mcap_err(
+            path,
+            format!(
+                "topic {}: no transform from {:?} to {:?}",
+                c.topic, pair.0, pair.1
+            ),
+        ));
+    }
     samples.sort_by(|a, b| a.1.time.total_cmp(&b.1.time));
-    let mut times = Vec::with_capacity(samples.len());
-    let mut positions = Vec::with_capacity(samples.len());
-    let mut orientations = Vec::with_capacity(samples.len());
-    for (i, s) in &samples {
-        let finite = s.time.is_finite()
-            && s.position
+    trajectory_of(
+        path,
+        &c.topic,
+        samples
+            .iter()
+            .map(|(i, s)| (*i, s.time, s.position, s.orientation)),
+    )
+}
+
+/// Checks a pose sample (finite, non-zero quaternion) and normalises its quaternion.
+fn checked_sample(s: decode::PoseSample) -> std::result::Result<decode::PoseSample, String> {
+    let (time, position, orientation) = s;
+    let finite = time.is_finite()
+        && position
+            .iter()
+            .chain(orientation.iter())
+            .all(|v| v.is_finite());
+    let [x, y, z, w] = orientation;
+    let norm = (x * x + y * y + z * z + w * w).sqrt();
+    if !finite || norm < 1e-9 {
+        return Err(format!(
+            "{} pose (time {time}, position {position:?}, orientation {orientation:?})",
+            if finite {
+                "zero-quaternion"
+            } else {
+                "non-finite"
+            }
+        ));
+    }
+    Ok((time, position, [x / norm, y / norm, z / norm, w / norm]))
+}
+
+/// Checks and converts `(message index, time, position, orientation xyzw)` samples.
+fn trajectory_of(
+    path: &Path,
+    topic: &str,
+    samples: impl ExactSizeIterator<Item = (usize, f64, [f64; 3], [f64; 4])>,
+) -> Result<Trajectory> {
+    let n = samples.len();
+    let mut times = Vec::with_capacity(n);
+    let mut positions = Vec::with_capacity(n);
+    let mut orientations = Vec::with_capacity(n);
+    for (i, time, position, orientation) in samples {
+        let finite = time.is_finite()
+            && position
                 .iter()
-                .chain(s.orientation.iter())
+                .chain(orientation.iter())
                 .all(|v| v.is_finite());
-        let [x, y, z, w] = s.orientation;
+        let [x, y, z, w] = orientation;
         let norm = (x * x + y * y + z * z + w * w).sqrt();
         if !finite || norm < 1e-9 {
             return Err(mcap_err(
                 path,
                 format!(
-                    "topic {}: message {i}: {} pose (time {}, position {:?}, orientation {:?})",
-                    c.topic,
-                    if finite {
-                        "zero-quaternion"
-                    } else {
-                        "non-finite"
-                    },
-                    s.time,
-                    s.position,
-                    s.orientation
+                    "topic {topic}: message {i}: {} pose (time {time}, position {position:?}, orientation {orientation:?})",
+                    if finite { "zero-quaternion" } else { "non-finite" },
                 ),
             ));
         }
-        times.push(s.time);
-        positions.push(Vector3::from(s.position));
-        orientations.push(UnitQuaternion::from_quaternion(Quaternion::new(w, x, y, z)));
+        times.push(time);
+        positions.push(Vector3::from(position));
+        orientations.push(UnitQuaternion::new_unchecked(Quaternion::new(
+            w / norm,
+            x / norm,
+            y / norm,
+            z / norm,
+        )));
     }
     Trajectory::try_new(times, positions, Some(orientations))
-        .map_err(|e| mcap_err(path, format!("topic {}: {e}", c.topic)))
+        .map_err(|e| mcap_err(path, format!("topic {topic}: {e}")))
 }
 
-fn read_imu(path: &Path, messages: &[RawMessage<'_>], c: &ChannelInfo) -> Result<ImuSamples> {
-    let mine: Vec<&RawMessage<'_>> = messages.iter().filter(|m| m.channel_id == c.id).collect();
-    let decoded: Result<Vec<decode::ImuMsg>> = mine
-        .par_iter()
-        .enumerate()
-        .map(|(i, m)| {
-            let s = decode::imu(&c.message_encoding, &m.data).map_err(|e| {
-                mcap_err(
-                    path,
-                    format!(
-                        "topic {}: message {i} (log time {} ns): {e}",
-                        c.topic, m.log_time
-                    ),
-                )
-            })?;
-            if !s.time.is_finite() || s.gyro.iter().chain(s.accel.iter()).any(|v| !v.is_finite()) {
-                return Err(mcap_err(
-                    path,
-                    format!(
-                        "topic {}: message {i}: non-finite IMU sample {s:?}",
-                        c.topic
-                    ),
-                ));
+fn read_imu(path: &Path, messages: &[Mapped], c: &ChannelInfo) -> Result<ImuSamples> {
+    let mut samples: Vec<&decode::ImuMsg> = Vec::new();
+    for (i, m) in messages.iter().filter(|m| m.channel_id == c.id).enumerate() {
+        match &m.value {
+            Decoded::Imu(s) => {
+                if !s.time.is_finite()
+                    || s.gyro.iter().chain(s.accel.iter()).any(|v| !v.is_finite())
+                {
+                    return Err(at(
+                        path,
+                        &c.topic,
+                        i,
+                        m,
+                        &format!("non-finite IMU sample {s:?}"),
+                    ));
+                }
+                samples.push(s);
             }
-            Ok(s)
-        })
-        .collect();
-    let mut samples = decoded?;
+            Decoded::Error(e) => return Err(at(path, &c.topic, i, m, e)),
+            _ => return Err(at(path, &c.topic, i, m, "not an IMU message")),
+        }
+    }
     samples.sort_by(|a, b| a.time.total_cmp(&b.time));
     samples.dedup_by(|b, a| a.time == b.time);
     ImuSamples::try_new(
@@ -585,29 +728,10 @@ pub fn inspect_mcap(path: impl AsRef<Path>) -> Result<Inventory> {
     let path = path.as_ref();
     let file = McapFile::open(path)?;
     let scan = file.scan(|_| true)?;
-    let mut counts: HashMap<u16, u64> = HashMap::new();
-    let mut ranges: HashMap<u16, (u64, u64)> = HashMap::new();
-    for m in &scan.messages {
-        *counts.entry(m.channel_id).or_default() += 1;
-        let r = ranges
-            .entry(m.channel_id)
-            .or_insert((m.log_time, m.log_time));
-        r.0 = r.0.min(m.log_time);
-        r.1 = r.1.max(m.log_time);
-    }
-    let topics = scan
-        .channels
-        .values()
-        .map(|c| TopicInfo {
-            topic: c.topic.clone(),
-            schema_name: c.schema_name.clone(),
-            schema_encoding: c.schema_encoding.clone(),
-            message_encoding: c.message_encoding.clone(),
-            count: counts.get(&c.id).copied().unwrap_or(0),
-            time_range: ranges.get(&c.id).copied(),
-            kind: kind_of(c),
-        })
-        .collect();
+    let (topics, counts) = topic_inventory(
+        &scan.channels,
+        scan.iter().map(|m| (m.channel_id, m.log_time)),
+    );
     use MessageKind as K;
     let roles: [(&'static str, &[MessageKind]); 4] = [
         ("keyframes", &[K::Keyframe]),

@@ -13,10 +13,12 @@ pub mod decode;
 pub mod log;
 pub mod reader;
 pub mod schemas;
+pub mod stream;
 pub mod wire;
 pub mod write;
 
 pub use decode::MessageKind;
 pub use log::{inspect_mcap, read_mcap, Inventory, Log, ReadOptions, TopicInfo};
 pub use reader::{ChannelInfo, McapFile, RawMessage, ReadMode, Scan};
+pub use stream::{MappedMessage, MappedScan};
 pub use write::{write_slam_log, write_world_mcap, SlamLogOptions, WorldFlavor, WorldScene};

@@ -20,7 +20,7 @@ use crate::error::{Error, Result};
 pub const MAGIC: &[u8; 8] = b"\x89MCAP0\r\n";
 
 /// A channel of the log with its schema (empty name and encoding when schemaless).
-#[derive(Clone, Debug, PartialEq, Eq)]
+#[derive(Clone, Debug, Default, PartialEq, Eq)]
 pub struct ChannelInfo {
     /// Channel id, unique in the file.
     pub id: u16,
@@ -40,9 +40,9 @@ pub struct ChannelInfo {
     pub metadata: BTreeMap<String, String>,
 }
 
-/// One Message record. `data` borrows from the memory map for messages outside
-/// chunks and owns the bytes of messages decompressed from a chunk.
-#[derive(Clone, Debug)]
+/// One Message record; `data` borrows from the memory map (messages outside
+/// chunks) or from the decompressed chunk held by the [`Scan`].
+#[derive(Clone, Copy, Debug)]
 pub struct RawMessage<'a> {
     /// Channel id (see [`Scan::channels`]).
     pub channel_id: u16,
@@ -53,8 +53,22 @@ pub struct RawMessage<'a> {
     /// Publish time, nanoseconds.
     pub publish_time: u64,
     /// The serialised message.
-    pub data: Cow<'a, [u8]>,
+    pub data: &'a [u8],
 }
+
+/// Where a message's bytes are: buffer `MAP` is the file, others a decompressed chunk.
+#[derive(Clone, Copy, Debug)]
+pub(super) struct Entry {
+    pub(super) channel_id: u16,
+    pub(super) sequence: u32,
+    pub(super) log_time: u64,
+    pub(super) publish_time: u64,
+    pub(super) buffer: u32,
+    pub(super) start: usize,
+    pub(super) end: usize,
+}
+
+const MAP: u32 = u32::MAX;
 
 /// How the messages were found.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -70,12 +84,62 @@ pub enum ReadMode {
 pub struct Scan<'a> {
     /// Channels by id (those defined anywhere in the file).
     pub channels: BTreeMap<u16, ChannelInfo>,
-    /// Messages in file order.
-    pub messages: Vec<RawMessage<'a>>,
+    map: &'a [u8],
+    buffers: Vec<Vec<u8>>,
+    entries: Vec<Entry>,
     /// Indexed or linear.
     pub mode: ReadMode,
     /// The `profile` field of the Header record (`ros1`, `ros2`, …).
     pub profile: String,
+}
+
+impl Scan<'_> {
+    /// Number of messages.
+    pub fn len(&self) -> usize {
+        self.entries.len()
+    }
+
+    /// True when no message was read.
+    pub fn is_empty(&self) -> bool {
+        self.entries.is_empty()
+    }
+
+    fn view(&self, e: &Entry) -> RawMessage<'_> {
+        let buf: &[u8] = if e.buffer == MAP {
+            self.map
+        } else {
+            &self.buffers[e.buffer as usize]
+        };
+        RawMessage {
+            channel_id: e.channel_id,
+            sequence: e.sequence,
+            log_time: e.log_time,
+            publish_time: e.publish_time,
+            data: &buf[e.start..e.end],
+        }
+    }
+
+    /// The messages in file order, each borrowing its bytes from the scan.
+    pub fn iter(&self) -> impl Iterator<Item = RawMessage<'_>> + '_ {
+        self.entries.iter().map(|e| self.view(e))
+    }
+
+    /// Message `i` in file order, `None` past the end.
+    pub fn get(&self, i: usize) -> Option<RawMessage<'_>> {
+        self.entries.get(i).map(|e| self.view(e))
+    }
+
+    /// Positions (in file order) of the messages of one channel.
+    pub fn indices_of(&self, channel_id: u16) -> Vec<usize> {
+        (0..self.entries.len())
+            .filter(|&i| self.entries[i].channel_id == channel_id)
+            .collect()
+    }
+
+    /// The messages in file order, collected.
+    pub fn messages(&self) -> Vec<RawMessage<'_>> {
+        self.iter().collect()
+    }
 }
 
 /// An MCAP file opened read-only and memory-mapped.
@@ -85,10 +149,10 @@ pub struct McapFile {
 }
 
 /// One item of the data section, before chunks are expanded.
-enum Item<'a> {
+pub(super) enum Item<'a> {
     Schema(records::SchemaHeader, Vec<u8>),
     Channel(records::Channel),
-    Message(RawMessage<'a>),
+    Message(Entry),
     Chunk {
         offset: usize,
         header: records::ChunkHeader,
@@ -96,12 +160,15 @@ enum Item<'a> {
     },
 }
 
-/// What a chunk expands to (channels and schemas in it are collected as well).
-enum Inner<'a> {
+/// A schema or channel definition found in the data section or a chunk.
+pub(super) enum Def {
     Schema(records::SchemaHeader, Vec<u8>),
     Channel(records::Channel),
-    Message(RawMessage<'a>),
 }
+
+/// What one item expands to: the decompressed buffer of a chunk, its
+/// definitions (applied before its messages) and its messages.
+type Expanded = (Option<Vec<u8>>, Vec<Def>, Vec<Entry>);
 
 impl McapFile {
     /// Opens and maps `path` (read-only). Fails on a missing file or a file that
@@ -131,7 +198,7 @@ impl McapFile {
         &self.map
     }
 
-    fn err(&self, reason: impl Into<String>) -> Error {
+    pub(super) fn err(&self, reason: impl Into<String>) -> Error {
         Error::Mcap {
             path: self.path.clone(),
             reason: reason.into(),
@@ -168,25 +235,29 @@ impl McapFile {
                 }
                 items.push(self.chunk_at(ci)?);
             }
-            let (channels, messages) = self.expand(items, &want, channels)?;
+            let (channels, buffers, entries) = self.expand(items, &want, channels)?;
             return Ok(Scan {
                 channels,
-                messages,
+                map: &self.map,
+                buffers,
+                entries,
                 mode: ReadMode::Indexed,
                 profile,
             });
         }
         let (items, channels) = self.linear_items()?;
-        let (channels, messages) = self.expand(items, &want, channels)?;
+        let (channels, buffers, entries) = self.expand(items, &want, channels)?;
         Ok(Scan {
             channels,
-            messages,
+            map: &self.map,
+            buffers,
+            entries,
             mode: ReadMode::Linear,
             profile,
         })
     }
 
-    fn profile(&self) -> String {
+    pub(super) fn profile(&self) -> String {
         let buf = &self.map[MAGIC.len()..];
         match frame(buf) {
             Some((op::HEADER, body, _)) => match mcap::parse_record(op::HEADER, body) {
@@ -200,7 +271,7 @@ impl McapFile {
     /// The chunk indexes (sorted by offset) and channels of the summary, when
     /// the summary has both and every chunk index points at a chunk.
     #[allow(clippy::type_complexity)]
-    fn indexed_plan(
+    pub(super) fn indexed_plan(
         &self,
     ) -> Result<Option<(Vec<records::ChunkIndex>, BTreeMap<u16, ChannelInfo>)>> {
         // A damaged summary is not fatal: the linear scan reports what is wrong.
@@ -234,7 +305,7 @@ impl McapFile {
         Ok(Some((chunks, channels)))
     }
 
-    fn chunk_at(&self, ci: &records::ChunkIndex) -> Result<Item<'_>> {
+    pub(super) fn chunk_at(&self, ci: &records::ChunkIndex) -> Result<Item<'_>> {
         let start = ci.chunk_start_offset as usize;
         let buf = &self.map[start..];
         match frame(buf) {
@@ -259,7 +330,7 @@ impl McapFile {
     }
 
     /// Walks the top-level records from the start to the footer.
-    fn linear_items(&self) -> Result<(Vec<Item<'_>>, BTreeMap<u16, ChannelInfo>)> {
+    pub(super) fn linear_items(&self) -> Result<(Vec<Item<'_>>, BTreeMap<u16, ChannelInfo>)> {
         let map: &[u8] = &self.map;
         let mut pos = MAGIC.len();
         let mut items = Vec::new();
@@ -282,16 +353,18 @@ impl McapFile {
                     items.push(Item::Schema(header, data.into_owned()));
                 }
                 Record::Channel(c) => items.push(Item::Channel(c)),
-                Record::Message { header, data } => items.push(Item::Message(RawMessage {
-                    channel_id: header.channel_id,
-                    sequence: header.sequence,
-                    log_time: header.log_time,
-                    publish_time: header.publish_time,
-                    data: match data {
-                        Cow::Borrowed(b) => Cow::Borrowed(b),
-                        Cow::Owned(v) => Cow::Owned(v),
-                    },
-                })),
+                Record::Message { header, data } => {
+                    let start = pos + 9 + (body.len() - data.len());
+                    items.push(Item::Message(Entry {
+                        channel_id: header.channel_id,
+                        sequence: header.sequence,
+                        log_time: header.log_time,
+                        publish_time: header.publish_time,
+                        buffer: MAP,
+                        start,
+                        end: start + data.len(),
+                    }))
+                }
                 Record::Chunk {
                     header,
                     data: Cow::Borrowed(data),
@@ -321,90 +394,206 @@ impl McapFile {
     }
 
     /// Decompresses the chunks in parallel, then merges everything in file order.
-    fn expand<'a>(
-        &'a self,
-        items: Vec<Item<'a>>,
+    #[allow(clippy::type_complexity)]
+    fn expand(
+        &self,
+        items: Vec<Item<'_>>,
         want: &(impl Fn(&ChannelInfo) -> bool + Sync),
         mut channels: BTreeMap<u16, ChannelInfo>,
-    ) -> Result<(BTreeMap<u16, ChannelInfo>, Vec<RawMessage<'a>>)> {
-        let expanded: Vec<Result<Vec<Inner<'a>>>> = items
+    ) -> Result<(BTreeMap<u16, ChannelInfo>, Vec<Vec<u8>>, Vec<Entry>)> {
+        let expanded: Vec<Result<Expanded>> = items
             .into_par_iter()
             .map(|item| match item {
-                Item::Schema(h, d) => Ok(vec![Inner::Schema(h, d)]),
-                Item::Channel(c) => Ok(vec![Inner::Channel(c)]),
-                Item::Message(m) => Ok(vec![Inner::Message(m)]),
+                Item::Schema(h, d) => Ok((None, vec![Def::Schema(h, d)], Vec::new())),
+                Item::Channel(c) => Ok((None, vec![Def::Channel(c)], Vec::new())),
+                Item::Message(m) => Ok((None, Vec::new(), vec![m])),
                 Item::Chunk {
                     offset,
                     header,
                     data,
-                } => self.read_chunk(offset, header, data),
+                } => self.read_chunk(offset, &header, data),
             })
             .collect();
         let mut schemas: BTreeMap<u16, (records::SchemaHeader, Vec<u8>)> = BTreeMap::new();
-        let mut messages = Vec::new();
-        let mut keep: BTreeMap<u16, bool> = channels.values().map(|c| (c.id, want(c))).collect();
+        let mut entries = Vec::new();
+        let mut buffers = Vec::new();
+        // Per channel id: 0 undefined, 1 skipped, 2 kept.
+        let mut keep = vec![0u8; 1 << 16];
+        for c in channels.values() {
+            keep[c.id as usize] = if want(c) { 2 } else { 1 };
+        }
         for part in expanded {
-            for inner in part? {
-                match inner {
-                    Inner::Schema(h, d) => {
+            let (buffer, defs, msgs) = part?;
+            for def in defs {
+                match def {
+                    Def::Schema(h, d) => {
                         schemas.insert(h.id, (h, d));
                     }
-                    Inner::Channel(c) => {
-                        if let std::collections::btree_map::Entry::Vacant(slot) = channels.entry(c.id) {
+                    Def::Channel(c) => {
+                        if let std::collections::btree_map::Entry::Vacant(slot) =
+                            channels.entry(c.id)
+                        {
                             let info = channel_info(&c, &schemas).map_err(|r| self.err(r))?;
-                            keep.insert(c.id, want(&info));
+                            keep[c.id as usize] = if want(&info) { 2 } else { 1 };
                             slot.insert(info);
                         }
                     }
-                    Inner::Message(m) => match keep.get(&m.channel_id) {
-                        Some(true) => messages.push(m),
-                        Some(false) => {}
-                        None => {
-                            return Err(self.err(format!(
-                                "message (sequence {}, log time {} ns) on channel {} that no Channel record defines",
-                                m.sequence, m.log_time, m.channel_id
-                            )))
-                        }
-                    },
                 }
             }
+            let index = buffers.len() as u32;
+            let before = entries.len();
+            for mut m in msgs {
+                match keep[m.channel_id as usize] {
+                    2 => {
+                        if buffer.is_some() {
+                            m.buffer = index;
+                        }
+                        entries.push(m);
+                    }
+                    1 => {}
+                    _ => {
+                        return Err(self.err(format!(
+                            "message (sequence {}, log time {} ns) on channel {} that no Channel record defines",
+                            m.sequence, m.log_time, m.channel_id
+                        )))
+                    }
+                }
+            }
+            if let Some(b) = buffer {
+                buffers.push(if entries.len() > before {
+                    b
+                } else {
+                    Vec::new()
+                });
+            }
         }
-        Ok((channels, messages))
+        Ok((channels, buffers, entries))
     }
 
-    fn read_chunk<'a>(
+    /// Decompresses one chunk (checking its CRC when set) and lists its records.
+    fn read_chunk(
         &self,
         offset: usize,
-        header: records::ChunkHeader,
-        data: &'a [u8],
-    ) -> Result<Vec<Inner<'a>>> {
-        let reader = mcap::read::ChunkReader::new(header, data)
-            .map_err(|e| self.err(format!("chunk at offset {offset}: {e}")))?;
-        let mut out = Vec::new();
-        for rec in reader {
-            let rec = rec.map_err(|e| self.err(format!("chunk at offset {offset}: {e}")))?;
-            match rec {
-                Record::Schema { header, data } => {
-                    out.push(Inner::Schema(header, data.into_owned()))
-                }
-                Record::Channel(c) => out.push(Inner::Channel(c)),
-                Record::Message { header, data } => out.push(Inner::Message(RawMessage {
-                    channel_id: header.channel_id,
-                    sequence: header.sequence,
-                    log_time: header.log_time,
-                    publish_time: header.publish_time,
-                    data: Cow::Owned(data.into_owned()),
-                })),
-                _ => {}
+        header: &records::ChunkHeader,
+        data: &[u8],
+    ) -> Result<Expanded> {
+        let at = |what: String| self.err(format!("chunk at offset {offset}: {what}"));
+        let size = usize::try_from(header.uncompressed_size)
+            .ok()
+            .filter(|&n| n <= MAX_CHUNK)
+            .ok_or_else(|| {
+                at(format!(
+                    "uncompressed size {} is beyond the {MAX_CHUNK}-byte limit",
+                    header.uncompressed_size
+                ))
+            })?;
+        let buf = decompress(&header.compression, data, size).map_err(at)?;
+        if header.uncompressed_crc != 0 {
+            let crc = crc32fast::hash(&buf);
+            if crc != header.uncompressed_crc {
+                return Err(at(format!(
+                    "CRC mismatch: the chunk says {:#010x}, its data hashes to {crc:#010x}",
+                    header.uncompressed_crc
+                )));
             }
         }
-        Ok(out)
+        let mut defs = Vec::new();
+        let mut out = Vec::with_capacity(header.uncompressed_size as usize / 64);
+        let mut pos = 0;
+        while pos < buf.len() {
+            let Some((opcode, body, next)) = frame(&buf[pos..]) else {
+                return Err(at(format!(
+                    "record at chunk offset {pos} runs past the chunk's end"
+                )));
+            };
+            if opcode == op::MESSAGE {
+                if body.len() < 22 {
+                    return Err(at(format!(
+                        "message record of {} bytes at chunk offset {pos}",
+                        body.len()
+                    )));
+                }
+                let u16_at = |i: usize| u16::from_le_bytes([body[i], body[i + 1]]);
+                let u32_at =
+                    |i: usize| u32::from_le_bytes([body[i], body[i + 1], body[i + 2], body[i + 3]]);
+                let u64_at = |i: usize| {
+                    let mut a = [0u8; 8];
+                    a.copy_from_slice(&body[i..i + 8]);
+                    u64::from_le_bytes(a)
+                };
+                out.push(Entry {
+                    channel_id: u16_at(0),
+                    sequence: u32_at(2),
+                    log_time: u64_at(6),
+                    publish_time: u64_at(14),
+                    buffer: 0,
+                    start: pos + 9 + 22,
+                    end: pos + next,
+                });
+            } else {
+                match mcap::parse_record(opcode, body) {
+                    Ok(Record::Schema { header, data }) => {
+                        defs.push(Def::Schema(header, data.into_owned()))
+                    }
+                    Ok(Record::Channel(c)) => defs.push(Def::Channel(c)),
+                    Ok(_) => {}
+                    Err(e) => return Err(at(format!("record at chunk offset {pos}: {e}"))),
+                }
+            }
+            pos += next;
+        }
+        Ok((Some(buf), defs, out))
     }
+}
+
+/// The largest decompressed chunk accepted (guards allocations against damaged headers).
+pub(super) const MAX_CHUNK: usize = 1 << 32;
+
+/// Decompresses a chunk's records to exactly `size` bytes.
+fn decompress(compression: &str, data: &[u8], size: usize) -> std::result::Result<Vec<u8>, String> {
+    let mut out = Vec::new();
+    decompress_into(compression, data, size, &mut out)?;
+    Ok(out)
+}
+
+/// Decompresses a chunk's records into `out` (cleared first, its allocation reused).
+pub(super) fn decompress_into(
+    compression: &str,
+    data: &[u8],
+    size: usize,
+    out: &mut Vec<u8>,
+) -> std::result::Result<(), String> {
+    out.clear();
+    out.try_reserve_exact(size)
+        .map_err(|_| format!("cannot allocate {size} bytes for the decompressed chunk"))?;
+    match compression {
+        "" => out.extend_from_slice(data),
+        "zstd" => {
+            let mut d = zstd::bulk::Decompressor::new().map_err(|e| format!("zstd: {e}"))?;
+            d.decompress_to_buffer(data, out)
+                .map_err(|e| format!("zstd: {e}"))?;
+        }
+        "lz4" => {
+            use std::io::Read;
+            let mut d = lz4::Decoder::new(data).map_err(|e| format!("lz4: {e}"))?;
+            // Never read past the announced size (a damaged frame could go on).
+            let mut limited = (&mut d).take(size as u64 + 1);
+            limited.read_to_end(out).map_err(|e| format!("lz4: {e}"))?;
+        }
+        other => return Err(format!("unsupported compression {other:?}")),
+    }
+    if out.len() != size {
+        return Err(format!(
+            "decompressed to {} bytes, the chunk header says {size}",
+            out.len()
+        ));
+    }
+    Ok(())
 }
 
 /// Splits one record off the front of `buf`: (opcode, body, bytes consumed).
 /// `None` when the buffer ends inside the record.
-fn frame(buf: &[u8]) -> Option<(u8, &[u8], usize)> {
+pub(super) fn frame(buf: &[u8]) -> Option<(u8, &[u8], usize)> {
     let opcode = *buf.first()?;
     let len_bytes: [u8; 8] = buf.get(1..9)?.try_into().ok()?;
     let len = usize::try_from(u64::from_le_bytes(len_bytes)).ok()?;
@@ -413,7 +602,7 @@ fn frame(buf: &[u8]) -> Option<(u8, &[u8], usize)> {
     Some((opcode, body, end))
 }
 
-fn channel_info(
+pub(super) fn channel_info(
     c: &records::Channel,
     schemas: &BTreeMap<u16, (records::SchemaHeader, Vec<u8>)>,
 ) -> std::result::Result<ChannelInfo, String> {

@@ -80,6 +80,11 @@ impl<'a> Ros1<'a> {
         let b = self.bytes(n)?;
         Ok(String::from_utf8_lossy(b).into_owned())
     }
+    /// Skips a `string`.
+    pub fn skip_string(&mut self) -> WireResult<()> {
+        let n = self.u32()? as usize;
+        self.bytes(n).map(|_| ())
+    }
     /// `uint8[]`: u32 length then bytes.
     pub fn byte_array(&mut self) -> WireResult<&'a [u8]> {
         let n = self.u32()? as usize;
@@ -175,6 +180,11 @@ impl<'a> Cdr<'a> {
         let b = self.bytes(n)?;
         let b = b.strip_suffix(&[0]).unwrap_or(b);
         Ok(String::from_utf8_lossy(b).into_owned())
+    }
+    /// Skips a `string`.
+    pub fn skip_string(&mut self) -> WireResult<()> {
+        let n = self.u32()? as usize;
+        self.bytes(n).map(|_| ())
     }
     /// `sequence<T>` length.
     pub fn seq_len(&mut self) -> WireResult<usize> {

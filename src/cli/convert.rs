@@ -1,0 +1,132 @@
+//! `slam2world convert LOG.mcap -o OUTDIR`: `world.mcap`, `cloud.ply`, `report.json`.
+
+use std::path::PathBuf;
+use std::time::Instant;
+
+use clap::Args;
+use indicatif::{ProgressBar, ProgressDrawTarget, ProgressStyle};
+
+use crate::cloud::PointFilter;
+use crate::error::Result;
+use crate::io::mcap::{read_mcap, ReadOptions, WorldFlavor};
+use crate::pipeline::{convert, ConvertOptions, CLOUD_PLY, REPORT_JSON, WORLD_MCAP};
+use crate::trajectory::TrajectoryAlignOptions;
+
+/// Arguments of `convert`.
+#[derive(Args, Debug)]
+pub struct ConvertArgs {
+    /// The MCAP log (LSD-SLAM keyframes + reference poses).
+    pub log: PathBuf,
+    /// Output folder (created when missing).
+    #[arg(short, long)]
+    pub output: PathBuf,
+    /// Keyframe topic (default: found by schema `lsd_slam_viewer/keyframeMsg`).
+    #[arg(long)]
+    pub keyframe_topic: Option<String>,
+    /// Keyframe graph topic (default: found by schema).
+    #[arg(long)]
+    pub graph_topic: Option<String>,
+    /// Reference pose topic (default: the first pose schema found).
+    #[arg(long)]
+    pub pose_topic: Option<String>,
+    /// TF parent frame, when the reference is a tf2_msgs/TFMessage topic.
+    #[arg(long)]
+    pub tf_parent: Option<String>,
+    /// TF child frame, when the reference is a tf2_msgs/TFMessage topic.
+    #[arg(long)]
+    pub tf_child: Option<String>,
+    /// Largest keyframe–reference time difference of a pair, seconds.
+    #[arg(long, default_value_t = 0.01)]
+    pub max_diff: f64,
+    /// Seconds added to the keyframe stamps before matching.
+    #[arg(long, default_value_t = 0.0, allow_hyphen_values = true)]
+    pub offset: f64,
+    /// Fit on the first N pairs only (the residuals still cover all pairs).
+    #[arg(long)]
+    pub n_to_align: Option<usize>,
+    /// Keep every pixel with a positive inverse depth (no viewer filters).
+    #[arg(long)]
+    pub no_filter: bool,
+    /// Write ROS 2 PointCloud2 + TFMessage instead of Foxglove schemas.
+    #[arg(long)]
+    pub ros2: bool,
+    /// No progress bar and no summary.
+    #[arg(short, long)]
+    pub quiet: bool,
+}
+
+/// Runs the conversion and writes the three outputs.
+pub fn run(args: &ConvertArgs) -> Result<()> {
+    let target = if args.quiet {
+        ProgressDrawTarget::hidden()
+    } else {
+        // Draws only when stderr is a terminal.
+        ProgressDrawTarget::stderr()
+    };
+    let bar = ProgressBar::with_draw_target(Some(4), target);
+    if let Ok(style) = ProgressStyle::with_template("{spinner} [{pos}/{len}] {msg} ({elapsed})") {
+        bar.set_style(style);
+    }
+    let opts = ConvertOptions {
+        read: ReadOptions {
+            keyframe_topic: args.keyframe_topic.clone(),
+            graph_topic: args.graph_topic.clone(),
+            pose_topic: args.pose_topic.clone(),
+            imu_topic: None,
+            tf_parent: args.tf_parent.clone(),
+            tf_child: args.tf_child.clone(),
+        },
+        align: TrajectoryAlignOptions {
+            max_diff: args.max_diff,
+            offset: args.offset,
+            first_n: args.n_to_align,
+            ..TrajectoryAlignOptions::default()
+        },
+        filter: if args.no_filter {
+            PointFilter::none()
+        } else {
+            PointFilter::default()
+        },
+    };
+    bar.set_message("reading the log");
+    let t = Instant::now();
+    let log = read_mcap(&args.log, &opts.read)?;
+    let read_s = t.elapsed().as_secs_f64();
+    bar.inc(1);
+    bar.set_message("aligning and backprojecting");
+    let mut c = convert(&log, &opts)?;
+    c.report.timing.read_s = read_s;
+    bar.inc(2);
+    bar.set_message("writing");
+    let flavor = if args.ros2 {
+        WorldFlavor::Ros2
+    } else {
+        WorldFlavor::Foxglove
+    };
+    c.write_all(&args.output, flavor)?;
+    bar.inc(1);
+    bar.finish_and_clear();
+    if !args.quiet {
+        let r = &c.report;
+        let t = &r.t_world_slam;
+        println!(
+            "{} keyframes, {} matched ({} dropped), fit on {}",
+            r.keyframes,
+            r.frames_used,
+            r.frames_dropped.len(),
+            r.pairs_fitted
+        );
+        println!(
+            "T_world_slam: scale {:.6}, translation {:?}, quaternion xyzw {:?}",
+            t.scale, t.translation, t.quaternion_xyzw
+        );
+        println!(
+            "APE rmse {:.4} m (mean {:.4}, max {:.4}); {} points",
+            r.ape.rmse, r.ape.mean, r.ape.max, r.points
+        );
+        for name in [WORLD_MCAP, CLOUD_PLY, REPORT_JSON] {
+            println!("wrote {}", args.output.join(name).display());
+        }
+    }
+    Ok(())
+}

@@ -1,0 +1,383 @@
+//! [`McapFile::scan_map`]: every message mapped to a compact value inside the
+//! parallel chunk tasks, so that a chunk's decompressed buffer is reused for the
+//! next chunk instead of being kept (the memory-lean path of [`super::read_mcap`]).
+
+use std::collections::BTreeMap;
+
+use mcap::records::{self, op, Record};
+use rayon::prelude::*;
+
+use super::reader::{
+    channel_info, decompress_into, frame, ChannelInfo, Def, Item, McapFile, RawMessage, ReadMode,
+    MAX_CHUNK,
+};
+use crate::error::Result;
+
+/// One message after mapping: its record fields and the mapped value.
+#[derive(Clone, Debug)]
+pub struct MappedMessage<T> {
+    /// Channel id.
+    pub channel_id: u16,
+    /// Publisher sequence number.
+    pub sequence: u32,
+    /// Log time, nanoseconds.
+    pub log_time: u64,
+    /// Publish time, nanoseconds.
+    pub publish_time: u64,
+    /// What the map made of the message.
+    pub value: T,
+}
+
+/// The result of [`McapFile::scan_map`].
+#[derive(Debug)]
+pub struct MappedScan<T> {
+    /// Channels by id.
+    pub channels: BTreeMap<u16, ChannelInfo>,
+    /// The wanted messages in file order.
+    pub messages: Vec<MappedMessage<T>>,
+    /// Indexed or linear.
+    pub mode: ReadMode,
+    /// The Header record's profile.
+    pub profile: String,
+}
+
+/// What one item gives: its definitions, its messages (mapped, or holding
+/// `T::default()` until mapped after the merge) and the bytes of the messages
+/// whose channel the task could not see, by position in the item's messages.
+type Part<T> = (Vec<Def>, Vec<MappedMessage<T>>, Vec<(usize, Vec<u8>)>);
+
+/// Channel lookup by id for the chunk tasks: `(info, wanted)`.
+fn table_of<'k>(
+    known: &'k BTreeMap<u16, ChannelInfo>,
+    want: &impl Fn(&ChannelInfo) -> bool,
+) -> Vec<Option<(&'k ChannelInfo, bool)>> {
+    let mut table = vec![None; 1 << 16];
+    for c in known.values() {
+        table[c.id as usize] = Some((c, want(c)));
+    }
+    table
+}
+
+impl McapFile {
+    /// Like [`McapFile::scan`], but each wanted message is passed to `map`
+    /// (with its channel) inside the parallel chunk task, and only the mapped
+    /// value is kept. Messages of channels defined later than the chunk task can
+    /// see are mapped after the merge, with the same result.
+    pub fn scan_map<T: Send + Default>(
+        &self,
+        want: impl Fn(&ChannelInfo) -> bool + Sync,
+        map: impl Fn(&ChannelInfo, &RawMessage<'_>) -> T + Sync,
+    ) -> Result<MappedScan<T>> {
+        let profile = self.profile();
+        let (mut items, mut known, mode, mut schemas_seen) = match self.indexed_plan()? {
+            Some((chunks, channels)) => {
+                let wanted: Vec<u16> = channels
+                    .values()
+                    .filter(|c| want(c))
+                    .map(|c| c.id)
+                    .collect();
+                let mut items = Vec::new();
+                for ci in &chunks {
+                    let has_wanted = ci.message_index_offsets.is_empty()
+                        || ci
+                            .message_index_offsets
+                            .keys()
+                            .any(|id| wanted.contains(id));
+                    if has_wanted {
+                        items.push(self.chunk_at(ci)?);
+                    }
+                }
+                (items, channels, ReadMode::Indexed, BTreeMap::new())
+            }
+            None => {
+                let (items, _) = self.linear_items()?;
+                // Channels defined outside chunks are known to every task.
+                let mut schemas = BTreeMap::new();
+                let mut known = BTreeMap::new();
+                for item in &items {
+                    match item {
+                        Item::Schema(h, d) => {
+                            schemas.insert(h.id, (h.clone(), d.clone()));
+                        }
+                        Item::Channel(c) => {
+                            if let Ok(info) = channel_info(c, &schemas) {
+                                known.entry(c.id).or_insert(info);
+                            }
+                        }
+                        _ => {}
+                    }
+                }
+                (items, known, ReadMode::Linear, schemas)
+            }
+        };
+        let mut parts: Vec<Result<Part<T>>> = Vec::new();
+        if mode == ReadMode::Linear {
+            // Writers define a channel in the chunk of its first message: reading up
+            // to the first chunk alone lets the parallel tasks know those channels.
+            if let Some(first) = items.iter().position(|i| matches!(i, Item::Chunk { .. })) {
+                let rest = items.split_off(first + 1);
+                let prefix = std::mem::replace(&mut items, rest);
+                let mut found = Vec::new();
+                {
+                    let table = table_of(&known, &want);
+                    let mut buf = Vec::new();
+                    for item in prefix {
+                        let part = self.map_item(item, &table, &mut buf, &want, &map);
+                        if let Ok((defs, _, _)) = &part {
+                            for d in defs {
+                                match d {
+                                    Def::Schema(h, data) => {
+                                        schemas_seen.insert(h.id, (h.clone(), data.clone()));
+                                    }
+                                    Def::Channel(c) => {
+                                        if let Ok(info) = channel_info(c, &schemas_seen) {
+                                            found.push(info);
+                                        }
+                                    }
+                                }
+                            }
+                        }
+                        parts.push(part);
+                    }
+                }
+                for info in found {
+                    known.entry(info.id).or_insert(info);
+                }
+            }
+        }
+        let table = table_of(&known, &want);
+        let rest: Vec<Result<Part<T>>> = items
+            .into_par_iter()
+            .map_init(Vec::new, |buf, item| {
+                self.map_item(item, &table, buf, &want, &map)
+            })
+            .collect();
+        parts.extend(rest);
+        // Merge in file order (as `scan` does), mapping the deferred messages after.
+        let mut channels = if mode == ReadMode::Indexed {
+            known.clone()
+        } else {
+            BTreeMap::new()
+        };
+        let mut schemas: BTreeMap<u16, (records::SchemaHeader, Vec<u8>)> = BTreeMap::new();
+        let mut keep = vec![0u8; 1 << 16];
+        for c in channels.values() {
+            keep[c.id as usize] = if want(c) { 2 } else { 1 };
+        }
+        let total: usize = parts
+            .iter()
+            .map(|p| p.as_ref().map_or(0, |p| p.1.len()))
+            .sum();
+        let mut messages: Vec<MappedMessage<T>> = Vec::with_capacity(total);
+        let mut deferred: Vec<(usize, Vec<u8>)> = Vec::new();
+        for part in parts {
+            let (defs, msgs, raw) = part?;
+            for def in defs {
+                match def {
+                    Def::Schema(h, d) => {
+                        schemas.insert(h.id, (h, d));
+                    }
+                    Def::Channel(c) => {
+                        if let std::collections::btree_map::Entry::Vacant(slot) =
+                            channels.entry(c.id)
+                        {
+                            let info = channel_info(&c, &schemas).map_err(|r| self.err(r))?;
+                            keep[c.id as usize] = if want(&info) { 2 } else { 1 };
+                            slot.insert(info);
+                        }
+                    }
+                }
+            }
+            let mut raw = raw.into_iter().peekable();
+            for (j, m) in msgs.into_iter().enumerate() {
+                let bytes = match raw.peek() {
+                    Some((k, _)) if *k == j => raw.next().map(|r| r.1),
+                    _ => None,
+                };
+                match keep[m.channel_id as usize] {
+                    2 => {
+                        if let Some(b) = bytes {
+                            deferred.push((messages.len(), b));
+                        }
+                        messages.push(m);
+                    }
+                    1 => {}
+                    _ => {
+                        return Err(self.err(format!(
+                            "message (sequence {}, log time {} ns) on channel {} that no Channel record defines",
+                            m.sequence, m.log_time, m.channel_id
+                        )))
+                    }
+                }
+            }
+        }
+        // In parallel: a linear scan of a file whose channels are defined in an
+        // earlier chunk defers most messages.
+        let heads: Vec<(usize, u16, u32, u64, u64, Vec<u8>)> = deferred
+            .into_iter()
+            .map(|(k, bytes)| {
+                let m = &messages[k];
+                (
+                    k,
+                    m.channel_id,
+                    m.sequence,
+                    m.log_time,
+                    m.publish_time,
+                    bytes,
+                )
+            })
+            .collect();
+        let values: Vec<(usize, T)> = heads
+            .into_par_iter()
+            .filter_map(|(k, channel_id, sequence, log_time, publish_time, bytes)| {
+                let raw = RawMessage {
+                    channel_id,
+                    sequence,
+                    log_time,
+                    publish_time,
+                    data: &bytes,
+                };
+                channels.get(&channel_id).map(|c| (k, map(c, &raw)))
+            })
+            .collect();
+        for (k, v) in values {
+            messages[k].value = v;
+        }
+        Ok(MappedScan {
+            channels,
+            messages,
+            mode,
+            profile,
+        })
+    }
+
+    fn map_item<T: Default>(
+        &self,
+        item: Item<'_>,
+        known: &[Option<(&ChannelInfo, bool)>],
+        buf: &mut Vec<u8>,
+        want: &(impl Fn(&ChannelInfo) -> bool + Sync),
+        map: &(impl Fn(&ChannelInfo, &RawMessage<'_>) -> T + Sync),
+    ) -> Result<Part<T>> {
+        let mut defs = Vec::new();
+        let mut msgs: Vec<MappedMessage<T>> = Vec::new();
+        let mut raw_of: Vec<(usize, Vec<u8>)> = Vec::new();
+        if let Item::Chunk { header, data, .. } = &item {
+            // A guess of the message count (a hint only: failure to reserve is fine).
+            let guess = (header.uncompressed_size / 128).min(data.len() as u64 * 64);
+            let _ = msgs.try_reserve(usize::try_from(guess).unwrap_or(0));
+        }
+        let mut local: BTreeMap<u16, ChannelInfo> = BTreeMap::new();
+        let mut local_schemas: BTreeMap<u16, (records::SchemaHeader, Vec<u8>)> = BTreeMap::new();
+        let mut push = |raw: RawMessage<'_>, local: &BTreeMap<u16, ChannelInfo>| {
+            let info = match known[raw.channel_id as usize] {
+                Some((c, w)) => Some((c, w)),
+                None => local.get(&raw.channel_id).map(|c| (c, want(c))),
+            };
+            let value = match info {
+                Some((c, true)) => map(c, &raw),
+                // Unwanted (the merge drops it) or not yet defined (mapped after the merge).
+                Some((_, false)) => T::default(),
+                None => {
+                    raw_of.push((msgs.len(), raw.data.to_vec()));
+                    T::default()
+                }
+            };
+            msgs.push(MappedMessage {
+                channel_id: raw.channel_id,
+                sequence: raw.sequence,
+                log_time: raw.log_time,
+                publish_time: raw.publish_time,
+                value,
+            });
+        };
+        match item {
+            Item::Schema(h, d) => defs.push(Def::Schema(h, d)),
+            Item::Channel(c) => defs.push(Def::Channel(c)),
+            Item::Message(e) => {
+                let raw = RawMessage {
+                    channel_id: e.channel_id,
+                    sequence: e.sequence,
+                    log_time: e.log_time,
+                    publish_time: e.publish_time,
+                    data: &self.bytes()[e.start..e.end],
+                };
+                push(raw, &local);
+            }
+            Item::Chunk {
+                offset,
+                header,
+                data,
+            } => {
+                let at = |what: String| self.err(format!("chunk at offset {offset}: {what}"));
+                let size = usize::try_from(header.uncompressed_size)
+                    .ok()
+                    .filter(|&n| n <= MAX_CHUNK)
+                    .ok_or_else(|| {
+                        at(format!(
+                            "uncompressed size {} is beyond the {MAX_CHUNK}-byte limit",
+                            header.uncompressed_size
+                        ))
+                    })?;
+                decompress_into(&header.compression, data, size, buf).map_err(at)?;
+                if header.uncompressed_crc != 0 {
+                    let crc = crc32fast::hash(buf);
+                    if crc != header.uncompressed_crc {
+                        return Err(at(format!(
+                            "CRC mismatch: the chunk says {:#010x}, its data hashes to {crc:#010x}",
+                            header.uncompressed_crc
+                        )));
+                    }
+                }
+                let mut pos = 0;
+                while pos < buf.len() {
+                    let Some((opcode, body, next)) = frame(&buf[pos..]) else {
+                        return Err(at(format!(
+                            "record at chunk offset {pos} runs past the chunk's end"
+                        )));
+                    };
+                    if opcode == op::MESSAGE {
+                        if body.len() < 22 {
+                            return Err(at(format!(
+                                "message record of {} bytes at chunk offset {pos}",
+                                body.len()
+                            )));
+                        }
+                        let mut h = [0u8; 22];
+                        h.copy_from_slice(&body[..22]);
+                        let u64_at = |i: usize| {
+                            let mut a = [0u8; 8];
+                            a.copy_from_slice(&h[i..i + 8]);
+                            u64::from_le_bytes(a)
+                        };
+                        let raw = RawMessage {
+                            channel_id: u16::from_le_bytes([h[0], h[1]]),
+                            sequence: u32::from_le_bytes([h[2], h[3], h[4], h[5]]),
+                            log_time: u64_at(6),
+                            publish_time: u64_at(14),
+                            data: &body[22..],
+                        };
+                        push(raw, &local);
+                    } else {
+                        match mcap::parse_record(opcode, body) {
+                            Ok(Record::Schema { header, data }) => {
+                                local_schemas.insert(header.id, (header.clone(), data.to_vec()));
+                                defs.push(Def::Schema(header, data.into_owned()));
+                            }
+                            Ok(Record::Channel(c)) => {
+                                if let Ok(info) = channel_info(&c, &local_schemas) {
+                                    local.entry(c.id).or_insert(info);
+                                }
+                                defs.push(Def::Channel(c));
+                            }
+                            Ok(_) => {}
+                            Err(e) => return Err(at(format!("record at chunk offset {pos}: {e}"))),
+                        }
+                    }
+                    pos += next;
+                }
+            }
+        }
+        Ok((defs, msgs, raw_of))
+    }
+}

@@ -1,0 +1,412 @@
+//! `convert`: a SLAM log in, the metric world out.
+//!
+//! Keyframe stamps (the messages' own `time`) are associated with the reference
+//! poses (`max_diff`, `offset`), `T_world_slam` is fitted on the keyframe
+//! positions (Horn, Sim(3)), and the keyframes are backprojected with
+//! `T_world_slam · T_slam_cam` fused per keyframe. The result carries the
+//! alignment, the world cloud, both trajectories in the world frame and a report
+//! (alignment, residuals, frames used and dropped, timing).
+
+use std::path::{Path, PathBuf};
+use std::time::Instant;
+
+use serde::Serialize;
+
+use crate::cloud::{backproject, PointCloud, PointFilter};
+use crate::error::{Error, Result};
+use crate::io::mcap::{read_mcap, write_world_mcap, Log, ReadOptions, WorldFlavor, WorldScene};
+use crate::trajectory::{
+    align_trajectories, Trajectory, TrajectoryAlignOptions, TrajectoryAlignment,
+};
+
+/// Everything `convert` can be told.
+#[derive(Clone, Debug, Default)]
+pub struct ConvertOptions {
+    /// Topics to read (found by schema when `None`).
+    pub read: ReadOptions,
+    /// Association and fit: `max_diff` (s), `offset` (s, added to the SLAM
+    /// stamps), `first_n` (fit on the first n pairs: the CLI's `--n-to-align`), scale.
+    pub align: TrajectoryAlignOptions,
+    /// Which pixels become points (the LSD-SLAM viewer's defaults by default).
+    pub filter: PointFilter,
+}
+
+/// `T_world_slam` as the report writes it.
+#[derive(Clone, Debug, Serialize)]
+pub struct TransformReport {
+    /// Rotation `(x, y, z, w)`.
+    pub quaternion_xyzw: [f64; 4],
+    /// Translation, metres.
+    pub translation: [f64; 3],
+    /// Scale, metres per SLAM unit.
+    pub scale: f64,
+    /// The 4×4 matrix `[sR t; 0 1]`, row-major.
+    pub matrix: [[f64; 4]; 4],
+}
+
+/// One keyframe matched with a reference pose.
+#[derive(Clone, Debug, Serialize)]
+pub struct PairReport {
+    /// Keyframe id.
+    pub keyframe_id: i32,
+    /// Keyframe time, seconds.
+    pub keyframe_time: f64,
+    /// Time of the matched reference pose, seconds.
+    pub reference_time: f64,
+    /// `‖p_ref − T(p_slam)‖`, metres.
+    pub error: f64,
+    /// True when the pair was used in the fit (the first `n_to_align`).
+    pub fitted: bool,
+}
+
+/// Wall time of each stage, seconds.
+#[derive(Clone, Debug, Default, Serialize)]
+pub struct Timing {
+    /// Reading and decoding the log.
+    pub read_s: f64,
+    /// Association and fit.
+    pub align_s: f64,
+    /// Backprojection into the world frame.
+    pub backproject_s: f64,
+    /// Writing the outputs (set by [`Conversion::write_all`]).
+    pub write_s: f64,
+}
+
+/// What `report.json` holds.
+#[derive(Clone, Debug, Serialize)]
+pub struct Report {
+    /// The log read.
+    pub input: PathBuf,
+    /// Topics used.
+    pub keyframe_topic: Option<String>,
+    /// Topic of the graph updates.
+    pub graph_topic: Option<String>,
+    /// Topic of the reference poses.
+    pub reference_topic: Option<String>,
+    /// Keyframes in the log (latest version per id).
+    pub keyframes: usize,
+    /// Reference poses in the log.
+    pub reference_poses: usize,
+    /// Keyframes matched with a reference pose (frames used).
+    pub frames_used: usize,
+    /// Keyframes without a reference pose within `max_diff` (frames dropped), by id.
+    pub frames_dropped: Vec<i32>,
+    /// Pairs the fit used.
+    pub pairs_fitted: usize,
+    /// Association parameters, seconds.
+    pub max_diff: f64,
+    /// Seconds added to the SLAM stamps.
+    pub offset: f64,
+    /// `T_world_slam`.
+    pub t_world_slam: TransformReport,
+    /// Fit residual rms over the fitted pairs, metres.
+    pub fit_rmse: f64,
+    /// APE over all pairs, metres: rmse, mean, median, std, min, max.
+    pub ape: ApeReport,
+    /// Every matched pair.
+    pub pairs: Vec<PairReport>,
+    /// Points in the world cloud.
+    pub points: usize,
+    /// Stage timings.
+    pub timing: Timing,
+}
+
+/// APE statistics, metres.
+#[derive(Clone, Debug, Serialize)]
+pub struct ApeReport {
+    /// Root mean square.
+    pub rmse: f64,
+    /// Mean.
+    pub mean: f64,
+    /// Median.
+    pub median: f64,
+    /// Population standard deviation.
+    pub std: f64,
+    /// Smallest.
+    pub min: f64,
+    /// Largest.
+    pub max: f64,
+}
+
+/// The result of [`convert`].
+#[derive(Clone, Debug)]
+pub struct Conversion {
+    /// The fit: `alignment.alignment.transform` is `T_world_slam`.
+    pub alignment: TrajectoryAlignment,
+    /// The world cloud (metres, world frame).
+    pub cloud: PointCloud,
+    /// Keyframe positions and orientations (`T_world_cam`) in the world frame, by time.
+    pub slam_trajectory: Trajectory,
+    /// The reference trajectory (`T_world_body`).
+    pub reference: Trajectory,
+    /// The report.
+    pub report: Report,
+}
+
+fn secs(t: Instant) -> f64 {
+    t.elapsed().as_secs_f64()
+}
+
+/// The keyframe poses as a trajectory sorted by time, with the keyframe index of each row.
+fn keyframe_trajectory(log: &Log) -> Result<(Trajectory, Vec<usize>)> {
+    let mut order: Vec<usize> = (0..log.keyframes.len()).collect();
+    order.sort_by(|&a, &b| {
+        log.keyframes[a]
+            .timestamp
+            .total_cmp(&log.keyframes[b].timestamp)
+    });
+    let times = order.iter().map(|&i| log.keyframes[i].timestamp).collect();
+    let positions = order
+        .iter()
+        .map(|&i| log.keyframes[i].pose.translation)
+        .collect();
+    let rotations = order
+        .iter()
+        .map(|&i| log.keyframes[i].pose.rotation)
+        .collect();
+    Ok((
+        Trajectory::try_new(times, positions, Some(rotations))?,
+        order,
+    ))
+}
+
+fn mcap_err(path: &Path, reason: String) -> Error {
+    Error::Mcap {
+        path: path.to_path_buf(),
+        reason,
+    }
+}
+
+/// Aligns the log's keyframes with its reference and builds the world cloud.
+///
+/// Errors: no keyframes or no reference in the log, no keyframe stamp within
+/// `max_diff` of a reference pose (naming the file and topics), and the fit's
+/// own errors (fewer than 3 pairs, degenerate motion).
+pub fn convert(log: &Log, opts: &ConvertOptions) -> Result<Conversion> {
+    let kf_topic = log.keyframe_topic.clone().unwrap_or_default();
+    if log.keyframes.is_empty() {
+        return Err(mcap_err(
+            &log.path,
+            if log.keyframe_topic.is_some() {
+                format!("topic {kf_topic}: no keyframe with a point cloud")
+            } else {
+                "no lsd_slam_viewer/keyframeMsg topic in the log".into()
+            },
+        ));
+    }
+    let Some(reference) = &log.reference else {
+        return Err(mcap_err(
+            &log.path,
+            "no reference pose topic in the log".into(),
+        ));
+    };
+    let ref_topic = log.reference_topic.clone().unwrap_or_default();
+    let t0 = Instant::now();
+    let (slam, order) = keyframe_trajectory(log)?;
+    let ta = match align_trajectories(&slam, reference, &opts.align) {
+        Ok(ta) => ta,
+        Err(Error::TooFew { need, got, .. }) => {
+            return Err(mcap_err(
+                &log.path,
+                format!(
+                    "{got} keyframe stamps of topic {kf_topic} match a reference pose of topic {ref_topic} \
+                     within max_diff {} s (offset {} s), need {need}",
+                    opts.align.max_diff, opts.align.offset
+                ),
+            ))
+        }
+        Err(e) => return Err(e),
+    };
+    let align_s = secs(t0);
+    let t = ta.alignment.transform;
+
+    let t1 = Instant::now();
+    let cloud = backproject(&log.keyframes, &opts.filter, Some(&t))?;
+    let backproject_s = secs(t1);
+
+    let world_slam = Trajectory::try_new(
+        slam.timestamps.clone(),
+        slam.positions
+            .iter()
+            .map(|p| t.transform_point(p))
+            .collect(),
+        slam.orientations
+            .as_ref()
+            .map(|o| o.iter().map(|q| t.rotation * q).collect()),
+    )?;
+
+    let n_fit = opts
+        .align
+        .first_n
+        .map_or(ta.pairs.len(), |n| n.min(ta.pairs.len()));
+    let mut used = vec![false; slam.len()];
+    let pairs: Vec<PairReport> = ta
+        .pairs
+        .iter()
+        .zip(&ta.errors)
+        .enumerate()
+        .map(|(k, (&(s, r), &error))| {
+            used[s] = true;
+            PairReport {
+                keyframe_id: log.keyframes[order[s]].id,
+                keyframe_time: slam.timestamps[s],
+                reference_time: reference.timestamps[r],
+                error,
+                fitted: k < n_fit,
+            }
+        })
+        .collect();
+    let frames_dropped = (0..slam.len())
+        .filter(|&s| !used[s])
+        .map(|s| log.keyframes[order[s]].id)
+        .collect();
+    let m = t.matrix();
+    let mut matrix = [[0.0; 4]; 4];
+    for (r, row) in matrix.iter_mut().enumerate() {
+        for (c, v) in row.iter_mut().enumerate() {
+            *v = m[(r, c)];
+        }
+    }
+    let report = Report {
+        input: log.path.clone(),
+        keyframe_topic: log.keyframe_topic.clone(),
+        graph_topic: log.graph_topic.clone(),
+        reference_topic: log.reference_topic.clone(),
+        keyframes: log.keyframes.len(),
+        reference_poses: reference.len(),
+        frames_used: used.iter().filter(|u| **u).count(),
+        frames_dropped,
+        pairs_fitted: n_fit,
+        max_diff: opts.align.max_diff,
+        offset: opts.align.offset,
+        t_world_slam: TransformReport {
+            quaternion_xyzw: t.quaternion_xyzw(),
+            translation: [t.translation.x, t.translation.y, t.translation.z],
+            scale: t.scale,
+            matrix,
+        },
+        fit_rmse: ta.alignment.rmse,
+        ape: ApeReport {
+            rmse: ta.ape.rmse,
+            mean: ta.ape.mean,
+            median: ta.ape.median,
+            std: ta.ape.std,
+            min: ta.ape.min,
+            max: ta.ape.max,
+        },
+        pairs,
+        points: cloud.len(),
+        timing: Timing {
+            read_s: 0.0,
+            align_s,
+            backproject_s,
+            write_s: 0.0,
+        },
+    };
+    Ok(Conversion {
+        alignment: ta,
+        cloud,
+        slam_trajectory: world_slam,
+        reference: reference.clone(),
+        report,
+    })
+}
+
+/// Reads `path` and converts it; the report's `read_s` is filled in.
+pub fn convert_file(path: impl AsRef<Path>, opts: &ConvertOptions) -> Result<Conversion> {
+    let t = Instant::now();
+    let log = read_mcap(path, &opts.read)?;
+    let read_s = secs(t);
+    let mut c = convert(&log, opts)?;
+    c.report.timing.read_s = read_s;
+    Ok(c)
+}
+
+/// Output file names inside the output folder.
+pub const WORLD_MCAP: &str = "world.mcap";
+/// The world cloud as PLY.
+pub const CLOUD_PLY: &str = "cloud.ply";
+/// The report.
+pub const REPORT_JSON: &str = "report.json";
+
+impl Conversion {
+    /// `T_world_slam`.
+    pub fn transform(&self) -> crate::geometry::Sim3 {
+        self.alignment.alignment.transform
+    }
+
+    /// Writes `world.mcap` (cloud, both trajectories, `world → slam`).
+    pub fn write_world_mcap(&self, path: impl AsRef<Path>, flavor: WorldFlavor) -> Result<()> {
+        let stamp = self
+            .slam_trajectory
+            .timestamps
+            .last()
+            .copied()
+            .unwrap_or(0.0)
+            .max(0.0);
+        let scene = WorldScene {
+            points: &self.cloud.points,
+            colors: self.cloud.colors.as_deref(),
+            t_world_slam: self.transform(),
+            slam_trajectory: Some(&self.slam_trajectory),
+            reference: Some(&self.reference),
+            stamp,
+            world_frame: "world",
+            slam_frame: "slam",
+        };
+        write_world_mcap(path, &scene, flavor)
+    }
+
+    /// Writes the world cloud as binary PLY.
+    pub fn write_ply(&self, path: impl AsRef<Path>) -> Result<()> {
+        crate::io::ply::write_ply(path, &self.cloud)
+    }
+
+    /// Writes `report.json` (through a temporary file, renamed).
+    pub fn write_report(&self, path: impl AsRef<Path>) -> Result<()> {
+        write_json(path.as_ref(), &self.report)
+    }
+
+    /// Writes `world.mcap`, `cloud.ply` and `report.json` into `dir` (created
+    /// when missing); the written report carries the write time. When one fails,
+    /// the outputs written by this call are removed.
+    pub fn write_all(&self, dir: impl AsRef<Path>, flavor: WorldFlavor) -> Result<()> {
+        let dir = dir.as_ref();
+        std::fs::create_dir_all(dir).map_err(|e| Error::io(dir, e))?;
+        let t = Instant::now();
+        let mut written: Vec<PathBuf> = Vec::new();
+        let result = (|| {
+            let p = dir.join(WORLD_MCAP);
+            self.write_world_mcap(&p, flavor)?;
+            written.push(p);
+            let p = dir.join(CLOUD_PLY);
+            self.write_ply(&p)?;
+            written.push(p);
+            let mut report = self.report.clone();
+            report.timing.write_s = secs(t);
+            let p = dir.join(REPORT_JSON);
+            write_json(&p, &report)?;
+            written.push(p);
+            Ok(())
+        })();
+        if result.is_err() {
+            for p in &written {
+                let _ = std::fs::remove_file(p);
+            }
+        }
+        result
+    }
+}
+
+fn write_json(path: &Path, report: &Report) -> Result<()> {
+    let text = serde_json::to_string_pretty(report)
+        .map_err(|e| Error::invalid("report", e.to_string()))?;
+    let dir = match path.parent() {
+        Some(d) if !d.as_os_str().is_empty() => d,
+        _ => Path::new("."),
+    };
+    let mut tmp = tempfile::NamedTempFile::new_in(dir).map_err(|e| Error::io(path, e))?;
+    std::io::Write::write_all(&mut tmp, text.as_bytes()).map_err(|e| Error::io(path, e))?;
+    tmp.persist(path).map_err(|e| Error::io(path, e.error))?;
+    Ok(())
+}
