@@ -11,6 +11,8 @@ use rand_chacha::ChaCha8Rng;
 use slam2world::align::{align, AlignMethod, AlignOptions};
 use slam2world::Sim3;
 
+mod common;
+
 fn pairs(n: usize) -> (Vec<Vector3<f64>>, Vec<Vector3<f64>>) {
     let mut rng = ChaCha8Rng::seed_from_u64(1);
     let t = Sim3::from_quaternion_xyzw([0.1, 0.2, 0.3, 0.9], Vector3::new(1.0, 2.0, 3.0), 15.49)
@@ -30,7 +32,7 @@ fn bench_align(c: &mut Criterion) {
     g.measurement_time(Duration::from_secs(1))
         .warm_up_time(Duration::from_millis(300))
         .sample_size(10);
-    for n in [1_000usize, 10_000, 100_000, 1_000_000, 10_000_000] {
+    for n in common::sizes(&[1_000, 10_000, 100_000, 1_000_000, 10_000_000]) {
         let (a, b) = pairs(n);
         g.throughput(Throughput::Elements(n as u64));
         for (name, method) in [

@@ -344,9 +344,12 @@ def thread_scaling(args: argparse.Namespace, counts: list[int]) -> list[dict[str
         by_count[c] = json.loads(out.read_text())["rows"]
     base = counts[0]
     table = []
+    seen: set[tuple[str, str, int]] = set()
     for i, rec in enumerate(by_count[base]):
-        if "skipped" in rec or not rec.get("parallel"):
+        key = (rec["area"], rec["row"], rec["size"])
+        if "skipped" in rec or not rec.get("parallel") or key in seen:
             continue
+        seen.add(key)
         entry = {"area": rec["area"], "row": rec["row"], "size": rec["size"], "times_s": {}}
         for c in counts:
             entry["times_s"][str(c)] = by_count[c][i].get("ours_s")

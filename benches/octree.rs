@@ -11,6 +11,8 @@ use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 use slam2world::map::{MapParams, OccupancyMap};
 
+mod common;
+
 /// Points where rays from `origin` in random directions meet the room's walls.
 fn room_scan(rng: &mut ChaCha8Rng, origin: [f32; 3], n: usize) -> Vec<f32> {
     let lo = [-10.0f32, -10.0, 0.0];
@@ -46,7 +48,7 @@ fn bench_insert(c: &mut Criterion) {
     if std::env::var_os("S2W_BENCH_1E7").is_some() {
         sizes.push(10_000_000);
     }
-    for n in sizes {
+    for n in common::sizes(&sizes) {
         let mut rng = ChaCha8Rng::seed_from_u64(1);
         let scans: Vec<([f32; 3], Vec<f32>)> = (0..4)
             .map(|k| {

@@ -13,12 +13,14 @@ use nalgebra::Vector3;
 use slam2world::cloud::PointCloud;
 use slam2world::Sim3;
 
+mod common;
+
 fn sizes() -> Vec<usize> {
     let mut s = vec![1_000, 10_000, 100_000, 1_000_000, 10_000_000];
     if std::env::var_os("S2W_BENCH_1E8").is_some() {
         s.push(100_000_000);
     }
-    s
+    common::sizes(&s)
 }
 
 fn bench_transform(c: &mut Criterion) {

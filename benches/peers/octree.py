@@ -80,7 +80,7 @@ def _octomap():  # type: ignore[no-untyped-def]
     return octomap
 
 
-def _case(n: int) -> tuple[Case, object, s2w.OccupancyMap]:
+def _case(n: int) -> Case:
     octomap = _octomap()
     data = scans(n)
     total = sum(len(p) for _, p in data)
@@ -97,7 +97,7 @@ def _case(n: int) -> tuple[Case, object, s2w.OccupancyMap]:
             t.insertPointCloud(pts, origin, maxrange=MAX_RANGE)
         return t
 
-    return Case(ours, peer, total), peer(), ours()
+    return Case(ours, peer, total)
 
 
 @register(
@@ -113,8 +113,7 @@ def _case(n: int) -> tuple[Case, object, s2w.OccupancyMap]:
     issue="#7",
 )
 def _insert(n: int) -> Case:
-    case, _, _ = _case(n)
-    return case
+    return _case(n)
 
 
 @register(
@@ -131,9 +130,11 @@ def _insert(n: int) -> Case:
     issue="#7",
 )
 def _memory(n: int) -> Case:
-    case, ref, ours = _case(n)
+    case = _case(n)
+    assert case.peer is not None
+    ref, ours = case.peer(), case.ours()
     ref_b = ref.memoryUsage() / ref.getNumLeafNodes()  # type: ignore[attr-defined]
-    ours_b = ours.memory_bytes / ours.num_leaf_nodes
+    ours_b = ours.memory_bytes / ours.num_leaf_nodes  # type: ignore[attr-defined]
     return Case(
         case.ours,
         None,
