@@ -22,6 +22,7 @@ pub mod io;
 pub mod keyframe;
 pub mod map;
 pub mod pipeline;
+pub mod sim;
 pub mod trajectory;
 
 #[cfg(feature = "python")]

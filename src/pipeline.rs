@@ -6,7 +6,15 @@
 //! `T_world_slam · T_slam_cam` fused per keyframe. The result carries the
 //! alignment, the world cloud, both trajectories in the world frame and a report
 //! (alignment, residuals, frames used and dropped, timing).
+//!
+//! With [`ConvertOptions::octree_resolution`] set, the world cloud also
+//! becomes an occupancy octree ([`OccupancyMap`], OctoMap semantics): each
+//! keyframe's points are inserted as one scan whose sensor origin is that
+//! keyframe's camera centre in the world frame (the translation of
+//! `T_world_slam · T_slam_cam`); the outputs then include `map.bt` and the
+//! occupied voxels in `world.mcap`.
 
+use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
 use std::time::Instant;
 
@@ -14,7 +22,11 @@ use serde::Serialize;
 
 use crate::cloud::{backproject, PointCloud, PointFilter};
 use crate::error::{Error, Result};
-use crate::io::mcap::{read_mcap, write_world_mcap, Log, ReadOptions, WorldFlavor, WorldScene};
+use crate::geometry::Sim3;
+use crate::io::mcap::{
+    read_mcap, write_world_mcap_with_octomap, Log, ReadOptions, WorldFlavor, WorldScene,
+};
+use crate::map::{MapParams, OccupancyMap, VoxelState};
 use crate::trajectory::{
     align_trajectories, Trajectory, TrajectoryAlignOptions, TrajectoryAlignment,
 };
@@ -29,6 +41,51 @@ pub struct ConvertOptions {
     pub align: TrajectoryAlignOptions,
     /// Which pixels become points (the LSD-SLAM viewer's defaults by default).
     pub filter: PointFilter,
+    /// Voxel edge (metres) of the occupancy octree built from the world cloud;
+    /// `None` builds none.
+    pub octree_resolution: Option<f64>,
+    /// Rays longer than this (metres) only clear space in the octree and mark
+    /// no endpoint; `None` for no limit. Used only with `octree_resolution`.
+    pub octree_max_range: Option<f64>,
+}
+
+impl ConvertOptions {
+    /// The octree's parameters (OctoMap's sensor model defaults), `None` when
+    /// no octree is asked for; checks the resolution and the max range.
+    pub fn octree_params(&self) -> Result<Option<MapParams>> {
+        let Some(resolution) = self.octree_resolution else {
+            return Ok(None);
+        };
+        let params = MapParams {
+            max_range: self.octree_max_range,
+            ..MapParams::new(resolution)
+        };
+        OccupancyMap::try_new(params)?;
+        Ok(Some(params))
+    }
+}
+
+/// What the report says of the octree.
+#[derive(Clone, Debug, Serialize)]
+pub struct OctreeReport {
+    /// Voxel edge length, metres.
+    pub resolution: f64,
+    /// Max range of the rays, metres (`None`: no limit).
+    pub max_range: Option<f64>,
+    /// Scans inserted (keyframes with points).
+    pub scans: usize,
+    /// Points inserted.
+    pub points: usize,
+    /// Occupied leaves (pruned leaves count once).
+    pub leaves_occupied: usize,
+    /// Free leaves (pruned leaves count once).
+    pub leaves_free: usize,
+    /// Nodes of the tree, inner and leaf.
+    pub nodes: usize,
+    /// Heap bytes held by the tree.
+    pub memory_bytes: usize,
+    /// Wall time of the insertion, seconds.
+    pub time_s: f64,
 }
 
 /// `T_world_slam` as the report writes it.
@@ -109,6 +166,9 @@ pub struct Report {
     pub points: usize,
     /// Stage timings.
     pub timing: Timing,
+    /// The occupancy octree, when one was built.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub octree: Option<OctreeReport>,
 }
 
 /// APE statistics, metres.
@@ -141,6 +201,8 @@ pub struct Conversion {
     pub reference: Trajectory,
     /// The report.
     pub report: Report,
+    /// The occupancy octree of the world cloud (world frame), when asked for.
+    pub octree: Option<OccupancyMap>,
 }
 
 fn secs(t: Instant) -> f64 {
@@ -183,6 +245,7 @@ fn mcap_err(path: &Path, reason: String) -> Error {
 /// `max_diff` of a reference pose (naming the file and topics), and the fit's
 /// own errors (fewer than 3 pairs, degenerate motion).
 pub fn convert(log: &Log, opts: &ConvertOptions) -> Result<Conversion> {
+    let octree_params = opts.octree_params()?;
     let kf_topic = log.keyframe_topic.clone().unwrap_or_default();
     if log.keyframes.is_empty() {
         return Err(mcap_err(
@@ -223,6 +286,14 @@ pub fn convert(log: &Log, opts: &ConvertOptions) -> Result<Conversion> {
     let t1 = Instant::now();
     let cloud = backproject(&log.keyframes, &opts.filter, Some(&t))?;
     let backproject_s = secs(t1);
+
+    let (octree, octree_report) = match octree_params {
+        Some(params) => {
+            let (map, report) = build_octree(log, &t, &cloud, params)?;
+            (Some(map), Some(report))
+        }
+        None => (None, None),
+    };
 
     let world_slam = Trajectory::try_new(
         slam.timestamps.clone(),
@@ -302,6 +373,7 @@ pub fn convert(log: &Log, opts: &ConvertOptions) -> Result<Conversion> {
             backproject_s,
             write_s: 0.0,
         },
+        octree: octree_report,
     };
     Ok(Conversion {
         alignment: ta,
@@ -309,11 +381,54 @@ pub fn convert(log: &Log, opts: &ConvertOptions) -> Result<Conversion> {
         slam_trajectory: world_slam,
         reference: reference.clone(),
         report,
+        octree,
     })
+}
+
+/// Camera centres of the keyframes in the world frame (metres), by id: the
+/// translation of `T_world_slam · T_slam_cam`.
+pub fn camera_centers(log: &Log, t_world_slam: &Sim3) -> BTreeMap<i32, [f32; 3]> {
+    log.keyframes
+        .iter()
+        .map(|kf| {
+            let c = t_world_slam.transform_point(&kf.pose.translation);
+            (kf.id, [c.x as f32, c.y as f32, c.z as f32])
+        })
+        .collect()
+}
+
+/// Inserts the world cloud keyframe by keyframe, each from its camera centre.
+fn build_octree(
+    log: &Log,
+    t_world_slam: &Sim3,
+    cloud: &PointCloud,
+    params: MapParams,
+) -> Result<(OccupancyMap, OctreeReport)> {
+    let t = Instant::now();
+    let mut map = OccupancyMap::try_new(params)?;
+    let origins = camera_centers(log, t_world_slam);
+    map.insert_keyframes(&cloud.points, &cloud.keyframe_ids, &origins)?;
+    let time_s = secs(t);
+    let mut scans: Vec<i32> = cloud.keyframe_ids.clone();
+    scans.sort_unstable();
+    scans.dedup();
+    let report = OctreeReport {
+        resolution: params.resolution,
+        max_range: params.max_range,
+        scans: scans.len(),
+        points: cloud.len(),
+        leaves_occupied: map.leaves(VoxelState::Occupied).len(),
+        leaves_free: map.leaves(VoxelState::Free).len(),
+        nodes: map.num_nodes(),
+        memory_bytes: map.memory_bytes(),
+        time_s,
+    };
+    Ok((map, report))
 }
 
 /// Reads `path` and converts it; the report's `read_s` is filled in.
 pub fn convert_file(path: impl AsRef<Path>, opts: &ConvertOptions) -> Result<Conversion> {
+    opts.octree_params()?;
     let t = Instant::now();
     let log = read_mcap(path, &opts.read)?;
     let read_s = secs(t);
@@ -328,6 +443,8 @@ pub const WORLD_MCAP: &str = "world.mcap";
 pub const CLOUD_PLY: &str = "cloud.ply";
 /// The report.
 pub const REPORT_JSON: &str = "report.json";
+/// The occupancy octree (OctoMap binary), written when the conversion has one.
+pub const MAP_BT: &str = "map.bt";
 
 impl Conversion {
     /// `T_world_slam`.
@@ -335,7 +452,8 @@ impl Conversion {
         self.alignment.alignment.transform
     }
 
-    /// Writes `world.mcap` (cloud, both trajectories, `world → slam`).
+    /// Writes `world.mcap` (cloud, both trajectories, `world → slam`, and the
+    /// occupied voxels of the octree when there is one).
     pub fn write_world_mcap(&self, path: impl AsRef<Path>, flavor: WorldFlavor) -> Result<()> {
         let stamp = self
             .slam_trajectory
@@ -354,7 +472,20 @@ impl Conversion {
             world_frame: "world",
             slam_frame: "slam",
         };
-        write_world_mcap(path, &scene, flavor)
+        let leaves = self.octree.as_ref().map(|m| m.leaves(VoxelState::Occupied));
+        write_world_mcap_with_octomap(path, &scene, leaves.as_deref(), flavor)
+    }
+
+    /// Writes the octree as an OctoMap `.bt` file (through a temporary file,
+    /// renamed). Error when the conversion has no octree.
+    pub fn write_bt(&self, path: impl AsRef<Path>) -> Result<()> {
+        match &self.octree {
+            Some(m) => m.write_bt(path.as_ref()),
+            None => Err(Error::invalid(
+                "octree",
+                "the conversion has no octree (convert with an octree resolution)",
+            )),
+        }
     }
 
     /// Writes the world cloud as binary PLY.
@@ -367,8 +498,8 @@ impl Conversion {
         write_json(path.as_ref(), &self.report)
     }
 
-    /// Writes `world.mcap`, `cloud.ply` and `report.json` into `dir` (created
-    /// when missing); the written report carries the write time. When one fails,
+    /// Writes `world.mcap`, `cloud.ply`, `report.json` and, with an octree,
+    /// `map.bt` into `dir` (created when missing); the written report carries the write time. When one fails,
     /// the outputs written by this call are removed.
     pub fn write_all(&self, dir: impl AsRef<Path>, flavor: WorldFlavor) -> Result<()> {
         let dir = dir.as_ref();
@@ -382,6 +513,11 @@ impl Conversion {
             let p = dir.join(CLOUD_PLY);
             self.write_ply(&p)?;
             written.push(p);
+            if self.octree.is_some() {
+                let p = dir.join(MAP_BT);
+                self.write_bt(&p)?;
+                written.push(p);
+            }
             let mut report = self.report.clone();
             report.timing.write_s = secs(t);
             let p = dir.join(REPORT_JSON);
@@ -401,12 +537,5 @@ impl Conversion {
 fn write_json(path: &Path, report: &Report) -> Result<()> {
     let text = serde_json::to_string_pretty(report)
         .map_err(|e| Error::invalid("report", e.to_string()))?;
-    let dir = match path.parent() {
-        Some(d) if !d.as_os_str().is_empty() => d,
-        _ => Path::new("."),
-    };
-    let mut tmp = tempfile::NamedTempFile::new_in(dir).map_err(|e| Error::io(path, e))?;
-    std::io::Write::write_all(&mut tmp, text.as_bytes()).map_err(|e| Error::io(path, e))?;
-    tmp.persist(path).map_err(|e| Error::io(path, e.error))?;
-    Ok(())
+    crate::io::atomic::write_bytes_atomic(path, text.as_bytes())
 }

@@ -187,3 +187,223 @@ fn cli_convert_writes_outputs_and_fails_cleanly() {
     // Usage error: exit 2.
     assert_eq!(run(&[bad.to_str().unwrap()]), 2);
 }
+
+/// A cube's centre and size (metres).
+type Cube = ([f64; 3], [f64; 3]);
+
+/// The `(centre, size)` of every cube of a `foxglove.SceneUpdate`, and the
+/// number of entities it holds.
+fn scene_update_cubes(data: &[u8]) -> (usize, Vec<Cube>) {
+    use slam2world::io::mcap::wire::pb_fields;
+    let fields = |b: &[u8]| -> Vec<(u32, Vec<u8>, u64)> {
+        pb_fields(b)
+            .map(|f| {
+                let (n, v) = f.unwrap();
+                match v.as_bytes() {
+                    Ok(b) => (n, b.to_vec(), 0),
+                    Err(_) => (n, Vec::new(), v.as_u64().unwrap()),
+                }
+            })
+            .collect()
+    };
+    let vec3 = |b: &[u8]| {
+        let mut v = [0.0; 3];
+        for (n, _, bits) in fields(b) {
+            v[n as usize - 1] = f64::from_bits(bits);
+        }
+        v
+    };
+    let mut entities = 0;
+    let mut cubes = Vec::new();
+    for (n, entity, _) in fields(data) {
+        assert_eq!(n, 2, "a SceneUpdate holds entities only");
+        entities += 1;
+        for (n, cube, _) in fields(&entity) {
+            if n != 8 {
+                continue;
+            }
+            let (mut centre, mut size) = ([f64::NAN; 3], [f64::NAN; 3]);
+            for (n, b, _) in fields(&cube) {
+                match n {
+                    1 => {
+                        for (n, b, _) in fields(&b) {
+                            if n == 1 {
+                                centre = vec3(&b);
+                            }
+                        }
+                    }
+                    2 => size = vec3(&b),
+                    _ => {}
+                }
+            }
+            cubes.push((centre, size));
+        }
+    }
+    (entities, cubes)
+}
+
+#[test]
+fn convert_with_an_octree_writes_map_bt_and_the_occupied_voxels() {
+    use slam2world::io::mcap::WorldFlavor;
+    use slam2world::map::{MapParams, OccupancyMap, VoxelState};
+    let dir = tempfile::tempdir().unwrap();
+    let path = write_log(dir.path());
+    let res = 0.2;
+    let o = ConvertOptions {
+        octree_resolution: Some(res),
+        ..opts()
+    };
+    let c = convert_file(&path, &o).unwrap();
+    let map = c.octree.as_ref().expect("an octree");
+    assert_eq!(map.resolution(), res);
+
+    // The same map, built here scan by scan from the camera centres
+    // T_world_slam · T_slam_cam of the fitted transform.
+    let log = slam2world::io::mcap::read_mcap(&path, &Default::default()).unwrap();
+    let t = c.transform();
+    let mut want = OccupancyMap::try_new(MapParams::new(res)).unwrap();
+    for kf in &log.keyframes {
+        let pts: Vec<f32> = c
+            .cloud
+            .points
+            .chunks_exact(3)
+            .zip(&c.cloud.keyframe_ids)
+            .filter(|(_, id)| **id == kf.id)
+            .flat_map(|(p, _)| p.iter().copied())
+            .collect();
+        let o = (t * kf.pose).translation;
+        want.insert_scan(&pts, [o.x as f32, o.y as f32, o.z as f32])
+            .unwrap();
+    }
+    assert!(*map == want, "the octree differs from scan-wise insertion");
+
+    // Occupied voxels are where the converted points are: each holds a point,
+    // and most points lie in an occupied voxel.
+    let point_keys: std::collections::HashSet<_> = c
+        .cloud
+        .points
+        .chunks_exact(3)
+        .map(|p| map.key_of([p[0] as f64, p[1] as f64, p[2] as f64]).unwrap())
+        .collect();
+    let occupied = map.voxel_centers(VoxelState::Occupied);
+    assert!(occupied.len() > 50, "{} occupied voxels", occupied.len());
+    for v in &occupied {
+        assert!(point_keys.contains(&map.key_of(*v).unwrap()), "{v:?}");
+    }
+    let in_occupied = c
+        .cloud
+        .points
+        .chunks_exact(3)
+        .filter(|p| map.state([p[0] as f64, p[1] as f64, p[2] as f64]) == VoxelState::Occupied)
+        .count();
+    assert!(
+        2 * in_occupied > c.cloud.len(),
+        "{in_occupied} of {} points in occupied voxels",
+        c.cloud.len()
+    );
+    // Free space between the cameras and the points.
+    assert!(!map.voxel_centers(VoxelState::Free).is_empty());
+
+    // The report's section.
+    let leaves = map.leaves(VoxelState::Occupied);
+    let r = c.report.octree.as_ref().unwrap();
+    assert_eq!(r.leaves_occupied, leaves.len());
+    assert_eq!(r.leaves_free, map.leaves(VoxelState::Free).len());
+    assert_eq!((r.scans, r.points), (8, c.cloud.len()));
+    assert!(r.memory_bytes > 0 && r.nodes == map.num_nodes());
+
+    // The CLI writes map.bt, which reads back with the same classification.
+    let out = dir.path().join("out");
+    let run = |args: &[&str]| {
+        let mut v = vec!["slam2world", "convert", path.to_str().unwrap(), "-q"];
+        v.extend_from_slice(args);
+        slam2world::cli::main_with_args(v)
+    };
+    let code = run(&[
+        "-o",
+        out.to_str().unwrap(),
+        "--no-filter",
+        "--octree",
+        "0.2",
+    ]);
+    assert_eq!(code, 0);
+    let back = OccupancyMap::read_bt(&out.join("map.bt"), MapParams::new(1.0)).unwrap();
+    assert_eq!(back.resolution(), res);
+    let key_set = |m: &OccupancyMap, s| {
+        let mut k: Vec<_> = m
+            .voxel_centers(s)
+            .into_iter()
+            .map(|p| m.key_of(p).unwrap())
+            .collect();
+        k.sort_unstable();
+        k
+    };
+    for s in [VoxelState::Occupied, VoxelState::Free] {
+        assert_eq!(key_set(&back, s), key_set(map, s), "{s:?}");
+    }
+    let report: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(out.join("report.json")).unwrap()).unwrap();
+    assert_eq!(report["octree"]["resolution"], 0.2);
+    assert_eq!(report["octree"]["leaves_occupied"], leaves.len());
+
+    // world.mcap: one SceneUpdate whose cubes are the occupied leaves.
+    let world = McapFile::open(out.join("world.mcap")).unwrap();
+    let scan = world
+        .scan(|ch| ch.schema_name == "foxglove.SceneUpdate")
+        .unwrap();
+    let ch: Vec<_> = scan
+        .channels
+        .values()
+        .filter(|ch| ch.schema_name == "foxglove.SceneUpdate")
+        .collect();
+    assert_eq!(ch.len(), 1);
+    assert_eq!(
+        (ch[0].topic.as_str(), ch[0].message_encoding.as_str()),
+        ("/slam2world/octomap", "protobuf")
+    );
+    assert_eq!(scan.len(), 1);
+    let (entities, cubes) = scene_update_cubes(scan.get(0).unwrap().data);
+    assert_eq!(entities, 1);
+    assert_eq!(cubes.len(), leaves.len());
+    let mut got: Vec<_> = cubes
+        .iter()
+        .map(|(c, s)| {
+            assert!(s[0] == s[1] && s[1] == s[2], "{s:?}");
+            (map.key_of(*c).unwrap(), s[0])
+        })
+        .collect();
+    let mut expected: Vec<_> = leaves
+        .iter()
+        .map(|(c, s)| (map.key_of(*c).unwrap(), *s))
+        .collect();
+    got.sort_by(|a, b| a.partial_cmp(b).unwrap());
+    expected.sort_by(|a, b| a.partial_cmp(b).unwrap());
+    assert_eq!(got, expected);
+
+    // The ROS 2 flavour carries the leaf centres as a PointCloud2.
+    let out_ros2 = dir.path().join("out_ros2");
+    c.write_all(&out_ros2, WorldFlavor::Ros2).unwrap();
+    let world = McapFile::open(out_ros2.join("world.mcap")).unwrap();
+    assert!(world
+        .channels()
+        .unwrap()
+        .values()
+        .any(|ch| ch.topic == "/slam2world/octomap"
+            && ch.schema_name == "sensor_msgs/msg/PointCloud2"));
+    assert!(out_ros2.join("map.bt").exists());
+
+    // Bad octree arguments: a bad resolution is a core error (exit 1, nothing
+    // written); a max range without --octree is a usage error (exit 2).
+    let out2 = dir.path().join("out2");
+    assert_eq!(run(&["-o", out2.to_str().unwrap(), "--octree", "0"]), 1);
+    assert_eq!(run(&["-o", out2.to_str().unwrap(), "--octree", "-1"]), 1);
+    assert!(!out2.exists());
+    assert_eq!(
+        run(&["-o", out2.to_str().unwrap(), "--octree-max-range", "5"]),
+        2
+    );
+    // Without an octree there is no map.bt and no octree section.
+    let none = convert_file(&path, &opts()).unwrap();
+    assert!(none.octree.is_none() && none.report.octree.is_none());
+    assert!(none.write_bt(dir.path().join("x.bt")).is_err());
+}

@@ -1,5 +1,6 @@
 """Console script: the same command line as the ``slam2world`` binary."""
 
+import os
 import sys
 
 from slam2world._slam2world import run_cli
@@ -7,6 +8,8 @@ from slam2world._slam2world import run_cli
 
 def main() -> None:
     """Runs ``slam2world`` with ``sys.argv`` and exits with its code."""
+    # `slam2world demo` draws its figures with this interpreter (matplotlib, slam2world.plot).
+    os.environ.setdefault("SLAM2WORLD_PYTHON", sys.executable)
     sys.exit(run_cli(["slam2world", *sys.argv[1:]]))
 
 

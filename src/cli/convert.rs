@@ -1,4 +1,6 @@
-//! `slam2world convert LOG.mcap -o OUTDIR`: `world.mcap`, `cloud.ply`, `report.json`.
+//! `slam2world convert LOG.mcap -o OUTDIR`: `world.mcap`, `cloud.ply`, `report.json`,
+//! and with `--octree RES` the occupancy map `map.bt` (its occupied voxels also
+//! in `world.mcap`).
 
 use std::path::PathBuf;
 use std::time::Instant;
@@ -9,7 +11,7 @@ use indicatif::{ProgressBar, ProgressDrawTarget, ProgressStyle};
 use crate::cloud::PointFilter;
 use crate::error::Result;
 use crate::io::mcap::{read_mcap, ReadOptions, WorldFlavor};
-use crate::pipeline::{convert, ConvertOptions, CLOUD_PLY, REPORT_JSON, WORLD_MCAP};
+use crate::pipeline::{convert, ConvertOptions, CLOUD_PLY, MAP_BT, REPORT_JSON, WORLD_MCAP};
 use crate::trajectory::TrajectoryAlignOptions;
 
 /// Arguments of `convert`.
@@ -47,6 +49,18 @@ pub struct ConvertArgs {
     /// Keep every pixel with a positive inverse depth (no viewer filters).
     #[arg(long)]
     pub no_filter: bool,
+    /// Build an occupancy octree with this voxel edge (metres): writes `map.bt`
+    /// (OctoMap) and the occupied voxels into `world.mcap`.
+    #[arg(long, value_name = "RES", allow_hyphen_values = true)]
+    pub octree: Option<f64>,
+    /// Octree rays longer than this (metres) only clear space.
+    #[arg(
+        long,
+        value_name = "M",
+        requires = "octree",
+        allow_hyphen_values = true
+    )]
+    pub octree_max_range: Option<f64>,
     /// Write ROS 2 PointCloud2 + TFMessage instead of Foxglove schemas.
     #[arg(long)]
     pub ros2: bool,
@@ -87,13 +101,21 @@ pub fn run(args: &ConvertArgs) -> Result<()> {
         } else {
             PointFilter::default()
         },
+        octree_resolution: args.octree,
+        octree_max_range: args.octree_max_range,
     };
+    // Bad octree parameters fail before the log is read.
+    opts.octree_params()?;
     bar.set_message("reading the log");
     let t = Instant::now();
     let log = read_mcap(&args.log, &opts.read)?;
     let read_s = t.elapsed().as_secs_f64();
     bar.inc(1);
-    bar.set_message("aligning and backprojecting");
+    bar.set_message(if opts.octree_resolution.is_some() {
+        "aligning, backprojecting and building the octree"
+    } else {
+        "aligning and backprojecting"
+    });
     let mut c = convert(&log, &opts)?;
     c.report.timing.read_s = read_s;
     bar.inc(2);
@@ -124,8 +146,22 @@ pub fn run(args: &ConvertArgs) -> Result<()> {
             "APE rmse {:.4} m (mean {:.4}, max {:.4}); {} points",
             r.ape.rmse, r.ape.mean, r.ape.max, r.points
         );
+        if let Some(o) = &r.octree {
+            println!(
+                "octree {} m: {} occupied and {} free leaves, {} nodes, {:.1} MiB, {:.3} s",
+                o.resolution,
+                o.leaves_occupied,
+                o.leaves_free,
+                o.nodes,
+                o.memory_bytes as f64 / (1024.0 * 1024.0),
+                o.time_s
+            );
+        }
         for name in [WORLD_MCAP, CLOUD_PLY, REPORT_JSON] {
             println!("wrote {}", args.output.join(name).display());
+        }
+        if c.octree.is_some() {
+            println!("wrote {}", args.output.join(MAP_BT).display());
         }
     }
     Ok(())

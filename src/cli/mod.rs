@@ -10,6 +10,7 @@ use clap::{Parser, Subcommand};
 pub mod align;
 pub mod convert;
 pub mod inspect;
+pub mod sim;
 pub mod transform_cloud;
 
 use crate::error::Result;
@@ -30,6 +31,12 @@ enum Command {
     Convert(convert::ConvertArgs),
     /// List the topics of an MCAP log and what slam2world can use.
     Inspect(inspect::InspectArgs),
+    /// Simulate the paper's experiment and write the LSD-SLAM log (MCAP) and its truth.
+    Simulate(sim::SimulateArgs),
+    /// Score a converted cloud and T_world_slam against a simulation's truth.
+    Evaluate(sim::EvaluateArgs),
+    /// Simulate the paper-size run, convert, score, write outputs and figures.
+    Demo(sim::DemoArgs),
     /// Align EST to REF and carry a SLAM-frame point cloud (PLY or x y z text) into the world frame.
     TransformCloud(transform_cloud::TransformCloudArgs),
 }
@@ -39,6 +46,9 @@ fn run(cli: Cli) -> Result<()> {
         Command::Align(args) => align::run(args),
         Command::Convert(args) => convert::run(&args),
         Command::Inspect(args) => inspect::run(&args),
+        Command::Simulate(args) => sim::run_simulate(&args),
+        Command::Evaluate(args) => sim::run_evaluate(&args),
+        Command::Demo(args) => sim::run_demo(&args),
         Command::TransformCloud(args) => transform_cloud::run(args),
     }
 }

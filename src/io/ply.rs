@@ -60,42 +60,36 @@ pub fn write_ply_parts(path: &Path, points: &[f32], colors: Option<&[u8]>) -> Re
     header.push_str("end_header\n");
     let stride = if colors.is_some() { 15 } else { 12 };
 
-    let dir = match path.parent() {
-        Some(d) if !d.as_os_str().is_empty() => d,
-        _ => Path::new("."),
-    };
-    let tmp = tempfile::NamedTempFile::new_in(dir).map_err(|e| Error::io(dir, e))?;
-    let mut w = BufWriter::with_capacity(1 << 20, tmp);
     let io_err = |e| Error::io(path, e);
-    w.write_all(header.as_bytes()).map_err(io_err)?;
-    // Encode blocks of vertices in parallel, a batch of blocks at a time, and
-    // write them in order.
-    let batch = VERTICES_PER_TASK * rayon::current_num_threads().max(1);
-    let mut buf = Vec::new();
-    for start in (0..n).step_by(batch) {
-        let end = (start + batch).min(n);
-        buf.clear();
-        buf.resize((end - start) * stride, 0u8);
-        buf.par_chunks_mut(VERTICES_PER_TASK * stride)
-            .enumerate()
-            .for_each(|(b, out)| {
-                let first = start + b * VERTICES_PER_TASK;
-                for (j, v) in out.chunks_exact_mut(stride).enumerate() {
-                    let i = first + j;
-                    for k in 0..3 {
-                        v[4 * k..4 * k + 4].copy_from_slice(&points[3 * i + k].to_le_bytes());
+    crate::io::atomic::write_atomic(path, |file| {
+        let mut w = BufWriter::with_capacity(1 << 20, file);
+        w.write_all(header.as_bytes()).map_err(io_err)?;
+        // Encode blocks of vertices in parallel, a batch of blocks at a time, and
+        // write them in order.
+        let batch = VERTICES_PER_TASK * rayon::current_num_threads().max(1);
+        let mut buf = Vec::new();
+        for start in (0..n).step_by(batch) {
+            let end = (start + batch).min(n);
+            buf.clear();
+            buf.resize((end - start) * stride, 0u8);
+            buf.par_chunks_mut(VERTICES_PER_TASK * stride)
+                .enumerate()
+                .for_each(|(b, out)| {
+                    let first = start + b * VERTICES_PER_TASK;
+                    for (j, v) in out.chunks_exact_mut(stride).enumerate() {
+                        let i = first + j;
+                        for k in 0..3 {
+                            v[4 * k..4 * k + 4].copy_from_slice(&points[3 * i + k].to_le_bytes());
+                        }
+                        if let Some(c) = colors {
+                            v[12..15].copy_from_slice(&c[3 * i..3 * i + 3]);
+                        }
                     }
-                    if let Some(c) = colors {
-                        v[12..15].copy_from_slice(&c[3 * i..3 * i + 3]);
-                    }
-                }
-            });
-        w.write_all(&buf).map_err(io_err)?;
-    }
-    let tmp = w.into_inner().map_err(|e| io_err(e.into_error()))?;
-    tmp.as_file().sync_all().map_err(io_err)?;
-    tmp.persist(path).map_err(|e| io_err(e.error))?;
-    Ok(())
+                });
+            w.write_all(&buf).map_err(io_err)?;
+        }
+        w.flush().map_err(io_err)
+    })
 }
 
 /// Scalar types of PLY properties.

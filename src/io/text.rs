@@ -159,13 +159,8 @@ pub fn read_euroc(path: &Path) -> Result<Trajectory> {
 /// without orientation get the identity quaternion.
 pub fn write_tum(traj: &Trajectory, path: &Path) -> Result<()> {
     traj.check_lengths()?;
-    let dir = match path.parent() {
-        Some(d) if !d.as_os_str().is_empty() => d,
-        _ => Path::new("."),
-    };
-    let mut tmp = tempfile::NamedTempFile::new_in(dir).map_err(|e| Error::io(dir, e))?;
-    {
-        let mut w = std::io::BufWriter::new(tmp.as_file_mut());
+    crate::io::atomic::write_atomic(path, |file| {
+        let mut w = std::io::BufWriter::new(file);
         let io = |e| Error::io(path, e);
         writeln!(w, "# timestamp tx ty tz qx qy qz qw").map_err(io)?;
         for i in 0..traj.len() {
@@ -181,8 +176,6 @@ pub fn write_tum(traj: &Trajectory, path: &Path) -> Result<()> {
             )
             .map_err(io)?;
         }
-        w.flush().map_err(io)?;
-    }
-    tmp.persist(path).map_err(|e| Error::io(path, e.error))?;
-    Ok(())
+        w.flush().map_err(io)
+    })
 }

@@ -7,13 +7,13 @@
 //! `id OcTree`, `size N`, `res R`, `data`), then the nodes depth-first in
 //! child order `x + 2y + 4z`.
 
-use std::io::Write;
 use std::path::Path;
 
 use super::key::TREE_DEPTH;
 use super::tree::{max_child, Node, Tree, LEAF};
 use super::{MapParams, OccupancyMap, OCCUPIED_LOGODDS};
 use crate::error::{Error, Result};
+use crate::io::atomic::write_bytes_atomic;
 
 const BT_HEADER: &str = "# Octomap OcTree binary file";
 const OT_HEADER: &str = "# Octomap OcTree file";
@@ -71,18 +71,6 @@ fn header(first: &str, size: usize, res: f64) -> String {
     )
 }
 
-/// Writes `bytes` to `path` through a temporary file in the same folder.
-fn write_atomic(path: &Path, bytes: &[u8]) -> Result<()> {
-    let dir = match path.parent() {
-        Some(d) if !d.as_os_str().is_empty() => d,
-        _ => Path::new("."),
-    };
-    let mut tmp = tempfile::NamedTempFile::new_in(dir).map_err(|e| Error::io(path, e))?;
-    tmp.write_all(bytes).map_err(|e| Error::io(path, e))?;
-    tmp.persist(path).map_err(|e| Error::io(path, e.error))?;
-    Ok(())
-}
-
 impl OccupancyMap {
     /// The tree OctoMap's `writeBinary` would store: every node set to its
     /// maximum-likelihood log-odds (`clamp_max` if occupied else `clamp_min`),
@@ -132,7 +120,7 @@ impl OccupancyMap {
     /// Writes an OctoMap `.bt` file (maximum-likelihood occupancy: free,
     /// occupied or unknown per voxel). The map itself is not changed.
     pub fn write_bt(&self, path: &Path) -> Result<()> {
-        write_atomic(path, &self.to_bt_bytes())
+        write_bytes_atomic(path, &self.to_bt_bytes())
     }
 
     /// The `.ot` file content (OctoMap full format, log-odds per node).
@@ -149,7 +137,7 @@ impl OccupancyMap {
 
     /// Writes an OctoMap `.ot` file (every node's `f32` log-odds).
     pub fn write_ot(&self, path: &Path) -> Result<()> {
-        write_atomic(path, &self.to_ot_bytes())
+        write_bytes_atomic(path, &self.to_ot_bytes())
     }
 
     /// Reads an OctoMap `.bt` file. Leaves get the clamping log-odds of

@@ -289,6 +289,13 @@ impl PyOccupancyMap {
     }
 }
 
+impl PyOccupancyMap {
+    /// Wraps a map built in Rust (e.g. by `convert`).
+    pub(crate) fn from_core(inner: OccupancyMap) -> Self {
+        PyOccupancyMap { inner }
+    }
+}
+
 /// Reads an OctoMap `.bt` file.
 #[pyfunction(name = "read_bt")]
 fn read_bt(py: Python<'_>, path: PathBuf) -> PyResult<PyOccupancyMap> {

@@ -11,6 +11,7 @@ use super::cloud::{PyKeyframe, PyPointCloud, PyPointFilter};
 use super::convert::to_array2;
 use super::core::{PyTrajectory, PyTrajectoryAlignment};
 use super::geometry::PySim3;
+use super::map::PyOccupancyMap;
 use crate::geometry::Sim3;
 use crate::io::mcap::{self as io_mcap, ReadOptions, WorldFlavor, WorldScene};
 use crate::pipeline::{self, ConvertOptions};
@@ -261,6 +262,21 @@ impl PyConversion {
         py.detach(|| self.inner.write_world_mcap(&path, flavor_of(ros2)))?;
         Ok(())
     }
+    /// The occupancy octree of the world cloud (world frame), or None when
+    /// `convert` was not given `octree_resolution`. Each access returns a new
+    /// copy: changing it does not change what `write_bt` / `write_all` write.
+    #[getter]
+    fn octree(&self) -> Option<PyOccupancyMap> {
+        self.inner
+            .octree
+            .as_ref()
+            .map(|m| PyOccupancyMap::from_core(m.clone()))
+    }
+    /// Writes the octree as an OctoMap `.bt` file; InvalidInputError without one.
+    fn write_bt(&self, py: Python<'_>, path: PathBuf) -> PyResult<()> {
+        py.detach(|| self.inner.write_bt(&path))?;
+        Ok(())
+    }
     /// Writes the world cloud as binary PLY.
     fn write_ply(&self, py: Python<'_>, path: PathBuf) -> PyResult<()> {
         py.detach(|| self.inner.write_ply(&path))?;
@@ -271,7 +287,8 @@ impl PyConversion {
         py.detach(|| self.inner.write_report(&path))?;
         Ok(())
     }
-    /// Writes `world.mcap`, `cloud.ply` and `report.json` into `directory`.
+    /// Writes `world.mcap`, `cloud.ply`, `report.json` and, with an octree,
+    /// `map.bt` into `directory`.
     #[pyo3(signature = (directory, *, ros2=false))]
     fn write_all(&self, py: Python<'_>, directory: PathBuf, ros2: bool) -> PyResult<()> {
         py.detach(|| self.inner.write_all(&directory, flavor_of(ros2)))?;
@@ -281,9 +298,11 @@ impl PyConversion {
 
 /// Aligns a log's keyframes with its reference and builds the world cloud.
 /// `log_or_path` is a `Log` or a path (read with the topic arguments);
-/// `filter=None` means the LSD-SLAM viewer's defaults.
+/// `filter=None` means the LSD-SLAM viewer's defaults. `octree_resolution`
+/// (metres) also builds the occupancy octree, each keyframe's points inserted
+/// from its camera centre; `octree_max_range` (metres) truncates its rays.
 #[pyfunction(name = "convert")]
-#[pyo3(signature = (log_or_path, *, keyframe_topic=None, graph_topic=None, pose_topic=None, tf_parent=None, tf_child=None, max_diff=0.01, offset=0.0, n_to_align=None, scale=true, filter=None))]
+#[pyo3(signature = (log_or_path, *, keyframe_topic=None, graph_topic=None, pose_topic=None, tf_parent=None, tf_child=None, max_diff=0.01, offset=0.0, n_to_align=None, scale=true, filter=None, octree_resolution=None, octree_max_range=None))]
 #[allow(clippy::too_many_arguments)]
 fn convert_py(
     py: Python<'_>,
@@ -298,6 +317,8 @@ fn convert_py(
     n_to_align: Option<usize>,
     scale: bool,
     filter: Option<PyRef<'_, PyPointFilter>>,
+    octree_resolution: Option<f64>,
+    octree_max_range: Option<f64>,
 ) -> PyResult<PyConversion> {
     let opts = ConvertOptions {
         read: ReadOptions {
@@ -316,6 +337,8 @@ fn convert_py(
             ..TrajectoryAlignOptions::default()
         },
         filter: filter.map(|f| f.inner).unwrap_or_default(),
+        octree_resolution,
+        octree_max_range,
     };
     let conversion = if let Ok(log) = log_or_path.cast::<PyLog>() {
         let log = log.get();

@@ -11,12 +11,14 @@ mod errors;
 mod geometry;
 mod map;
 mod mcap;
+mod sim;
 
 #[pymodule]
 fn _slam2world(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add("__version__", env!("CARGO_PKG_VERSION"))?;
     errors::register(m)?;
     geometry::register(m)?;
+    sim::register(m)?;
     map::register(m)?;
     core::register(m)?;
     cloud::register(m)?;

@@ -422,16 +422,19 @@ def _rot(q: np.ndarray) -> np.ndarray:
     )
 
 
-def test_convert_writes_a_world_the_python_reader_decodes(tmp_path: Path) -> None:
-    """An LSD-SLAM log written with mcap-ros1-support, its reference made with a known
-    T_world_slam: convert recovers it and world.mcap holds the world points."""
+S_TRUE, R_TRUE, T_TRUE = 2.0, _rot(np.array([0.1, -0.3, 0.4, 0.85])), np.array([1.0, -2.0, 0.5])
+
+
+def _write_aligned_lsd_log(path: Path) -> np.ndarray:
+    """An LSD-SLAM log written with mcap-ros1-support (8 keyframes on /lsd_slam/keyframes),
+    its reference on /mocap/pose made with T_world_slam = (S_TRUE, R_TRUE, T_TRUE).
+    Returns the expected world points (every pixel with a depth, keyframe order)."""
     rng = np.random.default_rng(21)
-    s_true, r_true, t_true = 2.0, _rot(np.array([0.1, -0.3, 0.4, 0.85])), np.array([1.0, -2.0, 0.5])
+    s_true, r_true, t_true = S_TRUE, R_TRUE, T_TRUE
     Kf = _cls("lsd_slam_viewer/keyframeMsg", KEYFRAME_MSG)
     Pose = _cls("geometry_msgs/PoseStamped", POSE_STAMPED)
     fx, fy, cx, cy = 5.0, 5.0, 2.5, 1.5
     expected = []
-    path = tmp_path / "lsd.mcap"
     with open(path, "wb") as f:
         w = Ros1Writer(f)
         for i in range(8):
@@ -477,11 +480,18 @@ def test_convert_writes_a_world_the_python_reader_decodes(tmp_path: Path) -> Non
             p_slam = s_kf * p_cam @ r_kf.T + tr.astype(np.float64)
             expected.append(s_true * p_slam @ r_true.T + t_true)
         w.finish()
-    want = np.concatenate(expected)
+    return np.concatenate(expected)
+
+
+def test_convert_writes_a_world_the_python_reader_decodes(tmp_path: Path) -> None:
+    """An LSD-SLAM log written with mcap-ros1-support, its reference made with a known
+    T_world_slam: convert recovers it and world.mcap holds the world points."""
+    path = tmp_path / "lsd.mcap"
+    want = _write_aligned_lsd_log(path)
 
     conv = s2w.convert(path, filter=s2w.PointFilter.none())
-    assert conv.transform.scale == pytest.approx(s_true, rel=1e-5)
-    np.testing.assert_allclose(conv.transform.rotation, r_true, atol=1e-5)
+    assert conv.transform.scale == pytest.approx(S_TRUE, rel=1e-5)
+    np.testing.assert_allclose(conv.transform.rotation, R_TRUE, atol=1e-5)
     assert conv.report["frames_used"] == 8
     assert conv.report["reference_topic"] == "/mocap/pose"
     assert conv.cloud.points.shape == want.shape
@@ -507,3 +517,82 @@ def test_convert_writes_a_world_the_python_reader_decodes(tmp_path: Path) -> Non
     assert len(s2w.convert(log, filter=s2w.PointFilter.none()).cloud.points) == len(want)
     with pytest.raises(s2w.FormatError, match="/mocap/pose"):
         s2w.convert(log, offset=100.0)
+
+
+def _sorted_rows(a: np.ndarray) -> np.ndarray:
+    return a[np.lexsort(a.T[::-1])]
+
+
+def test_convert_with_an_octree_writes_cubes_and_a_bt_octomap_reads(tmp_path: Path) -> None:
+    """convert(octree_resolution=0.1): the SceneUpdate in world.mcap decodes (protobuf) to
+    one cube per occupied leaf with the leaf's size; octomap-python reads map.bt."""
+    octomap = pytest.importorskip("octomap")
+    path = tmp_path / "lsd.mcap"
+    want = _write_aligned_lsd_log(path)
+    conv = s2w.convert(path, filter=s2w.PointFilter.none(), octree_resolution=0.1)
+    m = conv.octree
+    assert isinstance(m, s2w.OccupancyMap)
+    assert m.resolution == 0.1
+    centres, sizes = m.occupied_leaves()
+    assert len(centres) > 20
+    report = conv.report["octree"]
+    assert report["resolution"] == 0.1
+    assert report["leaves_occupied"] == len(centres)
+    assert report["points"] == len(want)
+    # Occupied voxels hold converted points: each occupied voxel centre lies within
+    # half a voxel (per axis) of a point.
+    occ = m.occupied_centers()
+    d = np.abs(occ[:, None, :] - conv.cloud.points[None, :, :].astype(np.float64)).max(axis=2)
+    assert np.all(d.min(axis=1) <= 0.05 + 1e-6)
+    assert np.mean(m.state(conv.cloud.points) == 1) > 0.5
+
+    out = tmp_path / "out"
+    conv.write_all(out)
+    assert (out / "map.bt").exists()
+    with open(out / "world.mcap", "rb") as f:
+        reader = make_reader(f, decoder_factories=[ProtobufDecoderFactory()])
+        updates = [
+            (channel.topic, msg)
+            for schema, channel, _, msg in reader.iter_decoded_messages()
+            if schema.name == "foxglove.SceneUpdate"
+        ]
+    assert len(updates) == 1
+    topic, update = updates[0]
+    assert topic == "/slam2world/octomap"
+    assert len(update.entities) == 1
+    entity = update.entities[0]
+    assert entity.frame_id == "world"
+    assert len(entity.cubes) == len(centres)
+    got = np.array(
+        [
+            [c.pose.position.x, c.pose.position.y, c.pose.position.z, c.size.x, c.size.y, c.size.z]
+            for c in entity.cubes
+        ]
+    )
+    np.testing.assert_allclose(got[:, 3], got[:, 4])
+    np.testing.assert_allclose(got[:, 3], got[:, 5])
+    expected = np.column_stack([centres, sizes, sizes, sizes])
+    np.testing.assert_allclose(_sorted_rows(got), _sorted_rows(expected), atol=1e-9)
+    rgba = np.array([[c.color.r, c.color.g, c.color.b, c.color.a] for c in entity.cubes])
+    assert np.all((rgba >= 0.0) & (rgba <= 1.0)) and np.all(rgba[:, 3] == 1.0)
+    # Coloured by height: the lowest cube blue, the highest red.
+    assert rgba[np.argmin(got[:, 2]), 2] == 1.0 and rgba[np.argmax(got[:, 2]), 0] == 1.0
+
+    tree = octomap.OcTree(0.1)
+    assert tree.readBinary(str(out / "map.bt").encode())
+    assert tree.getResolution() == pytest.approx(0.1)
+    n_occ = 0
+    for leaf in tree.begin_leafs():
+        if tree.isNodeOccupied(leaf):
+            n_occ += round(leaf.getSize() / 0.1) ** 3
+    assert n_occ == len(occ)
+    assert all(tree.isNodeOccupied(tree.search(c)) for c in occ)
+
+    conv.write_bt(tmp_path / "again.bt")
+    assert (tmp_path / "again.bt").read_bytes() == (out / "map.bt").read_bytes()
+    plain = s2w.convert(path, filter=s2w.PointFilter.none())
+    assert plain.octree is None and "octree" not in plain.report
+    with pytest.raises(s2w.InvalidInputError, match="octree"):
+        plain.write_bt(tmp_path / "none.bt")
+    with pytest.raises(s2w.InvalidInputError, match="resolution"):
+        s2w.convert(path, octree_resolution=0.0)

@@ -73,3 +73,17 @@ def world_cloud(path: str) -> int:
 
 def test_typed_cloud(tmp_path: Path) -> None:
     assert world_cloud(str(tmp_path / "c.ply")) == 30 * 22
+
+
+def simulated_experiment() -> tuple[float, float]:
+    sim: s2w.Simulation = s2w.simulate(seed=2, reduced=16, n_keyframes=4, scale_drift=0.0)
+    fit = s2w.align_trajectories(sim.keyframe_trajectory, sim.reference)
+    cloud = s2w.backproject(sim.keyframes, s2w.PointFilter.none(), transform=fit.transform)
+    scores: dict[str, dict[str, float]] = s2w.evaluate(sim, cloud.points, fit.transform)
+    d: npt.NDArray[np.float64] = s2w.point_distances(sim, cloud.points)
+    return scores["transform"]["scale_error"], float(np.median(d))
+
+
+def test_typed_simulation() -> None:
+    scale_error, median = simulated_experiment()
+    assert abs(scale_error) < 0.01 and median < 0.05

@@ -25,6 +25,13 @@ pub const FOXGLOVE_FRAME_TRANSFORM: (&str, &str, &[u8]) = (
     include_bytes!("schemas/foxglove.FrameTransform.fds.bin"),
 );
 
+/// `foxglove.SceneUpdate` (the occupancy map as cube primitives).
+pub const FOXGLOVE_SCENE_UPDATE: (&str, &str, &[u8]) = (
+    "foxglove.SceneUpdate",
+    "protobuf",
+    include_bytes!("schemas/foxglove.SceneUpdate.fds.bin"),
+);
+
 macro_rules! ros1 {
     ($name:expr, $text:expr) => {
         ($name, "ros1msg", $text.as_bytes())

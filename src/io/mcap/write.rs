@@ -58,7 +58,13 @@ pub mod topics {
     pub const REFERENCE: &str = "/world/reference";
     /// `world → slam` transform.
     pub const TF: &str = "/tf";
+    /// The occupied voxels of the occupancy map (`foxglove.SceneUpdate` cubes,
+    /// or a `PointCloud2` of leaf centres in the ROS 2 flavour).
+    pub const OCTOMAP: &str = "/slam2world/octomap";
 }
+
+/// Entity id of the occupancy map in its `foxglove.SceneUpdate`.
+pub const OCTOMAP_ENTITY_ID: &str = "octomap";
 
 fn mcap_err(path: &Path, what: &str, e: impl std::fmt::Display) -> Error {
     Error::Mcap {
@@ -84,22 +90,15 @@ fn write_atomic(
     options: mcap::WriteOptions,
     body: impl FnOnce(&mut mcap::Writer<BufWriter<&std::fs::File>>) -> Result<()>,
 ) -> Result<()> {
-    let dir = match path.parent() {
-        Some(d) if !d.as_os_str().is_empty() => d,
-        _ => Path::new("."),
-    };
-    let tmp = tempfile::NamedTempFile::new_in(dir).map_err(|e| Error::io(path, e))?;
-    {
+    crate::io::atomic::write_atomic(path, |file| {
         let mut w = options
-            .create(BufWriter::new(tmp.as_file()))
+            .create(BufWriter::new(file))
             .map_err(|e| mcap_err(path, "create", e))?;
         body(&mut w)?;
         w.finish().map_err(|e| mcap_err(path, "finish", e))?;
         let mut inner = w.into_inner();
-        inner.flush().map_err(|e| Error::io(path, e))?;
-    }
-    tmp.persist(path).map_err(|e| Error::io(path, e.error))?;
-    Ok(())
+        inner.flush().map_err(|e| Error::io(path, e))
+    })
 }
 
 struct Chan {
@@ -346,13 +345,117 @@ fn ros2_tf(stamp: f64, parent: &str, child: &str, t: &Sim3) -> Vec<u8> {
     w.buf
 }
 
+/// Colour of a voxel at height `z` (metres) in `[z_min, z_max]`: a rainbow from
+/// blue (low) through green to red (high), as OctoMap's viewers colour by
+/// height. Returns `(r, g, b)` in `[0, 1]`; a flat range gives the middle colour.
+pub fn height_color(z: f64, z_min: f64, z_max: f64) -> [f64; 3] {
+    let span = z_max - z_min;
+    let t = if span > 0.0 && span.is_finite() {
+        ((z - z_min) / span).clamp(0.0, 1.0)
+    } else {
+        0.5
+    };
+    // Hue from 240° (blue) down to 0° (red), full saturation and value.
+    let h = (1.0 - t) * 4.0;
+    let x = 1.0 - (h % 2.0 - 1.0).abs();
+    match h {
+        h if h < 1.0 => [1.0, x, 0.0],
+        h if h < 2.0 => [x, 1.0, 0.0],
+        h if h < 3.0 => [0.0, 1.0, x],
+        _ => [0.0, x, 1.0],
+    }
+}
+
+fn height_range(leaves: &[([f64; 3], f64)]) -> (f64, f64) {
+    leaves
+        .iter()
+        .fold((f64::INFINITY, f64::NEG_INFINITY), |(lo, hi), (c, _)| {
+            (lo.min(c[2]), hi.max(c[2]))
+        })
+}
+
+/// The `foxglove.SceneUpdate` of occupied voxels: one entity
+/// ([`OCTOMAP_ENTITY_ID`], frame `frame`) holding one `CubePrimitive` per leaf
+/// `(centre, edge length)` (metres, in `frame`), axis-aligned, opaque,
+/// coloured by height ([`height_color`] over the leaves' height range).
+pub fn foxglove_scene_update_cubes(stamp: f64, frame: &str, leaves: &[([f64; 3], f64)]) -> Vec<u8> {
+    let (z_min, z_max) = height_range(leaves);
+    let mut entity = PbWriter::new();
+    entity.message(1, &pb_time(stamp));
+    entity.bytes(2, frame.as_bytes());
+    entity.bytes(3, OCTOMAP_ENTITY_ID.as_bytes());
+    entity.buf.reserve(140 * leaves.len());
+    let mut cube = PbWriter::new();
+    for (c, size) in leaves {
+        cube.buf.clear();
+        cube.message(1, &pb_pose(*c, [0.0, 0.0, 0.0, 1.0]));
+        cube.message(2, &pb_vec3([*size; 3]));
+        let rgb = height_color(c[2], z_min, z_max);
+        cube.message(3, &pb_quat([rgb[0], rgb[1], rgb[2], 1.0]));
+        entity.message(8, &cube);
+    }
+    let mut m = PbWriter::new();
+    m.message(2, &entity);
+    m.buf
+}
+
+/// Leaf centres as `f32` points and their height colours as RGB bytes.
+fn leaf_centers_colored(leaves: &[([f64; 3], f64)]) -> (Vec<f32>, Vec<u8>) {
+    let (z_min, z_max) = height_range(leaves);
+    let mut pts = Vec::with_capacity(3 * leaves.len());
+    let mut cols = Vec::with_capacity(3 * leaves.len());
+    for (c, _) in leaves {
+        pts.extend(c.iter().map(|&v| v as f32));
+        cols.extend(
+            height_color(c[2], z_min, z_max)
+                .iter()
+                .map(|&v| (v * 255.0).round() as u8),
+        );
+    }
+    (pts, cols)
+}
+
+/// [`write_world_mcap`] plus, with `octomap = Some(leaves)`, the occupied
+/// voxels of an occupancy map on [`topics::OCTOMAP`]: leaves as
+/// `(centre, edge length)` in the world frame (metres). Foxglove flavour: one
+/// `foxglove.SceneUpdate` of cube primitives; ROS 2 flavour: a
+/// `sensor_msgs/msg/PointCloud2` of the leaf centres (coloured by height).
+pub fn write_world_mcap_with_octomap(
+    path: impl AsRef<Path>,
+    scene: &WorldScene<'_>,
+    octomap: Option<&[([f64; 3], f64)]>,
+    flavor: WorldFlavor,
+) -> Result<()> {
+    let path = path.as_ref();
+    if let Some(leaves) = octomap {
+        if let Some(i) = leaves
+            .iter()
+            .position(|(c, s)| !(c.iter().all(|v| v.is_finite()) && s.is_finite() && *s > 0.0))
+        {
+            return Err(Error::invalid(
+                "octomap",
+                format!("leaf {i} has a non-finite centre or a non-positive size"),
+            ));
+        }
+    }
+    write_world_impl(path, scene, octomap, flavor)
+}
+
 /// Writes the world output: the cloud, the trajectories and `world → slam`.
 pub fn write_world_mcap(
     path: impl AsRef<Path>,
     scene: &WorldScene<'_>,
     flavor: WorldFlavor,
 ) -> Result<()> {
-    let path = path.as_ref();
+    write_world_impl(path.as_ref(), scene, None, flavor)
+}
+
+fn write_world_impl(
+    path: &Path,
+    scene: &WorldScene<'_>,
+    octomap: Option<&[([f64; 3], f64)]>,
+    flavor: WorldFlavor,
+) -> Result<()> {
     if scene.points.len() % 3 != 0 {
         return Err(Error::ShapeMismatch {
             what: "points".into(),
@@ -429,6 +532,17 @@ pub fn write_world_mcap(
                         )?;
                     }
                 }
+                if let Some(leaves) = octomap {
+                    let mut ch = add_channel(
+                        w,
+                        path,
+                        topics::OCTOMAP,
+                        schemas::FOXGLOVE_SCENE_UPDATE,
+                        "protobuf",
+                    )?;
+                    let msg = foxglove_scene_update_cubes(scene.stamp, scene.world_frame, leaves);
+                    put(w, path, &mut ch, t, &msg)?;
+                }
             }
             WorldFlavor::Ros2 => {
                 let mut tf = add_channel(w, path, topics::TF, schemas::ROS2_TF_MESSAGE, "cdr")?;
@@ -453,6 +567,13 @@ pub fn write_world_mcap(
                     t,
                     &ros2_point_cloud(scene.stamp, scene.world_frame, scene.points, scene.colors),
                 )?;
+                if let Some(leaves) = octomap {
+                    let mut ch =
+                        add_channel(w, path, topics::OCTOMAP, schemas::ROS2_POINT_CLOUD2, "cdr")?;
+                    let (pts, cols) = leaf_centers_colored(leaves);
+                    let msg = ros2_point_cloud(scene.stamp, scene.world_frame, &pts, Some(&cols));
+                    put(w, path, &mut ch, t, &msg)?;
+                }
             }
         }
         Ok(())
@@ -704,4 +825,40 @@ pub fn write_slam_log(
         }
         Ok(())
     })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::io::mcap::wire::pb_fields;
+
+    #[test]
+    fn height_colors_run_from_blue_to_red() {
+        assert_eq!(height_color(0.0, 0.0, 2.0), [0.0, 0.0, 1.0]);
+        assert_eq!(height_color(2.0, 0.0, 2.0), [1.0, 0.0, 0.0]);
+        assert_eq!(height_color(1.0, 0.0, 2.0), [0.0, 1.0, 0.0]);
+        assert_eq!(height_color(5.0, 0.0, 2.0), [1.0, 0.0, 0.0]);
+        assert_eq!(height_color(1.0, 1.0, 1.0), [0.0, 1.0, 0.0]);
+    }
+
+    #[test]
+    fn scene_update_has_one_entity_with_a_cube_per_leaf() {
+        let leaves = [([0.5, 0.5, 0.5], 1.0), ([2.0, 0.0, 4.0], 0.25)];
+        let msg = foxglove_scene_update_cubes(1.5, "world", &leaves);
+        let top: Vec<_> = pb_fields(&msg).map(|f| f.unwrap()).collect();
+        assert_eq!(top.len(), 1);
+        assert_eq!(top[0].0, 2);
+        let entity = top[0].1.as_bytes().unwrap();
+        let mut cubes = 0;
+        for f in pb_fields(entity) {
+            let (n, v) = f.unwrap();
+            match n {
+                2 => assert_eq!(v.as_bytes().unwrap(), b"world"),
+                3 => assert_eq!(v.as_bytes().unwrap(), OCTOMAP_ENTITY_ID.as_bytes()),
+                8 => cubes += 1,
+                _ => {}
+            }
+        }
+        assert_eq!(cubes, 2);
+    }
 }
