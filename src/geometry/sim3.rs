@@ -241,23 +241,7 @@ impl Sim3 {
     pub fn transform_points_in_place<T: PointScalar>(&self, pts: &mut [T]) -> Result<()> {
         check_rows(pts.len())?;
         let (m, t) = self.affine();
-        let kernel = |c: &mut [T]| {
-            let mut groups = c.chunks_exact_mut(3 * LANES);
-            for g in &mut groups {
-                let q = map_lanes(&m, &t, g);
-                for i in 0..LANES {
-                    for k in 0..3 {
-                        g[3 * i + k] = T::from_f64(q[k][i]);
-                    }
-                }
-            }
-            for p in groups.into_remainder().chunks_exact_mut(3) {
-                let q = map(&m, &t, [p[0].to_f64(), p[1].to_f64(), p[2].to_f64()]);
-                p[0] = T::from_f64(q[0]);
-                p[1] = T::from_f64(q[1]);
-                p[2] = T::from_f64(q[2]);
-            }
-        };
+        let kernel = |c: &mut [T]| in_place_block(&m, &t, c);
         let chunk = 3 * POINTS_PER_TASK;
         if pts.len() <= chunk {
             kernel(pts);
@@ -389,6 +373,46 @@ fn transform_block_generic<T: PointScalar>(
     }
 }
 
+/// [`transform_block`] in place: each group is read whole before it is written.
+#[inline]
+fn in_place_block<T: PointScalar>(m: &[[f64; 3]; 3], t: &[f64; 3], pts: &mut [T]) {
+    #[cfg(target_arch = "x86_64")]
+    {
+        if std::arch::is_x86_feature_detected!("avx2") && std::arch::is_x86_feature_detected!("fma")
+        {
+            // SAFETY: the processor supports AVX2 and FMA (checked just above).
+            unsafe { in_place_block_avx2(m, t, pts) };
+            return;
+        }
+    }
+    in_place_block_generic(m, t, pts);
+}
+
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx2,fma")]
+unsafe fn in_place_block_avx2<T: PointScalar>(m: &[[f64; 3]; 3], t: &[f64; 3], pts: &mut [T]) {
+    in_place_block_generic(m, t, pts);
+}
+
+#[inline(always)]
+fn in_place_block_generic<T: PointScalar>(m: &[[f64; 3]; 3], t: &[f64; 3], pts: &mut [T]) {
+    let mut groups = pts.chunks_exact_mut(3 * LANES);
+    for g in &mut groups {
+        let q = map_lanes(m, t, g);
+        for i in 0..LANES {
+            for k in 0..3 {
+                g[3 * i + k] = T::from_f64(q[k][i]);
+            }
+        }
+    }
+    for p in groups.into_remainder().chunks_exact_mut(3) {
+        let q = map(m, t, [p[0].to_f64(), p[1].to_f64(), p[2].to_f64()]);
+        p[0] = T::from_f64(q[0]);
+        p[1] = T::from_f64(q[1]);
+        p[2] = T::from_f64(q[2]);
+    }
+}
+
 /// Storage types of point coordinates (`f32`, `f64`).
 pub trait PointScalar: Copy + Default + Send + Sync + 'static {
     /// Widens to `f64`.
@@ -477,6 +501,38 @@ mod tests {
     fn sample() -> Sim3 {
         Sim3::from_quaternion_xyzw([0.1, -0.3, 0.2, 0.9], Vector3::new(1.0, -2.0, 3.0), 15.49)
             .unwrap()
+    }
+
+    #[test]
+    fn point_kernels_match_the_f64_map_on_every_point() {
+        let t = sample();
+        // Not a multiple of the group size, more than one parallel block.
+        let n = 2 * POINTS_PER_TASK + 7;
+        let pts: Vec<f32> = (0..3 * n)
+            .map(|i| ((i * 7919) % 2003) as f32 * 0.01 - 10.0)
+            .collect();
+        let new = t.transform_points(&pts).unwrap();
+        let mut into = vec![0f32; pts.len()];
+        t.transform_points_into(&pts, &mut into).unwrap();
+        let mut in_place = pts.clone();
+        t.transform_points_in_place(&mut in_place).unwrap();
+        assert_eq!(new, into);
+        assert_eq!(new, in_place);
+        for (p, q) in pts.chunks_exact(3).zip(new.chunks_exact(3)) {
+            let want = t.transform_point(&Vector3::new(p[0] as f64, p[1] as f64, p[2] as f64));
+            for k in 0..3 {
+                // One rounding to f32 of the f64 result.
+                let tol = f32::EPSILON as f64 * want[k].abs();
+                assert!(
+                    (q[k] as f64 - want[k]).abs() <= tol,
+                    "{} vs {}",
+                    q[k],
+                    want[k]
+                );
+            }
+        }
+        assert!(t.transform_points(&pts[..4]).is_err());
+        assert!(t.transform_points_into(&pts[..6], &mut into[..3]).is_err());
     }
 
     #[test]
