@@ -20,6 +20,8 @@ use std::time::Instant;
 
 use serde::Serialize;
 
+use crate::align::extended::{align_trajectories_extended, ExtendedOptions};
+use crate::align::windowed::{align_windowed, Window, WindowedOptions};
 use crate::cloud::{backproject, PointCloud, PointFilter};
 use crate::error::{Error, Result};
 use crate::geometry::Sim3;
@@ -27,9 +29,7 @@ use crate::io::mcap::{
     read_mcap, write_world_mcap_with_octomap, Log, ReadOptions, WorldFlavor, WorldScene,
 };
 use crate::map::{MapParams, OccupancyMap, VoxelState};
-use crate::trajectory::{
-    align_trajectories, Trajectory, TrajectoryAlignOptions, TrajectoryAlignment,
-};
+use crate::trajectory::{Trajectory, TrajectoryAlignOptions, TrajectoryAlignment};
 
 /// Everything `convert` can be told.
 #[derive(Clone, Debug, Default)]
@@ -41,6 +41,14 @@ pub struct ConvertOptions {
     pub align: TrajectoryAlignOptions,
     /// Which pixels become points (the LSD-SLAM viewer's defaults by default).
     pub filter: PointFilter,
+    /// Start-up cut, robust fit, orientations, time offset, extrinsic.
+    pub beyond: ExtendedOptions,
+    /// Also fit a windowed (drift-aware) alignment and compare it with the
+    /// single Sim(3) in the report (the cloud still uses the single Sim(3)).
+    pub compare_windowed: Option<Window>,
+    /// Inertial initialisation, used when the log has raw IMU samples: for
+    /// `T_world_slam` without reference poses, as a consistency check with them.
+    pub imu: crate::imu::ImuInitOptions,
     /// Voxel edge (metres) of the occupancy octree built from the world cloud;
     /// `None` builds none.
     pub octree_resolution: Option<f64>,
@@ -162,10 +170,18 @@ pub struct Report {
     pub ape: ApeReport,
     /// Every matched pair.
     pub pairs: Vec<PairReport>,
+    /// What the options beyond one fit did: start-up cut and why, offset,
+    /// inliers, 95 % confidence intervals.
+    pub beyond: serde_json::Value,
+    /// The windowed alignment against the single Sim(3), when asked for.
+    pub windowed: Option<serde_json::Value>,
     /// Points in the world cloud.
     pub points: usize,
     /// Stage timings.
     pub timing: Timing,
+    /// The inertial initialisation, when the log has raw IMU samples.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub imu: Option<crate::imu::convert::ImuReport>,
     /// The occupancy octree, when one was built.
     #[serde(skip_serializing_if = "Option::is_none")]
     pub octree: Option<OctreeReport>,
@@ -210,7 +226,7 @@ fn secs(t: Instant) -> f64 {
 }
 
 /// The keyframe poses as a trajectory sorted by time, with the keyframe index of each row.
-fn keyframe_trajectory(log: &Log) -> Result<(Trajectory, Vec<usize>)> {
+pub(crate) fn keyframe_trajectory(log: &Log) -> Result<(Trajectory, Vec<usize>)> {
     let mut order: Vec<usize> = (0..log.keyframes.len()).collect();
     order.sort_by(|&a, &b| {
         log.keyframes[a]
@@ -258,16 +274,19 @@ pub fn convert(log: &Log, opts: &ConvertOptions) -> Result<Conversion> {
         ));
     }
     let Some(reference) = &log.reference else {
+        if let Some(imu) = &log.imu {
+            return crate::imu::convert::convert_imu(log, imu, opts);
+        }
         return Err(mcap_err(
             &log.path,
-            "no reference pose topic in the log".into(),
+            "no reference pose topic and no raw IMU topic in the log".into(),
         ));
     };
     let ref_topic = log.reference_topic.clone().unwrap_or_default();
     let t0 = Instant::now();
     let (slam, order) = keyframe_trajectory(log)?;
-    let ta = match align_trajectories(&slam, reference, &opts.align) {
-        Ok(ta) => ta,
+    let ext = match align_trajectories_extended(&slam, reference, &opts.align, &opts.beyond) {
+        Ok(ext) => ext,
         Err(Error::TooFew { need, got, .. }) => {
             return Err(mcap_err(
                 &log.path,
@@ -279,6 +298,35 @@ pub fn convert(log: &Log, opts: &ConvertOptions) -> Result<Conversion> {
             ))
         }
         Err(e) => return Err(e),
+    };
+    let beyond = ext.report_json(0.95);
+    let fit_start = ext.fit_start;
+    let inliers = ext.inliers.clone();
+    let offset = ext.offset;
+    let ta = ext.trajectory;
+    let windowed = match opts.compare_windowed {
+        Some(window) => {
+            let w = align_windowed(
+                &slam,
+                reference,
+                &WindowedOptions {
+                    window,
+                    max_diff: opts.align.max_diff,
+                    offset,
+                    scale: opts.align.scale,
+                },
+            )?;
+            let scales = w.transforms.iter().map(|t| t.scale);
+            let (lo, hi) = scales.fold((f64::INFINITY, 0.0f64), |(a, b), s| (a.min(s), b.max(s)));
+            Some(serde_json::json!({
+                "window": format!("{window:?}"),
+                "windowed_rmse": w.rmse,
+                "single_rmse": w.global.rmse,
+                "scale_min": lo,
+                "scale_max": hi,
+            }))
+        }
+        None => None,
     };
     let align_s = secs(t0);
     let t = ta.alignment.transform;
@@ -309,7 +357,9 @@ pub fn convert(log: &Log, opts: &ConvertOptions) -> Result<Conversion> {
     let n_fit = opts
         .align
         .first_n
-        .map_or(ta.pairs.len(), |n| n.min(ta.pairs.len()));
+        .map_or(ta.pairs.len() - fit_start.min(ta.pairs.len()), |n| {
+            n.min(ta.pairs.len() - fit_start.min(ta.pairs.len()))
+        });
     let mut used = vec![false; slam.len()];
     let pairs: Vec<PairReport> = ta
         .pairs
@@ -323,7 +373,9 @@ pub fn convert(log: &Log, opts: &ConvertOptions) -> Result<Conversion> {
                 keyframe_time: slam.timestamps[s],
                 reference_time: reference.timestamps[r],
                 error,
-                fitted: k < n_fit,
+                fitted: k >= fit_start
+                    && k < fit_start + n_fit
+                    && inliers.as_ref().is_none_or(|m| m[k - fit_start]),
             }
         })
         .collect();
@@ -338,6 +390,9 @@ pub fn convert(log: &Log, opts: &ConvertOptions) -> Result<Conversion> {
             *v = m[(r, c)];
         }
     }
+    let imu = log.imu.as_ref().map(|imu| {
+        crate::imu::convert::consistency_report(&slam, imu, log.imu_topic.clone(), &opts.imu, &t)
+    });
     let report = Report {
         input: log.path.clone(),
         keyframe_topic: log.keyframe_topic.clone(),
@@ -349,7 +404,7 @@ pub fn convert(log: &Log, opts: &ConvertOptions) -> Result<Conversion> {
         frames_dropped,
         pairs_fitted: n_fit,
         max_diff: opts.align.max_diff,
-        offset: opts.align.offset,
+        offset,
         t_world_slam: TransformReport {
             quaternion_xyzw: t.quaternion_xyzw(),
             translation: [t.translation.x, t.translation.y, t.translation.z],
@@ -366,6 +421,8 @@ pub fn convert(log: &Log, opts: &ConvertOptions) -> Result<Conversion> {
             max: ta.ape.max,
         },
         pairs,
+        beyond,
+        windowed,
         points: cloud.len(),
         timing: Timing {
             read_s: 0.0,
@@ -373,6 +430,7 @@ pub fn convert(log: &Log, opts: &ConvertOptions) -> Result<Conversion> {
             backproject_s,
             write_s: 0.0,
         },
+        imu,
         octree: octree_report,
     };
     Ok(Conversion {
@@ -398,7 +456,7 @@ pub fn camera_centers(log: &Log, t_world_slam: &Sim3) -> BTreeMap<i32, [f32; 3]>
 }
 
 /// Inserts the world cloud keyframe by keyframe, each from its camera centre.
-fn build_octree(
+pub(crate) fn build_octree(
     log: &Log,
     t_world_slam: &Sim3,
     cloud: &PointCloud,

@@ -201,6 +201,12 @@ class Alignment:
     def residuals(self) -> npt.NDArray[np.float64]: ...
     @property
     def diagnostics(self) -> dict[str, Any]: ...
+    @property
+    def inliers(self) -> npt.NDArray[np.bool_] | None: ...
+    @property
+    def covariance(self) -> npt.NDArray[np.float64]: ...
+    def scale_interval(self, level: float = 0.95) -> tuple[float, float]: ...
+    def intervals(self, level: float = 0.95) -> dict[str, Any]: ...
 
 def align(
     source: _ArrayLike,
@@ -209,6 +215,9 @@ def align(
     scale: bool = True,
     weights: _ArrayLike | None = None,
     method: str = "horn",
+    robust: str | None = None,
+    inlier_threshold: float | None = None,
+    loss: str = "huber",
 ) -> Alignment: ...
 
 @final
@@ -266,6 +275,20 @@ class TrajectoryAlignment:
     def pairs(self) -> tuple[npt.NDArray[np.int64], npt.NDArray[np.int64]]: ...
     @property
     def residuals(self) -> npt.NDArray[np.float64]: ...
+    @property
+    def offset(self) -> float: ...
+    @property
+    def fit_start(self) -> int: ...
+    @property
+    def skip_reason(self) -> str: ...
+    @property
+    def stages(self) -> Stages | None: ...
+    @property
+    def inliers(self) -> npt.NDArray[np.bool_] | None: ...
+    @property
+    def covariance(self) -> npt.NDArray[np.float64]: ...
+    def scale_interval(self, level: float = 0.95) -> tuple[float, float]: ...
+    def intervals(self, level: float = 0.95) -> dict[str, Any]: ...
 
 def align_trajectories(
     slam: Trajectory,
@@ -276,10 +299,80 @@ def align_trajectories(
     scale: bool = True,
     first_n: int | None = None,
     method: str = "horn",
+    skip_init: str | int | None = None,
+    robust: str | None = None,
+    inlier_threshold: float | None = None,
+    loss: str = "huber",
+    use_orientations: bool = False,
+    estimate_offset: bool = False,
+    max_offset: float = 0.5,
+    body_from_cam: Sim3 | None = None,
 ) -> TrajectoryAlignment: ...
 def scale_factors(
     slam_positions: _ArrayLike, reference_positions: _ArrayLike
 ) -> npt.NDArray[np.float64]: ...
+
+# ---------------------------------------------------------------- beyond one fit
+
+@final
+class Stages:
+    @property
+    def converging_start(self) -> int: ...
+    @property
+    def stable_start(self) -> int: ...
+    @property
+    def n(self) -> int: ...
+    @property
+    def stable_level(self) -> float: ...
+    @property
+    def noise(self) -> float: ...
+    @property
+    def window(self) -> int: ...
+    def describe(self) -> str: ...
+
+def detect_stages(p_k: _ArrayLike) -> Stages: ...
+def estimate_time_offset(
+    slam: Trajectory,
+    reference: Trajectory,
+    *,
+    max_offset: float = 0.5,
+    max_gap: float = 0.1,
+    scale: bool = True,
+) -> float: ...
+
+@final
+class WindowedAlignment:
+    @property
+    def times(self) -> npt.NDArray[np.float64]: ...
+    @property
+    def transforms(self) -> list[Sim3]: ...
+    @property
+    def scales(self) -> npt.NDArray[np.float64]: ...
+    @property
+    def residuals(self) -> npt.NDArray[np.float64]: ...
+    @property
+    def rmse(self) -> float: ...
+    @property
+    def single(self) -> Alignment: ...
+    def transform_at(self, t: float) -> Sim3: ...
+    def transforms_at(self, times: _ArrayLike) -> list[Sim3]: ...
+
+def align_windowed(
+    slam: Trajectory,
+    reference: Trajectory,
+    *,
+    window: int | float | None = None,
+    max_diff: float = 0.01,
+    offset: float = 0.0,
+    scale: bool = True,
+) -> WindowedAlignment: ...
+def estimate_body_from_cam(
+    slam: Trajectory,
+    reference: Trajectory,
+    *,
+    max_diff: float = 0.01,
+    offset: float = 0.0,
+) -> tuple[Sim3, Alignment, float]: ...
 
 # ---------------------------------------------------------------- cloud
 
@@ -442,6 +535,69 @@ def write_world_mcap(
     ros2: bool = False,
 ) -> None: ...
 
+# ---------------------------------------------------------------- raw IMU
+
+@final
+class ImuSamples:
+    def __new__(cls, timestamps: _ArrayLike, gyro: _ArrayLike, accel: _ArrayLike) -> ImuSamples: ...
+    @staticmethod
+    def read_euroc(path: str | os.PathLike[str]) -> ImuSamples: ...
+    @property
+    def timestamps(self) -> npt.NDArray[np.float64]: ...
+    @property
+    def gyro(self) -> npt.NDArray[np.float64]: ...
+    @property
+    def accel(self) -> npt.NDArray[np.float64]: ...
+    def __len__(self) -> int: ...
+
+@final
+class ImuAlignment:
+    @property
+    def transform(self) -> Sim3: ...
+    @property
+    def scale(self) -> float: ...
+    @property
+    def scale_sigma(self) -> float: ...
+    @property
+    def gravity_slam(self) -> npt.NDArray[np.float64]: ...
+    @property
+    def gravity_sigma(self) -> float: ...
+    @property
+    def gyro_bias(self) -> npt.NDArray[np.float64]: ...
+    @property
+    def gyro_bias_sigma(self) -> npt.NDArray[np.float64]: ...
+    @property
+    def accel_bias(self) -> npt.NDArray[np.float64]: ...
+    @property
+    def accel_bias_sigma(self) -> npt.NDArray[np.float64]: ...
+    @property
+    def timestamps(self) -> npt.NDArray[np.float64]: ...
+    @property
+    def velocities(self) -> npt.NDArray[np.float64]: ...
+    @property
+    def diagnostics(self) -> dict[str, float]: ...
+
+def imu_initialize(
+    keyframes: Trajectory,
+    imu: ImuSamples,
+    *,
+    imu_from_cam: Sim3 | None = None,
+    gravity: float = 9.81,
+    time_offset: float = 0.0,
+    estimate_accel_bias: bool = True,
+    accel_bias_prior: float = 0.2,
+    keyframe_position_sigma: float = 0.01,
+    keyframe_rotation_sigma: float = 2e-3,
+    gyro_noise_density: float = 1.6968e-4,
+    accel_noise_density: float = 2.0e-3,
+    accel_random_walk: float = 3.0e-3,
+    min_interval: float = 0.5,
+    max_gap: float = 0.05,
+    min_duration: float = 2.0,
+    min_excitation: float = 0.05,
+    max_relative_scale_sigma: float = 0.05,
+) -> ImuAlignment: ...
+
 @final
 class Conversion:
     @property
@@ -475,6 +631,17 @@ def convert(
     n_to_align: int | None = None,
     scale: bool = True,
     filter: PointFilter | None = None,
+    imu_topic: str | None = None,
+    imu_from_cam: Sim3 | None = None,
     octree_resolution: float | None = None,
     octree_max_range: float | None = None,
+    skip_init: str | int | None = None,
+    robust: str | None = None,
+    inlier_threshold: float | None = None,
+    loss: str = "huber",
+    use_orientations: bool = False,
+    estimate_offset: bool = False,
+    max_offset: float = 0.5,
+    body_from_cam: Sim3 | None = None,
+    compare_windowed: int | float | None = None,
 ) -> Conversion: ...

@@ -12,9 +12,16 @@
 //! equal to Umeyama's `tr(DS)/σ²_a`. (The paper prints the denominator over
 //! the target points, which yields `1/s`.)
 
+pub mod covariance;
+pub mod extended;
+pub mod handeye;
 mod horn;
 mod moments;
+pub mod robust;
+pub mod stages;
+pub mod time_offset;
 mod umeyama;
+pub mod windowed;
 
 use nalgebra::{Matrix3, Vector3};
 use rayon::prelude::*;

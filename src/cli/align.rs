@@ -7,9 +7,10 @@ use std::path::{Path, PathBuf};
 
 use clap::{Args, ValueEnum};
 
+use crate::align::extended::align_trajectories_extended;
 use crate::align::AlignMethod;
 use crate::error::{Error, Result};
-use crate::trajectory::{align_trajectories, Trajectory, TrajectoryAlignOptions};
+use crate::trajectory::{Trajectory, TrajectoryAlignOptions};
 
 /// Trajectory file formats.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, ValueEnum)]
@@ -62,6 +63,8 @@ pub struct AlignArgs {
     /// Print one JSON object instead of text.
     #[arg(long)]
     json: bool,
+    #[command(flatten)]
+    beyond: super::beyond::BeyondArgs,
 }
 
 fn finite(s: &str) -> std::result::Result<f64, String> {
@@ -99,7 +102,8 @@ pub fn run(args: AlignArgs) -> Result<()> {
             Method::Umeyama => AlignMethod::Umeyama,
         },
     };
-    let r = align_trajectories(&est, &reference, &opts)?;
+    let ext = align_trajectories_extended(&est, &reference, &opts, &args.beyond.options())?;
+    let r = &ext.trajectory;
     let t = r.alignment.transform;
     let q = t.quaternion_xyzw();
     let rot = t.rotation_matrix();
@@ -128,6 +132,8 @@ pub fn run(args: AlignArgs) -> Result<()> {
                 "min": ape.min, "max": ape.max, "n_pairs": ape.n_pairs,
             },
         });
+        let mut v = v;
+        v["beyond"] = super::beyond::report_json(&ext, args.beyond.confidence);
         format!("{v}\n")
     } else {
         let mut s = String::new();
@@ -166,6 +172,7 @@ pub fn run(args: AlignArgs) -> Result<()> {
             "APE (m) over {} pairs: rmse {:.6}  mean {:.6}  median {:.6}  std {:.6}  min {:.6}  max {:.6}\n",
             ape.n_pairs, ape.rmse, ape.mean, ape.median, ape.std, ape.min, ape.max
         );
+        s += &super::beyond::report_text(&ext, args.beyond.confidence);
         s
     };
     let mut out = std::io::stdout().lock();

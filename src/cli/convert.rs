@@ -31,6 +31,17 @@ pub struct ConvertArgs {
     /// Reference pose topic (default: the first pose schema found).
     #[arg(long)]
     pub pose_topic: Option<String>,
+    /// Raw IMU topic (`sensor_msgs/Imu`; default: found by schema). Without a
+    /// reference pose topic, `T_world_slam` comes from the IMU (metric scale and
+    /// gravity from preintegration); with one, the report compares both.
+    #[arg(long)]
+    pub imu_topic: Option<String>,
+    /// `T_imu_cam` as 16 comma-separated numbers (row-major 4×4, metres).
+    #[arg(long, value_name = "M", allow_hyphen_values = true)]
+    pub imu_from_cam: Option<String>,
+    /// Magnitude of gravity for the IMU path, m/s².
+    #[arg(long, default_value_t = 9.81)]
+    pub gravity: f64,
     /// TF parent frame, when the reference is a tf2_msgs/TFMessage topic.
     #[arg(long)]
     pub tf_parent: Option<String>,
@@ -67,6 +78,12 @@ pub struct ConvertArgs {
     /// No progress bar and no summary.
     #[arg(short, long)]
     pub quiet: bool,
+    /// Also fit a windowed Sim(3) over N matched keyframes and compare it with
+    /// the single Sim(3) in the report.
+    #[arg(long, value_name = "N")]
+    pub compare_windowed: Option<usize>,
+    #[command(flatten)]
+    pub beyond: super::beyond::BeyondArgs,
 }
 
 /// Runs the conversion and writes the three outputs.
@@ -86,7 +103,7 @@ pub fn run(args: &ConvertArgs) -> Result<()> {
             keyframe_topic: args.keyframe_topic.clone(),
             graph_topic: args.graph_topic.clone(),
             pose_topic: args.pose_topic.clone(),
-            imu_topic: None,
+            imu_topic: args.imu_topic.clone(),
             tf_parent: args.tf_parent.clone(),
             tf_child: args.tf_child.clone(),
         },
@@ -101,8 +118,20 @@ pub fn run(args: &ConvertArgs) -> Result<()> {
         } else {
             PointFilter::default()
         },
+        imu: crate::imu::ImuInitOptions {
+            imu_from_cam: match &args.imu_from_cam {
+                Some(m) => super::imu_init::parse_matrix(m)?,
+                None => crate::geometry::Sim3::identity(),
+            },
+            gravity: args.gravity,
+            ..crate::imu::ImuInitOptions::default()
+        },
         octree_resolution: args.octree,
         octree_max_range: args.octree_max_range,
+        beyond: args.beyond.options(),
+        compare_windowed: args
+            .compare_windowed
+            .map(crate::align::windowed::Window::Poses),
     };
     // Bad octree parameters fail before the log is read.
     opts.octree_params()?;
@@ -146,6 +175,9 @@ pub fn run(args: &ConvertArgs) -> Result<()> {
             "APE rmse {:.4} m (mean {:.4}, max {:.4}); {} points",
             r.ape.rmse, r.ape.mean, r.ape.max, r.points
         );
+        if let Some(imu) = &r.imu {
+            println!("{}", imu_summary(imu));
+        }
         if let Some(o) = &r.octree {
             println!(
                 "octree {} m: {} occupied and {} free leaves, {} nodes, {:.1} MiB, {:.3} s",
@@ -165,4 +197,36 @@ pub fn run(args: &ConvertArgs) -> Result<()> {
         }
     }
     Ok(())
+}
+
+/// One line on the inertial initialisation.
+fn imu_summary(r: &crate::imu::convert::ImuReport) -> String {
+    if let Some(e) = &r.error {
+        return format!("IMU: not used ({e})");
+    }
+    let mut s = format!(
+        "IMU{}: scale {:.6} ± {:.6}, gravity direction ± {:.3}°",
+        if r.used_for_transform {
+            " (gives T_world_slam)"
+        } else {
+            ""
+        },
+        r.scale.map_or(f64::NAN, |v| v[0]),
+        r.scale.map_or(f64::NAN, |v| v[1]),
+        r.gravity_sigma_deg.unwrap_or(f64::NAN)
+    );
+    if let (Some(g), Some(a)) = (r.gyro_bias, r.accel_bias) {
+        s += &format!(
+            ", gyro bias [{:.5}, {:.5}, {:.5}] rad/s, accel bias [{:.4}, {:.4}, {:.4}] m/s²",
+            g[0][0], g[0][1], g[0][2], a[0][0], a[0][1], a[0][2]
+        );
+    }
+    if let Some(c) = &r.pose_check {
+        s += &format!(
+            "; vs poses: scale {:+.3} %, gravity {:.3}°",
+            100.0 * c.scale_difference,
+            c.gravity_angle_deg
+        );
+    }
+    s
 }

@@ -8,7 +8,9 @@ use std::ffi::OsString;
 use clap::{Parser, Subcommand};
 
 pub mod align;
+pub mod beyond;
 pub mod convert;
+pub mod imu_init;
 pub mod inspect;
 pub mod sim;
 pub mod transform_cloud;
@@ -27,8 +29,10 @@ pub struct Cli {
 enum Command {
     /// Fit the Sim(3) between two trajectory files and print the error statistics.
     Align(align::AlignArgs),
+    /// Metric scale, gravity direction and IMU biases of SLAM keyframes from raw IMU samples.
+    ImuInit(imu_init::ImuInitArgs),
     /// Convert an MCAP log into world.mcap, cloud.ply and report.json.
-    Convert(convert::ConvertArgs),
+    Convert(Box<convert::ConvertArgs>),
     /// List the topics of an MCAP log and what slam2world can use.
     Inspect(inspect::InspectArgs),
     /// Simulate the paper's experiment and write the LSD-SLAM log (MCAP) and its truth.
@@ -44,6 +48,7 @@ enum Command {
 fn run(cli: Cli) -> Result<()> {
     match cli.command {
         Command::Align(args) => align::run(args),
+        Command::ImuInit(args) => imu_init::run(args),
         Command::Convert(args) => convert::run(&args),
         Command::Inspect(args) => inspect::run(&args),
         Command::Simulate(args) => sim::run_simulate(&args),

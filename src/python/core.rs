@@ -13,12 +13,18 @@ use pyo3::types::{PyDict, PyTuple};
 
 use super::convert::{rows_f64, to_array2, vec_f64};
 use super::geometry::PySim3;
+use crate::align::covariance::{covariance, Covariance};
+use crate::align::extended::{
+    align_trajectories_extended, ExtendedAlignment, ExtendedOptions, SkipInit,
+};
+use crate::align::robust::{align_robust, RobustOptions};
+use crate::align::stages::Stages;
+use crate::align::time_offset::TimeOffsetOptions;
 use crate::align::{align_flat_into, AlignDiagnostics, AlignMethod, AlignOptions, Alignment};
 use crate::error::Error;
 use crate::geometry::unit_quaternion_xyzw;
 use crate::trajectory::{
-    align_trajectories, associate, scale_factors, ApeStats, Trajectory, TrajectoryAlignOptions,
-    TrajectoryAlignment,
+    associate, scale_factors, ApeStats, Trajectory, TrajectoryAlignOptions, TrajectoryAlignment,
 };
 
 /// Runs `f` on the row-major `(N, 3)` `f64` data of `obj`, borrowed without a
@@ -83,17 +89,103 @@ pub struct PyAlignment {
     rmse: f64,
     residuals: Py<PyArray1<f64>>,
     diagnostics: AlignDiagnostics,
+    inliers: Option<Py<PyArray1<bool>>>,
+    covariance: CovarianceSource,
+}
+
+/// Where an alignment's covariance comes from: computed with the fit, or on
+/// request from the input arrays (so that a plain `align` pays nothing for it).
+pub(crate) enum CovarianceSource {
+    Known(Option<Box<Covariance>>),
+    Lazy {
+        source: Py<PyAny>,
+        target: Py<PyAny>,
+        weights: Option<Vec<f64>>,
+        scale: bool,
+    },
 }
 
 impl PyAlignment {
-    fn new(py: Python<'_>, a: Alignment) -> Self {
+    pub(crate) fn new(py: Python<'_>, a: Alignment) -> Self {
         PyAlignment {
             transform: a.transform,
             rmse: a.rmse,
             residuals: a.residuals.into_pyarray(py).unbind(),
             diagnostics: a.diagnostics,
+            inliers: None,
+            covariance: CovarianceSource::Known(None),
         }
     }
+
+    pub(crate) fn with_extras(
+        py: Python<'_>,
+        a: Alignment,
+        inliers: Option<Vec<bool>>,
+        covariance: Option<Covariance>,
+    ) -> Self {
+        let mut p = PyAlignment::new(py, a);
+        p.inliers = inliers.map(|m| m.into_pyarray(py).unbind());
+        p.covariance = CovarianceSource::Known(covariance.map(Box::new));
+        p
+    }
+
+    fn covariance_value(&self, py: Python<'_>) -> PyResult<Covariance> {
+        match &self.covariance {
+            CovarianceSource::Known(Some(c)) => Ok((**c).clone()),
+            CovarianceSource::Known(None) => Err(Error::Degenerate {
+                reason: "no covariance for this fit (the positions alone do not determine it, or it was not computed)".into(),
+                value: 0.0,
+            }
+            .into()),
+            CovarianceSource::Lazy {
+                source,
+                target,
+                weights,
+                scale,
+            } => {
+                let a = vectors(source.bind(py), "source")?;
+                let b = vectors(target.bind(py), "target")?;
+                let t = self.transform;
+                Ok(py.detach(|| covariance(&t, &a, &b, weights.as_deref(), *scale))?)
+            }
+        }
+    }
+}
+
+/// `intervals(level)` as a dict: `scale` (lo, hi), `translation` (3, 2),
+/// `rotation_half_width_deg` (3,), `sigma` (per-axis residual sd).
+pub(crate) fn intervals_dict<'py>(
+    py: Python<'py>,
+    c: &Covariance,
+    level: f64,
+) -> PyResult<Bound<'py, PyDict>> {
+    let d = PyDict::new(py);
+    let (lo, hi) = c.scale_interval(level)?;
+    d.set_item("level", level)?;
+    d.set_item("scale", (lo, hi))?;
+    let t = c.translation_intervals(level)?;
+    d.set_item(
+        "translation",
+        t.iter().map(|p| (p.0, p.1)).collect::<Vec<_>>(),
+    )?;
+    let r = c.rotation_half_widths(level)?;
+    d.set_item(
+        "rotation_half_width_deg",
+        r.iter().map(|x| x.to_degrees()).collect::<Vec<_>>(),
+    )?;
+    d.set_item("sigma", c.sigma2.sqrt())?;
+    Ok(d)
+}
+
+pub(crate) fn covariance_array<'py>(
+    py: Python<'py>,
+    c: &Covariance,
+) -> PyResult<Bound<'py, PyArray2<f64>>> {
+    let v: Vec<f64> = (0..7)
+        .flat_map(|i| (0..7).map(move |j| (i, j)))
+        .map(|(i, j)| c.matrix[(i, j)])
+        .collect();
+    to_array2(py, v, 7)
 }
 
 #[pymethods]
@@ -124,6 +216,33 @@ impl PyAlignment {
         diagnostics_dict(py, &self.diagnostics)
     }
 
+    /// Per pair: inlier of a robust fit, shape (N,); None for a plain fit.
+    #[getter]
+    fn inliers(&self, py: Python<'_>) -> Option<Py<PyArray1<bool>>> {
+        self.inliers.as_ref().map(|m| m.clone_ref(py))
+    }
+
+    /// First-order covariance (7, 7) over (rotation vector rad, translation,
+    /// log scale), from the residuals.
+    #[getter]
+    fn covariance<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyArray2<f64>>> {
+        let c = self.covariance_value(py)?;
+        covariance_array(py, &c)
+    }
+
+    /// Central `level` confidence interval of the scale, `(lo, hi)`.
+    #[pyo3(signature = (level=0.95))]
+    fn scale_interval(&self, py: Python<'_>, level: f64) -> PyResult<(f64, f64)> {
+        Ok(self.covariance_value(py)?.scale_interval(level)?)
+    }
+
+    /// Central `level` intervals of every parameter (see `scale_interval`).
+    #[pyo3(signature = (level=0.95))]
+    fn intervals<'py>(&self, py: Python<'py>, level: f64) -> PyResult<Bound<'py, PyDict>> {
+        let c = self.covariance_value(py)?;
+        intervals_dict(py, &c, level)
+    }
+
     fn __repr__(&self) -> String {
         let t = &self.transform;
         let q = t.quaternion_xyzw();
@@ -138,7 +257,8 @@ impl PyAlignment {
 /// Closed-form Sim(3) (or SE(3) with `scale=False`) alignment of `(N, 3)`
 /// source points onto `(N, 3)` target points; the GIL is released.
 #[pyfunction(name = "align")]
-#[pyo3(signature = (source, target, *, scale=true, weights=None, method="horn"))]
+#[pyo3(signature = (source, target, *, scale=true, weights=None, method="horn", robust=None, inlier_threshold=None, loss="huber"))]
+#[allow(clippy::too_many_arguments)]
 fn align_py(
     py: Python<'_>,
     source: &Bound<'_, PyAny>,
@@ -146,6 +266,9 @@ fn align_py(
     scale: bool,
     weights: Option<&Bound<'_, PyAny>>,
     method: &str,
+    robust: Option<&str>,
+    inlier_threshold: Option<f64>,
+    loss: &str,
 ) -> PyResult<PyAlignment> {
     let method: AlignMethod = method.parse()?;
     let weights = match weights {
@@ -156,6 +279,28 @@ fn align_py(
         scale,
         method,
         weights,
+    };
+    if let Some(ropts) = robust_arg(robust, inlier_threshold, loss)? {
+        let a = vectors(source, "source")?;
+        let b = vectors(target, "target")?;
+        let (fit, cov) = py.detach(|| -> crate::error::Result<_> {
+            let r = align_robust(&a, &b, &opts, &ropts)?;
+            let w: Vec<f64> = r.inliers.iter().map(|&x| f64::from(u8::from(x))).collect();
+            let cov = covariance(&r.alignment.transform, &a, &b, Some(&w), scale).ok();
+            Ok((r, cov))
+        })?;
+        return Ok(PyAlignment::with_extras(
+            py,
+            fit.alignment,
+            Some(fit.inliers),
+            cov,
+        ));
+    }
+    let lazy = CovarianceSource::Lazy {
+        source: source.clone().unbind(),
+        target: target.clone().unbind(),
+        weights: opts.weights.clone(),
+        scale,
     };
     with_points(source, "source", |s| {
         with_points(target, "target", |t| {
@@ -174,6 +319,8 @@ fn align_py(
                 rmse: fit.rmse,
                 residuals: residuals.unbind(),
                 diagnostics: fit.diagnostics,
+                inliers: None,
+                covariance: lazy,
             })
         })
     })
@@ -376,6 +523,12 @@ pub struct PyTrajectoryAlignment {
     ape: ApeStats,
     pairs: Vec<(usize, usize)>,
     residuals: Py<PyArray1<f64>>,
+    offset: f64,
+    fit_start: usize,
+    skip_reason: String,
+    stages: Option<Stages>,
+    inliers: Option<Py<PyArray1<bool>>>,
+    covariance: Option<Covariance>,
 }
 
 #[pymethods]
@@ -436,6 +589,47 @@ impl PyTrajectoryAlignment {
         self.residuals.clone_ref(py)
     }
 
+    /// Seconds added to the SLAM stamps (given plus estimated).
+    #[getter]
+    fn offset(&self) -> f64 {
+        self.offset
+    }
+    /// Index of the first fitted pair (`skip_init` dropped those before).
+    #[getter]
+    fn fit_start(&self) -> usize {
+        self.fit_start
+    }
+    /// Why the pairs before `fit_start` were dropped.
+    #[getter]
+    fn skip_reason(&self) -> &str {
+        &self.skip_reason
+    }
+    /// The start-up stages (with `skip_init="auto"`), else None.
+    #[getter]
+    fn stages(&self) -> Option<super::beyond::PyStages> {
+        self.stages.clone().map(super::beyond::PyStages::from)
+    }
+    /// Per fitted pair: inlier of the robust fit, or None.
+    #[getter]
+    fn inliers(&self, py: Python<'_>) -> Option<Py<PyArray1<bool>>> {
+        self.inliers.as_ref().map(|m| m.clone_ref(py))
+    }
+    /// First-order covariance (7, 7) over (rotation vector, translation, log scale).
+    #[getter]
+    fn covariance<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyArray2<f64>>> {
+        covariance_array(py, self.covariance_checked()?)
+    }
+    /// Central `level` confidence interval of the scale, `(lo, hi)`.
+    #[pyo3(signature = (level=0.95))]
+    fn scale_interval(&self, level: f64) -> PyResult<(f64, f64)> {
+        Ok(self.covariance_checked()?.scale_interval(level)?)
+    }
+    /// Central `level` intervals of every parameter.
+    #[pyo3(signature = (level=0.95))]
+    fn intervals<'py>(&self, py: Python<'py>, level: f64) -> PyResult<Bound<'py, PyDict>> {
+        intervals_dict(py, self.covariance_checked()?, level)
+    }
+
     fn __repr__(&self) -> String {
         format!(
             "TrajectoryAlignment(scale={:.9}, rmse={:.6}, mean={:.6}, median={:.6}, n_pairs={})",
@@ -444,10 +638,88 @@ impl PyTrajectoryAlignment {
     }
 }
 
+impl PyTrajectoryAlignment {
+    fn covariance_checked(&self) -> PyResult<&Covariance> {
+        self.covariance.as_ref().ok_or_else(|| {
+            Error::Degenerate {
+                reason: "no covariance for this fit (the positions alone do not determine it, or it was not computed)".into(),
+                value: 0.0,
+            }
+            .into()
+        })
+    }
+}
+
+fn skip_init_arg(obj: Option<&Bound<'_, PyAny>>) -> PyResult<SkipInit> {
+    let Some(o) = obj else {
+        return Ok(SkipInit::None);
+    };
+    if o.is_none() {
+        return Ok(SkipInit::None);
+    }
+    if let Ok(s) = o.extract::<String>() {
+        if s.eq_ignore_ascii_case("auto") {
+            return Ok(SkipInit::Auto);
+        }
+    } else if let Ok(n) = o.extract::<usize>() {
+        return Ok(SkipInit::First(n));
+    }
+    Err(Error::invalid("skip_init", "expected None, \"auto\" or a pair count >= 0").into())
+}
+
+/// `robust=None|"ransac"`, `inlier_threshold` (only with `"ransac"`) and
+/// `loss` (`"huber"` or `"cauchy"`) as the core's robust options.
+pub(crate) fn robust_arg(
+    robust: Option<&str>,
+    inlier_threshold: Option<f64>,
+    loss: &str,
+) -> PyResult<Option<RobustOptions>> {
+    match robust {
+        None if inlier_threshold.is_some() => {
+            Err(Error::invalid("inlier_threshold", "only with robust=\"ransac\"").into())
+        }
+        None => Ok(None),
+        Some(r) if r.eq_ignore_ascii_case("ransac") => Ok(Some(RobustOptions {
+            inlier_threshold,
+            loss: loss.parse()?,
+            ..Default::default()
+        })),
+        Some(r) => {
+            Err(Error::invalid("robust", format!("expected None or \"ransac\", got {r:?}")).into())
+        }
+    }
+}
+
+/// The keyword options beyond one fit (`align_trajectories`, `convert`) as
+/// the core's [`ExtendedOptions`]; `max_offset` (seconds) is `Some` when the
+/// time offset is to be estimated.
+pub(crate) fn extended_options(
+    skip_init: Option<&Bound<'_, PyAny>>,
+    robust: Option<&str>,
+    inlier_threshold: Option<f64>,
+    loss: &str,
+    use_orientations: bool,
+    max_offset: Option<f64>,
+    body_from_cam: Option<crate::geometry::Sim3>,
+) -> PyResult<ExtendedOptions> {
+    Ok(ExtendedOptions {
+        skip_init: skip_init_arg(skip_init)?,
+        robust: robust_arg(robust, inlier_threshold, loss)?,
+        use_orientations,
+        estimate_offset: max_offset.map(|max_offset| TimeOffsetOptions {
+            max_offset,
+            ..Default::default()
+        }),
+        body_from_cam,
+    })
+}
+
 /// Associates by time, fits `T_world_slam` on the positions (the first
-/// `first_n` pairs when given) and reports the APE over all pairs.
+/// `first_n` pairs when given) and reports the APE over all pairs. The
+/// keyword options beyond `method` are those of the extended fit: start-up
+/// cut (`skip_init`), robust fit, orientations, time offset, extrinsic.
 #[pyfunction(name = "align_trajectories")]
-#[pyo3(signature = (slam, reference, *, max_diff=0.01, offset=0.0, scale=true, first_n=None, method="horn"))]
+#[pyo3(signature = (slam, reference, *, max_diff=0.01, offset=0.0, scale=true, first_n=None, method="horn", skip_init=None, robust=None, inlier_threshold=None, loss="huber", use_orientations=false, estimate_offset=false, max_offset=0.5, body_from_cam=None))]
 #[allow(clippy::too_many_arguments)]
 fn align_trajectories_py(
     py: Python<'_>,
@@ -458,6 +730,14 @@ fn align_trajectories_py(
     scale: bool,
     first_n: Option<usize>,
     method: &str,
+    skip_init: Option<&Bound<'_, PyAny>>,
+    robust: Option<&str>,
+    inlier_threshold: Option<f64>,
+    loss: &str,
+    use_orientations: bool,
+    estimate_offset: bool,
+    max_offset: f64,
+    body_from_cam: Option<PyRef<'_, PySim3>>,
 ) -> PyResult<PyTrajectoryAlignment> {
     let opts = TrajectoryAlignOptions {
         max_diff,
@@ -466,27 +746,46 @@ fn align_trajectories_py(
         first_n,
         method: method.parse()?,
     };
+    let ext = extended_options(
+        skip_init,
+        robust,
+        inlier_threshold,
+        loss,
+        use_orientations,
+        estimate_offset.then_some(max_offset),
+        body_from_cam.map(|b| b.inner),
+    )?;
     let (s, r) = (&slam.inner, &reference.inner);
-    let ta = py.detach(|| align_trajectories(s, r, &opts))?;
-    PyTrajectoryAlignment::from_core(py, ta)
+    let out = py.detach(|| align_trajectories_extended(s, r, &opts, &ext))?;
+    PyTrajectoryAlignment::from_extended(py, out)
 }
 
 impl PyTrajectoryAlignment {
-    /// Wraps a core result (also used by `convert` in `mcap.rs`).
-    pub fn from_core(py: Python<'_>, ta: TrajectoryAlignment) -> PyResult<Self> {
+    /// Wraps a core extended fit (also used by `convert` in `mcap.rs`).
+    pub(crate) fn from_extended(py: Python<'_>, out: ExtendedAlignment) -> PyResult<Self> {
         let TrajectoryAlignment {
             alignment,
             pairs,
             ape,
             errors,
-        } = ta;
+        } = out.trajectory;
         let transform = alignment.transform;
+        let inliers = out.inliers;
         Ok(PyTrajectoryAlignment {
-            alignment: Py::new(py, PyAlignment::new(py, alignment))?,
+            alignment: Py::new(
+                py,
+                PyAlignment::with_extras(py, alignment, inliers.clone(), out.covariance.clone()),
+            )?,
             transform,
             ape,
             pairs,
             residuals: errors.into_pyarray(py).unbind(),
+            offset: out.offset,
+            fit_start: out.fit_start,
+            skip_reason: out.skip_reason,
+            stages: out.stages,
+            inliers: inliers.map(|m| m.into_pyarray(py).unbind()),
+            covariance: out.covariance,
         })
     }
 }

@@ -7,15 +7,17 @@ use numpy::{IntoPyArray, PyArray1, PyArray2, PyUntypedArrayMethods};
 use pyo3::prelude::*;
 use pyo3::sync::PyOnceLock;
 
+use super::beyond::window_arg;
 use super::cloud::{PyKeyframe, PyPointCloud, PyPointFilter};
 use super::convert::to_array2;
-use super::core::{PyTrajectory, PyTrajectoryAlignment};
+use super::core::{extended_options, PyTrajectory, PyTrajectoryAlignment};
 use super::geometry::PySim3;
 use super::map::PyOccupancyMap;
+use crate::align::extended::align_trajectories_extended;
 use crate::geometry::Sim3;
 use crate::io::mcap::{self as io_mcap, ReadOptions, WorldFlavor, WorldScene};
 use crate::pipeline::{self, ConvertOptions};
-use crate::trajectory::TrajectoryAlignOptions;
+use crate::trajectory::{Trajectory, TrajectoryAlignOptions};
 
 type Series<'py> = (
     Bound<'py, PyArray1<f64>>,
@@ -296,13 +298,33 @@ impl PyConversion {
     }
 }
 
+/// The keyframe poses as a SLAM trajectory sorted by time (the order and the
+/// values `pipeline::convert` fits, so that refitting gives the same answer).
+fn keyframe_trajectory(log: &io_mcap::Log) -> crate::error::Result<Trajectory> {
+    let mut kfs: Vec<_> = log.keyframes.iter().collect();
+    kfs.sort_by(|a, b| a.timestamp.total_cmp(&b.timestamp));
+    Trajectory::try_new(
+        kfs.iter().map(|k| k.timestamp).collect(),
+        kfs.iter().map(|k| k.pose.translation).collect(),
+        Some(kfs.iter().map(|k| k.pose.rotation).collect()),
+    )
+}
+
 /// Aligns a log's keyframes with its reference and builds the world cloud.
 /// `log_or_path` is a `Log` or a path (read with the topic arguments);
 /// `filter=None` means the LSD-SLAM viewer's defaults. `octree_resolution`
 /// (metres) also builds the occupancy octree, each keyframe's points inserted
 /// from its camera centre; `octree_max_range` (metres) truncates its rays.
+/// Without reference poses and with raw IMU (`imu_topic`, found by schema when
+/// None), `T_world_slam` comes from the IMU (`imu_from_cam` = `T_imu_cam`);
+/// with both, the report's `imu` entry compares them.
+/// The options beyond one fit are those of `align_trajectories` (start-up cut,
+/// robust fit, orientations, time offset, extrinsic `T_body_cam`);
+/// `compare_windowed` (an int: matched poses, a float: metres of path) adds a
+/// windowed fit to the report. `Conversion.alignment` carries the inliers,
+/// stages, offset and covariance.
 #[pyfunction(name = "convert")]
-#[pyo3(signature = (log_or_path, *, keyframe_topic=None, graph_topic=None, pose_topic=None, tf_parent=None, tf_child=None, max_diff=0.01, offset=0.0, n_to_align=None, scale=true, filter=None, octree_resolution=None, octree_max_range=None))]
+#[pyo3(signature = (log_or_path, *, keyframe_topic=None, graph_topic=None, pose_topic=None, tf_parent=None, tf_child=None, max_diff=0.01, offset=0.0, n_to_align=None, scale=true, filter=None, octree_resolution=None, octree_max_range=None, skip_init=None, robust=None, inlier_threshold=None, loss="huber", use_orientations=false, estimate_offset=false, max_offset=0.5, body_from_cam=None, compare_windowed=None, imu_topic=None, imu_from_cam=None))]
 #[allow(clippy::too_many_arguments)]
 fn convert_py(
     py: Python<'_>,
@@ -319,13 +341,37 @@ fn convert_py(
     filter: Option<PyRef<'_, PyPointFilter>>,
     octree_resolution: Option<f64>,
     octree_max_range: Option<f64>,
+    skip_init: Option<&Bound<'_, PyAny>>,
+    robust: Option<&str>,
+    inlier_threshold: Option<f64>,
+    loss: &str,
+    use_orientations: bool,
+    estimate_offset: bool,
+    max_offset: f64,
+    body_from_cam: Option<PyRef<'_, PySim3>>,
+    compare_windowed: Option<&Bound<'_, PyAny>>,
+    imu_topic: Option<String>,
+    imu_from_cam: Option<PyRef<'_, super::geometry::PySim3>>,
 ) -> PyResult<PyConversion> {
+    let beyond = extended_options(
+        skip_init,
+        robust,
+        inlier_threshold,
+        loss,
+        use_orientations,
+        estimate_offset.then_some(max_offset),
+        body_from_cam.map(|b| b.inner),
+    )?;
+    let compare_windowed = match compare_windowed {
+        Some(w) if !w.is_none() => Some(window_arg(w, "compare_windowed")?),
+        _ => None,
+    };
     let opts = ConvertOptions {
         read: ReadOptions {
             keyframe_topic,
             graph_topic,
             pose_topic,
-            imu_topic: None,
+            imu_topic,
             tf_parent,
             tf_child,
         },
@@ -337,12 +383,28 @@ fn convert_py(
             ..TrajectoryAlignOptions::default()
         },
         filter: filter.map(|f| f.inner).unwrap_or_default(),
+        beyond,
+        compare_windowed,
+        imu: crate::imu::ImuInitOptions {
+            imu_from_cam: imu_from_cam.map_or_else(crate::geometry::Sim3::identity, |t| t.inner),
+            ..crate::imu::ImuInitOptions::default()
+        },
         octree_resolution,
         octree_max_range,
     };
-    let conversion = if let Ok(log) = log_or_path.cast::<PyLog>() {
+    // `pipeline::Conversion` keeps only the plain fit, so the extended fit
+    // (inliers, stages, covariance) is run again on the same keyframe
+    // trajectory: deterministic (seeded RANSAC), and cheap next to the cloud.
+    let run = |log: &io_mcap::Log| -> crate::error::Result<_> {
+        let conversion = pipeline::convert(log, &opts)?;
+        let slam = keyframe_trajectory(log)?;
+        let ext =
+            align_trajectories_extended(&slam, &conversion.reference, &opts.align, &opts.beyond)?;
+        Ok((conversion, ext))
+    };
+    let (conversion, ext) = if let Ok(log) = log_or_path.cast::<PyLog>() {
         let log = log.get();
-        py.detach(|| pipeline::convert(&log.log, &opts))?
+        py.detach(|| run(&log.log))?
     } else {
         let path: PathBuf = log_or_path.extract().map_err(|_| {
             PyErr::from(crate::Error::invalid(
@@ -350,12 +412,17 @@ fn convert_py(
                 "expected a Log or a path (str or os.PathLike)",
             ))
         })?;
-        py.detach(|| pipeline::convert_file(&path, &opts))?
+        py.detach(|| -> crate::error::Result<_> {
+            opts.octree_params()?;
+            let t = std::time::Instant::now();
+            let log = io_mcap::read_mcap(&path, &opts.read)?;
+            let read_s = t.elapsed().as_secs_f64();
+            let (mut conversion, ext) = run(&log)?;
+            conversion.report.timing.read_s = read_s;
+            Ok((conversion, ext))
+        })?
     };
-    let alignment = Py::new(
-        py,
-        PyTrajectoryAlignment::from_core(py, conversion.alignment.clone())?,
-    )?;
+    let alignment = Py::new(py, PyTrajectoryAlignment::from_extended(py, ext)?)?;
     Ok(PyConversion {
         inner: conversion,
         alignment,

@@ -3,12 +3,14 @@
 
 use pyo3::prelude::*;
 
+mod beyond;
 mod cli;
 mod cloud;
 mod convert;
 mod core;
 mod errors;
 mod geometry;
+mod imu;
 mod map;
 mod mcap;
 mod sim;
@@ -21,8 +23,10 @@ fn _slam2world(m: &Bound<'_, PyModule>) -> PyResult<()> {
     sim::register(m)?;
     map::register(m)?;
     core::register(m)?;
+    beyond::register(m)?;
     cloud::register(m)?;
     cli::register(m)?;
     mcap::register(m)?;
+    imu::register(m)?;
     Ok(())
 }

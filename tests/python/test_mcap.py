@@ -425,11 +425,15 @@ def _rot(q: np.ndarray) -> np.ndarray:
 S_TRUE, R_TRUE, T_TRUE = 2.0, _rot(np.array([0.1, -0.3, 0.4, 0.85])), np.array([1.0, -2.0, 0.5])
 
 
-def _write_aligned_lsd_log(path: Path) -> np.ndarray:
+def _write_aligned_lsd_log(
+    path: Path, noise: float = 0.0, outliers: tuple[int, ...] = ()
+) -> np.ndarray:
     """An LSD-SLAM log written with mcap-ros1-support (8 keyframes on /lsd_slam/keyframes),
-    its reference on /mocap/pose made with T_world_slam = (S_TRUE, R_TRUE, T_TRUE).
+    its reference on /mocap/pose made with T_world_slam = (S_TRUE, R_TRUE, T_TRUE), plus
+    Gaussian `noise` (metres, per axis) and 1 m along x at the keyframes in `outliers`.
     Returns the expected world points (every pixel with a depth, keyframe order)."""
     rng = np.random.default_rng(21)
+    noise_rng = np.random.default_rng(22)
     s_true, r_true, t_true = S_TRUE, R_TRUE, T_TRUE
     Kf = _cls("lsd_slam_viewer/keyframeMsg", KEYFRAME_MSG)
     Pose = _cls("geometry_msgs/PoseStamped", POSE_STAMPED)
@@ -466,6 +470,9 @@ def _write_aligned_lsd_log(path: Path) -> np.ndarray:
             )
             # reference: the camera position in the world
             p_world = s_true * r_true @ tr.astype(np.float64) + t_true
+            p_world = p_world + noise * noise_rng.normal(size=3)
+            if i in outliers:
+                p_world = p_world + np.array([1.0, 0.0, 0.0])
             m = Pose()
             m.header.stamp.secs = 20 + i
             m.header.frame_id = "world"
@@ -596,3 +603,52 @@ def test_convert_with_an_octree_writes_cubes_and_a_bt_octomap_reads(tmp_path: Pa
         plain.write_bt(tmp_path / "none.bt")
     with pytest.raises(s2w.InvalidInputError, match="resolution"):
         s2w.convert(path, octree_resolution=0.0)
+
+
+def test_convert_beyond_one_fit(tmp_path: Path) -> None:
+    """convert takes align_trajectories' options beyond one fit: the start-up cut drops
+    exactly the first pairs, RANSAC flags the displaced pose, and the alignment carries
+    a covariance whose scale interval brackets the scale (and agrees with the report)."""
+    path = tmp_path / "lsd.mcap"
+    _write_aligned_lsd_log(path, noise=0.01, outliers=(5,))
+    none = s2w.PointFilter.none()
+
+    conv = s2w.convert(path, filter=none, skip_init=3)
+    rep = conv.report
+    assert conv.alignment.fit_start == rep["beyond"]["fit_start"] == 3
+    assert [p["fitted"] for p in rep["pairs"]] == [k >= 3 for k in range(8)]
+    assert rep["pairs_fitted"] == 5
+    assert conv.alignment.n_pairs == 8
+    assert len(conv.alignment.alignment.residuals) == 5
+    assert conv.alignment.transform.scale == pytest.approx(conv.transform.scale, rel=1e-12)
+    assert conv.alignment.inliers is None
+
+    conv = s2w.convert(path, filter=none, robust="ransac", inlier_threshold=0.2)
+    mask = conv.alignment.inliers
+    assert mask is not None and mask.shape == (8,) and mask.dtype == np.bool_
+    assert list(np.flatnonzero(~mask)) == [5]
+    assert conv.report["beyond"]["n_outliers"] == 1
+    assert [p["fitted"] for p in conv.report["pairs"]] == list(mask)
+    scale = conv.transform.scale
+    assert conv.alignment.transform.scale == pytest.approx(scale, rel=1e-12)
+    lo, hi = conv.alignment.scale_interval(0.95)
+    assert lo < scale < hi
+    assert lo < S_TRUE < hi
+    assert hi - lo < 0.1 * S_TRUE
+    assert [lo, hi] == pytest.approx(conv.report["beyond"]["intervals"]["scale"], rel=1e-9)
+    assert conv.alignment.covariance.shape == (7, 7)
+
+    # From a Log too, with a windowed comparison in the report.
+    log = s2w.read_mcap(path)
+    conv = s2w.convert(log, filter=none, skip_init=2, compare_windowed=4)
+    assert conv.alignment.fit_start == 2
+    assert conv.report["windowed"]["windowed_rmse"] >= 0.0
+
+    with pytest.raises(s2w.InvalidInputError, match="robust"):
+        s2w.convert(path, robust="lmeds")
+    with pytest.raises(s2w.InvalidInputError, match="inlier_threshold"):
+        s2w.convert(path, inlier_threshold=0.1)
+    with pytest.raises(s2w.InvalidInputError, match="skip_init"):
+        s2w.convert(path, skip_init="sometimes")
+    with pytest.raises(s2w.InvalidInputError, match="compare_windowed"):
+        s2w.convert(path, compare_windowed="wide")  # type: ignore[arg-type]

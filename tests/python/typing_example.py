@@ -75,6 +75,28 @@ def test_typed_cloud(tmp_path: Path) -> None:
     assert world_cloud(str(tmp_path / "c.ply")) == 30 * 22
 
 
+def at_rest_is_degenerate() -> str:
+    """Keyframes and IMU of a body at rest: the scale is unobservable."""
+    t = 100.0 + np.arange(101, dtype=np.float64) * 0.1
+    pos = np.tile([1.0, 2.0, 3.0], (101, 1))
+    quat = np.tile([0.0, 0.0, 0.0, 1.0], (101, 1))
+    keyframes = s2w.Trajectory(t, pos, quat)
+    ti = 99.95 + np.arange(2021, dtype=np.float64) * 0.005
+    gyro = np.zeros((2021, 3))
+    accel = np.tile([0.0, 0.0, 9.81], (2021, 1))
+    imu: s2w.ImuSamples = s2w.ImuSamples(ti, gyro, accel)
+    try:
+        a: s2w.ImuAlignment = s2w.imu_initialize(keyframes, imu, imu_from_cam=None, gravity=9.81)
+    except s2w.DegenerateError as e:
+        return str(e)
+    g: npt.NDArray[np.float64] = a.gravity_slam
+    return f"unexpected answer {a.scale} {g}"
+
+
+def test_imu_typing_example() -> None:
+    assert "unobservable" in at_rest_is_degenerate()
+
+
 def simulated_experiment() -> tuple[float, float]:
     sim: s2w.Simulation = s2w.simulate(seed=2, reduced=16, n_keyframes=4, scale_drift=0.0)
     fit = s2w.align_trajectories(sim.keyframe_trajectory, sim.reference)

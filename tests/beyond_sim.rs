@@ -1,0 +1,150 @@
+//! Beyond one fit on the simulated experiment: the automatic start-up cut
+//! against the true stages, and the windowed alignment under scale drift.
+
+use slam2world::align::extended::{align_trajectories_extended, ExtendedOptions, SkipInit};
+use slam2world::align::windowed::{align_windowed, Window, WindowedOptions};
+use slam2world::cloud::{backproject, backproject_per_keyframe, PointFilter};
+use slam2world::sim::evaluate::point_distances;
+use slam2world::sim::{simulate, ErrorStats, SimConfig};
+use slam2world::trajectory::{align_trajectories, TrajectoryAlignOptions};
+
+#[test]
+fn auto_skip_starts_in_the_converging_stretch_and_fixes_the_scale() {
+    for seed in [0, 1, 2] {
+        let cfg = SimConfig {
+            seed,
+            ..SimConfig::default().reduced(8)
+        };
+        let sim = simulate(&cfg).unwrap();
+        let truth = sim.truth.t_world_slam.scale;
+        let base = TrajectoryAlignOptions::default();
+        let fit = |skip| {
+            align_trajectories_extended(
+                &sim.slam_frames,
+                &sim.reference,
+                &base,
+                &ExtendedOptions {
+                    skip_init: skip,
+                    ..Default::default()
+                },
+            )
+            .unwrap()
+        };
+        let all = fit(SkipInit::None);
+        let auto = fit(SkipInit::Auto);
+        let stages = auto.stages.clone().unwrap();
+        // The first fitted frame (pairs index SLAM frames).
+        let start = auto.trajectory.pairs[auto.fit_start].0;
+        let err = |s: f64| (s / truth - 1.0).abs();
+        let (e_all, e_auto) = (
+            err(all.trajectory.alignment.transform.scale),
+            err(auto.trajectory.alignment.transform.scale),
+        );
+        let conv = auto.trajectory.pairs[stages.converging_start].0;
+        eprintln!(
+            "seed {seed}: true stages {}..{}..; found converging {conv}, fit start {start}; \
+             scale error all {e_all:.2e}, auto {e_auto:.2e}",
+            cfg.converge_start, cfg.stable_start
+        );
+        assert!(
+            cfg.converge_start <= start && start <= cfg.stable_start,
+            "seed {seed}: start {start} outside {}..={}",
+            cfg.converge_start,
+            cfg.stable_start
+        );
+        assert!(e_auto * 5.0 <= e_all, "seed {seed}: {e_auto} vs {e_all}");
+        assert!(auto.skip_reason.contains("dropped"));
+    }
+}
+
+#[test]
+fn windowed_alignment_halves_the_cloud_error_under_scale_drift() {
+    let sim = simulate(&SimConfig {
+        scale_drift: 0.01,
+        ..SimConfig::default().reduced(4)
+    })
+    .unwrap();
+    let kf = sim.keyframe_trajectory().unwrap();
+    let filter = PointFilter::default();
+    let rmse = |points: &[f32]| {
+        ErrorStats::from_values("d", &point_distances(&sim.truth.scene, points).unwrap())
+            .unwrap()
+            .rmse
+    };
+    let single = align_trajectories(&kf, &sim.reference, &TrajectoryAlignOptions::default())
+        .unwrap()
+        .alignment
+        .transform;
+    let single_rmse = rmse(
+        &backproject(&sim.keyframes, &filter, Some(&single))
+            .unwrap()
+            .points,
+    );
+    let w = align_windowed(
+        &kf,
+        &sim.reference,
+        &WindowedOptions {
+            window: Window::Poses(5),
+            ..Default::default()
+        },
+    )
+    .unwrap();
+    let per_kf: Vec<_> = sim
+        .keyframes
+        .iter()
+        .map(|k| w.transform_at(k.timestamp))
+        .collect();
+    let cloud = backproject_per_keyframe(&sim.keyframes, &filter, &per_kf).unwrap();
+    let windowed_rmse = rmse(&cloud.points);
+    eprintln!(
+        "cloud rmse: single Sim(3) {single_rmse:.4} m, windowed {windowed_rmse:.4} m; \
+         APE single {:.4} m, windowed {:.4} m",
+        w.global.rmse, w.rmse
+    );
+    assert!(
+        windowed_rmse < 0.5 * single_rmse,
+        "{windowed_rmse} vs {single_rmse}"
+    );
+}
+
+#[test]
+fn convert_reports_the_cut_the_inliers_and_the_windowed_comparison() {
+    use slam2world::align::robust::RobustOptions;
+    use slam2world::io::mcap::Log;
+    use slam2world::pipeline::{convert, ConvertOptions};
+    let sim = simulate(&SimConfig {
+        scale_drift: 0.01,
+        ..SimConfig::default().reduced(8)
+    })
+    .unwrap();
+    let log = Log {
+        keyframes: sim.keyframes.clone(),
+        reference: Some(sim.reference.clone()),
+        ..Default::default()
+    };
+    let opts = ConvertOptions {
+        filter: PointFilter::none(),
+        beyond: ExtendedOptions {
+            skip_init: SkipInit::First(3),
+            robust: Some(RobustOptions::default()),
+            ..Default::default()
+        },
+        compare_windowed: Some(Window::Poses(5)),
+        ..Default::default()
+    };
+    let c = convert(&log, &opts).unwrap();
+    let r = &c.report;
+    assert_eq!(r.beyond["fit_start"], 3);
+    assert!(r.beyond["skip_reason"]
+        .as_str()
+        .unwrap()
+        .contains("first 3"));
+    let n_in = r.beyond["n_inliers"].as_u64().unwrap() as usize;
+    assert_eq!(r.pairs.iter().filter(|p| p.fitted).count(), n_in);
+    assert!(r.pairs.iter().take(3).all(|p| !p.fitted));
+    let w = r.windowed.as_ref().unwrap();
+    assert!(w["windowed_rmse"].as_f64().unwrap() < w["single_rmse"].as_f64().unwrap());
+    let iv = r.beyond["intervals"]["scale"].as_array().unwrap();
+    let s = r.t_world_slam.scale;
+    assert!(iv[0].as_f64().unwrap() < s && s < iv[1].as_f64().unwrap());
+}
