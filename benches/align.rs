@@ -1,4 +1,4 @@
-//! Closed-form alignment throughput (pairs per second), 1e3 … 1e6 pairs.
+//! Closed-form alignment throughput (pairs per second), 1e3 … 1e7 pairs.
 //! Peers (numpy, evo) are measured side by side by `benches/compare.py`.
 
 use std::hint::black_box;
@@ -10,6 +10,8 @@ use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 use slam2world::align::{align, AlignMethod, AlignOptions};
 use slam2world::Sim3;
+
+mod common;
 
 fn pairs(n: usize) -> (Vec<Vector3<f64>>, Vec<Vector3<f64>>) {
     let mut rng = ChaCha8Rng::seed_from_u64(1);
@@ -27,10 +29,10 @@ fn pairs(n: usize) -> (Vec<Vector3<f64>>, Vec<Vector3<f64>>) {
 
 fn bench_align(c: &mut Criterion) {
     let mut g = c.benchmark_group("align");
-    g.measurement_time(Duration::from_secs(3))
-        .warm_up_time(Duration::from_millis(500))
-        .sample_size(20);
-    for n in [1_000usize, 10_000, 100_000, 1_000_000] {
+    g.measurement_time(Duration::from_secs(1))
+        .warm_up_time(Duration::from_millis(300))
+        .sample_size(10);
+    for n in common::sizes(&[1_000, 10_000, 100_000, 1_000_000, 10_000_000]) {
         let (a, b) = pairs(n);
         g.throughput(Throughput::Elements(n as u64));
         for (name, method) in [

@@ -2,19 +2,19 @@
 //!
 //! - `poses`: a log of small ros1 `geometry_msgs/PoseStamped` messages (zstd
 //!   chunks), read into a reference trajectory (messages/s). The Python peer
-//!   (`mcap` + `mcap-ros1-support`) is timed by `benches/compare_mcap.py`.
+//!   (`mcap` + `mcap-ros1-support`) is timed by `benches/compare.py --only mcap`.
 //! - `keyframes`: a zstd log of 640×480 LSD-SLAM keyframes read into keyframes
 //!   (decompressed bytes/s), beside plain single-threaded zstd decompression of
 //!   the same chunks (the peer, the limit).
 //!
-//! Sizes: `S2W_BENCH_POSES` (default 1e6) and `S2W_BENCH_KEYFRAMES` (default 16);
+//! Sizes: poses 1e3 … `S2W_BENCH_POSES` (default 1e6) and `S2W_BENCH_KEYFRAMES` (default 16);
 //! `cargo test` runs each once on small sizes.
 
 use std::hint::black_box;
 use std::path::Path;
 use std::time::Duration;
 
-use criterion::{criterion_group, criterion_main, Criterion, Throughput};
+use criterion::{criterion_group, criterion_main, BenchmarkId, Criterion, Throughput};
 use nalgebra::{UnitQuaternion, Vector3};
 use slam2world::io::mcap::{read_mcap, write_slam_log, ReadOptions, SlamLogOptions};
 use slam2world::{Keyframe, PinholeCamera, Sim3, Trajectory};
@@ -101,18 +101,32 @@ fn chunks(path: &Path) -> Vec<(Vec<u8>, usize)> {
 fn bench(c: &mut Criterion) {
     let dir = tempfile::tempdir().expect("temp dir");
 
-    let n = env_usize("S2W_BENCH_POSES", 1_000_000);
-    let poses = dir.path().join("poses.mcap");
-    pose_log(&poses, n);
+    // 1e3 … S2W_BENCH_POSES messages (1e6 by default).
+    let max = env_usize("S2W_BENCH_POSES", 1_000_000);
+    let sizes: Vec<usize> = [1_000usize, 10_000, 100_000, 1_000_000]
+        .into_iter()
+        .filter(|&s| s < max)
+        .chain(std::iter::once(max))
+        .collect();
     let mut g = c.benchmark_group("mcap_poses");
-    g.sample_size(10).measurement_time(Duration::from_secs(8));
-    g.throughput(Throughput::Elements(n as u64));
-    g.bench_function(format!("read_decode_{n}_pose_stamped"), |b| {
-        b.iter(|| {
-            let log = read_mcap(black_box(&poses), &ReadOptions::default()).expect("read");
-            black_box(log.reference.map(|r| r.len()))
-        })
-    });
+    g.sample_size(10)
+        .measurement_time(Duration::from_secs(2))
+        .warm_up_time(Duration::from_millis(300));
+    for n in sizes {
+        let poses = dir.path().join(format!("poses_{n}.mcap"));
+        pose_log(&poses, n);
+        g.throughput(Throughput::Elements(n as u64));
+        g.bench_with_input(
+            BenchmarkId::new("read_decode_pose_stamped", n),
+            &n,
+            |b, _| {
+                b.iter(|| {
+                    let log = read_mcap(black_box(&poses), &ReadOptions::default()).expect("read");
+                    black_box(log.reference.map(|r| r.len()))
+                })
+            },
+        );
+    }
     g.finish();
 
     let k = env_usize("S2W_BENCH_KEYFRAMES", 16);
@@ -123,7 +137,7 @@ fn bench(c: &mut Criterion) {
     let chunk_data = chunks(&kf_path);
     let total: usize = chunk_data.iter().map(|c| c.1).sum();
     let mut g = c.benchmark_group("mcap_keyframes");
-    g.sample_size(10).measurement_time(Duration::from_secs(8));
+    g.sample_size(10).measurement_time(Duration::from_secs(3));
     g.throughput(Throughput::Bytes(total as u64));
     g.bench_function(format!("read_decode_{k}_keyframes_640x480"), |b| {
         b.iter(|| {

@@ -16,6 +16,7 @@ use std::borrow::Borrow;
 
 use rayon::prelude::*;
 
+use crate::buffer::{advise_huge_pages, copy_advised};
 use crate::error::{Error, Result};
 use crate::geometry::Sim3;
 use crate::keyframe::Keyframe;
@@ -23,9 +24,6 @@ use crate::keyframe::Keyframe;
 /// Image rows per parallel work item: small enough to balance a few keyframes
 /// over many cores, large enough that a task's buffers amortise their growth.
 const ROWS_PER_TASK: usize = 32;
-
-/// Points per parallel work item in [`PointCloud::transformed`].
-const POINTS_PER_TASK: usize = 1 << 15;
 
 /// Which pixels of a keyframe become points: the LSD-SLAM viewer's rules.
 ///
@@ -185,7 +183,7 @@ impl PointCloud {
     /// in parallel; colours and keyframe ids are copied unchanged.
     pub fn transformed(&self, t: &Sim3) -> Result<PointCloud> {
         Ok(PointCloud {
-            points: transform_points_f32(t, &self.points)?,
+            points: t.transform_points(&self.points)?,
             colors: self.colors.as_deref().map(copy_advised),
             keyframe_ids: copy_advised(&self.keyframe_ids),
         })
@@ -195,88 +193,6 @@ impl PointCloud {
     pub fn transform_in_place(&mut self, t: &Sim3) -> Result<()> {
         t.transform_points_in_place(&mut self.points)
     }
-}
-
-/// `T · p` for row-major `(N, 3)` `f32` points, into a new vector, in parallel.
-/// The arithmetic is `f64`; the output is written once (no zero-fill pass).
-pub fn transform_points_f32(t: &Sim3, src: &[f32]) -> Result<Vec<f32>> {
-    if src.len() % 3 != 0 {
-        return Err(Error::ShapeMismatch {
-            what: "points".into(),
-            expected: "(N, 3)".into(),
-            got: format!("{} values", src.len()),
-        });
-    }
-    let (m, tr) = affine(t);
-    let mut out: Vec<f32> = Vec::with_capacity(src.len());
-    advise_huge_pages(out.spare_capacity_mut());
-    let chunk = 3 * POINTS_PER_TASK;
-    out.spare_capacity_mut()[..src.len()]
-        .par_chunks_mut(chunk)
-        .zip(src.par_chunks(chunk))
-        .for_each(|(d, s)| {
-            for (d, s) in d.chunks_exact_mut(3).zip(s.chunks_exact(3)) {
-                let p = [s[0] as f64, s[1] as f64, s[2] as f64];
-                for k in 0..3 {
-                    let v = m[k][0] * p[0] + m[k][1] * p[1] + m[k][2] * p[2] + tr[k];
-                    d[k].write(v as f32);
-                }
-            }
-        });
-    // SAFETY: the parallel loop above wrote every one of the first `src.len()`
-    // elements (the chunks of `d` and `s` pair up exactly, both of length src.len()).
-    unsafe { out.set_len(src.len()) };
-    Ok(out)
-}
-
-/// Buffers from this size on are backed by transparent huge pages where the
-/// system allows it (Linux `madvise`): a fresh 120 MB output otherwise costs
-/// 30 000 page faults, more than the arithmetic that fills it.
-const HUGE_PAGE_MIN_BYTES: usize = 8 << 20;
-
-/// Asks the kernel to back `buf` (not yet touched) with huge pages; a hint only.
-fn advise_huge_pages<T>(buf: &mut [T]) {
-    let bytes = std::mem::size_of_val(buf);
-    if bytes < HUGE_PAGE_MIN_BYTES {
-        return;
-    }
-    #[cfg(target_os = "linux")]
-    {
-        // madvise needs a page-aligned start: advise the aligned part of the buffer.
-        const PAGE: usize = 4096;
-        let start = buf.as_mut_ptr() as usize;
-        let aligned = start.next_multiple_of(PAGE);
-        let len = (start + bytes).saturating_sub(aligned) / PAGE * PAGE;
-        if len > 0 {
-            // SAFETY: [aligned, aligned + len) lies inside `buf`, memory this process
-            // owns; MADV_HUGEPAGE changes how pages are backed, never their content.
-            // The result is ignored: without huge pages the buffer works the same.
-            unsafe {
-                libc::madvise(aligned as *mut libc::c_void, len, libc::MADV_HUGEPAGE);
-            }
-        }
-    }
-}
-
-/// A copy of `src` in a buffer advised to use huge pages.
-fn copy_advised<T: Copy>(src: &[T]) -> Vec<T> {
-    let mut v = Vec::with_capacity(src.len());
-    advise_huge_pages(v.spare_capacity_mut());
-    v.extend_from_slice(src);
-    v
-}
-
-/// `s·R` (row-major) and `t` of a transform.
-fn affine(t: &Sim3) -> ([[f64; 3]; 3], [f64; 3]) {
-    let r = t.rotation_matrix() * t.scale;
-    (
-        [
-            [r[(0, 0)], r[(0, 1)], r[(0, 2)]],
-            [r[(1, 0)], r[(1, 1)], r[(1, 2)]],
-            [r[(2, 0)], r[(2, 1)], r[(2, 2)]],
-        ],
-        [t.translation.x, t.translation.y, t.translation.z],
-    )
 }
 
 /// SplitMix64 finaliser (Steele, Lea & Flood 2014): a well-mixed 64-bit hash.
@@ -361,7 +277,7 @@ fn backproject_with<K: Borrow<Keyframe> + Sync>(
         if filter.cuts(i) {
             continue;
         }
-        let (m, t) = affine(&(world_slam(i) * kf.pose));
+        let (m, t) = (world_slam(i) * kf.pose).affine();
         prepared.push(Prepared {
             kf,
             m,
@@ -759,7 +675,7 @@ mod tests {
         let t =
             Sim3::from_quaternion_xyzw([0.4, -0.1, 0.2, 0.8], Vector3::new(1.0, -1.0, 0.5), 2.5)
                 .unwrap();
-        let n = 3 * POINTS_PER_TASK + 5;
+        let n = 3 * (1 << 15) + 5; // more than one parallel block
         let pts: Vec<f32> = (0..3 * n)
             .map(|i| ((i * 37) % 101) as f32 * 0.1 - 5.0)
             .collect();
@@ -776,7 +692,7 @@ mod tests {
                 assert!((out.points[3 * i + k] as f64 - q[k]).abs() < 1e-5 * q[k].abs().max(1.0));
             }
         }
-        assert!(transform_points_f32(&t, &pts[..4]).is_err());
+        assert!(t.transform_points(&pts[..4]).is_err());
         assert!(PointCloud::try_new(vec![0.0; 6], Some(vec![0; 3]), None).is_err());
     }
 }

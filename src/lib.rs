@@ -12,6 +12,7 @@
 //! `(x, y, z, w)`.
 
 pub mod align;
+pub mod buffer;
 pub mod cli;
 pub mod cloud;
 pub mod error;

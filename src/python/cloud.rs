@@ -469,7 +469,7 @@ impl PyPointCloud {
         let t = transform.inner;
         let view = self.points_view(py);
         let src = view.as_slice()?;
-        let out = py.detach(|| cloud::transform_points_f32(&t, src))?;
+        let out = py.detach(|| t.transform_points(src))?;
         let n = out.len() / 3;
         let pts = Array2::from_shape_vec((n, 3), out)
             .map_err(|e| PyErr::from(Error::invalid("cloud", e.to_string())))?

@@ -1,7 +1,8 @@
 //! `Sim3` for Python.
 
 use nalgebra::Vector3;
-use numpy::{PyArray1, PyArray2, PyArrayMethods, ToPyArray};
+use numpy::ndarray::Array2;
+use numpy::{IntoPyArray, PyArray1, PyArray2, ToPyArray};
 use pyo3::prelude::*;
 use pyo3::types::PyTuple;
 
@@ -31,18 +32,13 @@ fn apply_typed<T: PointScalar + numpy::Element>(
     t: &Sim3,
     src: &[T],
 ) -> PyResult<Py<PyAny>> {
-    // The output is allocated by NumPy (which asks the kernel for huge pages
-    // on large arrays: a fresh Rust vector would spend more time in page
-    // faults than in the arithmetic) and filled in parallel without the GIL.
-    let out = PyArray2::<T>::zeros(py, [src.len() / 3, 3], false);
-    {
-        let mut rw = out.readwrite();
-        let dst = rw
-            .as_slice_mut()
-            .map_err(|e| PyErr::from(crate::error::Error::invalid("points", e.to_string())))?;
-        py.detach(|| t.transform_points_into(src, dst))?;
-    }
-    Ok(out.into_any().unbind())
+    // The core allocates the output (huge-page hint, written once, no zero
+    // fill) in parallel without the GIL; NumPy takes the vector over, no copy.
+    let out = py.detach(|| t.transform_points(src))?;
+    let n = out.len() / 3;
+    let arr = Array2::from_shape_vec((n, 3), out)
+        .map_err(|e| PyErr::from(crate::error::Error::invalid("points", e.to_string())))?;
+    Ok(arr.into_pyarray(py).into_any().unbind())
 }
 
 /// Maps `(N, 3)` points, keeping float32 as float32; the GIL is released.
