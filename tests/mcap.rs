@@ -649,3 +649,24 @@ fn inspect_exits_0_on_a_log_and_1_on_bad_input() {
     let code = slam2world::cli::main_with_args(["slam2world", "inspect", bad.to_str().unwrap()]);
     assert_eq!(code, 1);
 }
+
+/// Found by the cargo-fuzz target `decoders`: width·height·12 overflowed u64
+/// for a header claiming a 4e9 x 4e9 image; the decoder must refuse it.
+#[test]
+fn keyframe_with_huge_dimensions_is_an_error_not_an_overflow() {
+    let mut msg = Vec::new();
+    msg.extend_from_slice(&7i32.to_le_bytes()); // id
+    msg.extend_from_slice(&1.5f64.to_le_bytes()); // time
+    msg.push(1); // isKeyframe
+    for v in [
+        0.0f32, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 500.0, 500.0, 320.0, 240.0,
+    ] {
+        msg.extend_from_slice(&v.to_le_bytes()); // camToWorld[7], fx, fy, cx, cy
+    }
+    msg.extend_from_slice(&u32::MAX.to_le_bytes()); // height
+    msg.extend_from_slice(&u32::MAX.to_le_bytes()); // width
+    msg.extend_from_slice(&12u32.to_le_bytes()); // pointcloud length
+    msg.extend_from_slice(&[0u8; 12]);
+    let err = slam2world::io::mcap::decode::keyframe_ros1(&msg).unwrap_err();
+    assert!(err.contains("expected width·height·12"), "{err}");
+}

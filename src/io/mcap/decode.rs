@@ -147,8 +147,9 @@ pub fn keyframe_ros1(data: &[u8]) -> WireResult<KeyframeMsg<'_>> {
     let height = r.u32()?;
     let width = r.u32()?;
     let pointcloud = r.byte_array()?;
-    let expected = width as u64 * height as u64 * POINT_BYTES as u64;
-    if !pointcloud.is_empty() && pointcloud.len() as u64 != expected {
+    // u32·u32·12 can exceed u64: count in u128.
+    let expected = width as u128 * height as u128 * POINT_BYTES as u128;
+    if !pointcloud.is_empty() && pointcloud.len() as u128 != expected {
         return Err(format!(
             "keyframe {id}: point cloud of {} bytes, expected width·height·12 = {width}·{height}·12 = {expected}",
             pointcloud.len()
