@@ -198,6 +198,34 @@ impl McapFile {
         &self.map
     }
 
+    /// Records the schema and channel definitions met inside a chunk (or
+    /// between chunks): schemas by id, channels first-seen-wins, and for each
+    /// new channel whether `want` keeps it (`keep`: 0 undefined, 1 skipped, 2 kept).
+    pub(super) fn apply_defs(
+        &self,
+        defs: Vec<Def>,
+        schemas: &mut BTreeMap<u16, (records::SchemaHeader, Vec<u8>)>,
+        channels: &mut BTreeMap<u16, ChannelInfo>,
+        keep: &mut [u8],
+        want: &impl Fn(&ChannelInfo) -> bool,
+    ) -> Result<()> {
+        for def in defs {
+            match def {
+                Def::Schema(h, d) => {
+                    schemas.insert(h.id, (h, d));
+                }
+                Def::Channel(c) => {
+                    if let std::collections::btree_map::Entry::Vacant(slot) = channels.entry(c.id) {
+                        let info = channel_info(&c, schemas).map_err(|r| self.err(r))?;
+                        keep[c.id as usize] = if want(&info) { 2 } else { 1 };
+                        slot.insert(info);
+                    }
+                }
+            }
+        }
+        Ok(())
+    }
+
     pub(super) fn err(&self, reason: impl Into<String>) -> Error {
         Error::Mcap {
             path: self.path.clone(),
@@ -424,22 +452,7 @@ impl McapFile {
         }
         for part in expanded {
             let (buffer, defs, msgs) = part?;
-            for def in defs {
-                match def {
-                    Def::Schema(h, d) => {
-                        schemas.insert(h.id, (h, d));
-                    }
-                    Def::Channel(c) => {
-                        if let std::collections::btree_map::Entry::Vacant(slot) =
-                            channels.entry(c.id)
-                        {
-                            let info = channel_info(&c, &schemas).map_err(|r| self.err(r))?;
-                            keep[c.id as usize] = if want(&info) { 2 } else { 1 };
-                            slot.insert(info);
-                        }
-                    }
-                }
-            }
+            self.apply_defs(defs, &mut schemas, &mut channels, &mut keep, want)?;
             let index = buffers.len() as u32;
             let before = entries.len();
             for mut m in msgs {

@@ -172,22 +172,7 @@ impl McapFile {
         let mut deferred: Vec<(usize, Vec<u8>)> = Vec::new();
         for part in parts {
             let (defs, msgs, raw) = part?;
-            for def in defs {
-                match def {
-                    Def::Schema(h, d) => {
-                        schemas.insert(h.id, (h, d));
-                    }
-                    Def::Channel(c) => {
-                        if let std::collections::btree_map::Entry::Vacant(slot) =
-                            channels.entry(c.id)
-                        {
-                            let info = channel_info(&c, &schemas).map_err(|r| self.err(r))?;
-                            keep[c.id as usize] = if want(&info) { 2 } else { 1 };
-                            slot.insert(info);
-                        }
-                    }
-                }
-            }
+            self.apply_defs(defs, &mut schemas, &mut channels, &mut keep, &want)?;
             let mut raw = raw.into_iter().peekable();
             for (j, m) in msgs.into_iter().enumerate() {
                 let bytes = match raw.peek() {
