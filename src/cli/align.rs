@@ -67,21 +67,24 @@ pub struct AlignArgs {
     beyond: super::beyond::BeyondArgs,
 }
 
-fn finite(s: &str) -> std::result::Result<f64, String> {
+/// clap parser: a finite number of seconds.
+pub(crate) fn finite(s: &str) -> std::result::Result<f64, String> {
     match s.parse::<f64>() {
         Ok(v) if v.is_finite() => Ok(v),
         _ => Err(format!("expected a finite number of seconds, got {s:?}")),
     }
 }
 
-fn non_negative(s: &str) -> std::result::Result<f64, String> {
+/// clap parser: a finite number of seconds, `>= 0`.
+pub(crate) fn non_negative(s: &str) -> std::result::Result<f64, String> {
     match finite(s) {
         Ok(v) if v >= 0.0 => Ok(v),
         _ => Err(format!("expected a number of seconds >= 0, got {s:?}")),
     }
 }
 
-fn read(path: &Path, format: Format) -> Result<Trajectory> {
+/// Reads a trajectory file in the given format.
+pub(crate) fn read(path: &Path, format: Format) -> Result<Trajectory> {
     match format {
         Format::Tum => Trajectory::read_tum(path),
         Format::Euroc => Trajectory::read_euroc(path),

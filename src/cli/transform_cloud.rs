@@ -8,11 +8,11 @@ use std::path::{Path, PathBuf};
 
 use clap::Args;
 
-use super::align::Format;
+use super::align::{finite, non_negative, read, Format};
 use crate::cloud::PointCloud;
 use crate::error::{Error, Result};
 use crate::io::ply::{read_ply, read_xyz_text, write_ply};
-use crate::trajectory::{align_trajectories, Trajectory, TrajectoryAlignOptions};
+use crate::trajectory::{align_trajectories, TrajectoryAlignOptions};
 
 /// Options of `slam2world transform-cloud`.
 #[derive(Args, Debug)]
@@ -43,27 +43,6 @@ pub struct TransformCloudArgs {
     no_scale: bool,
 }
 
-fn finite(s: &str) -> std::result::Result<f64, String> {
-    match s.parse::<f64>() {
-        Ok(v) if v.is_finite() => Ok(v),
-        _ => Err(format!("expected a finite number of seconds, got {s:?}")),
-    }
-}
-
-fn non_negative(s: &str) -> std::result::Result<f64, String> {
-    match finite(s) {
-        Ok(v) if v >= 0.0 => Ok(v),
-        _ => Err(format!("expected a number of seconds >= 0, got {s:?}")),
-    }
-}
-
-fn read_trajectory(path: &Path, format: Format) -> Result<Trajectory> {
-    match format {
-        Format::Tum => Trajectory::read_tum(path),
-        Format::Euroc => Trajectory::read_euroc(path),
-    }
-}
-
 /// A PLY file (recognised by its `ply` magic line) or `x y z` text.
 pub fn read_cloud(path: &Path) -> Result<PointCloud> {
     let mut head = [0u8; 4];
@@ -84,8 +63,8 @@ pub fn run(args: TransformCloudArgs) -> Result<()> {
         return Err(Error::invalid("--align", "needs EST and REF"));
     };
     let cloud = read_cloud(&args.input)?;
-    let est = read_trajectory(est_path, args.format)?;
-    let reference = read_trajectory(ref_path, args.ref_format.unwrap_or(args.format))?;
+    let est = read(est_path, args.format)?;
+    let reference = read(ref_path, args.ref_format.unwrap_or(args.format))?;
     let opts = TrajectoryAlignOptions {
         max_diff: args.max_diff,
         offset: args.offset,
