@@ -259,11 +259,10 @@ pub fn read_mcap(path: impl AsRef<Path>, options: &ReadOptions) -> Result<Log> {
 
     use MessageKind as K;
     let ch = &scan.channels;
-    let named = |o: &Option<String>| o.clone();
     let kf = choose(
         path,
         "keyframe",
-        named(&options.keyframe_topic).as_deref(),
+        options.keyframe_topic.as_deref(),
         &[K::Keyframe],
         ch,
         &counts,
@@ -271,7 +270,7 @@ pub fn read_mcap(path: impl AsRef<Path>, options: &ReadOptions) -> Result<Log> {
     let graph = choose(
         path,
         "graph",
-        named(&options.graph_topic).as_deref(),
+        options.graph_topic.as_deref(),
         &[K::KeyframeGraph],
         ch,
         &counts,
@@ -279,7 +278,7 @@ pub fn read_mcap(path: impl AsRef<Path>, options: &ReadOptions) -> Result<Log> {
     let pose = choose(
         path,
         "pose",
-        named(&options.pose_topic).as_deref(),
+        options.pose_topic.as_deref(),
         &POSE_KINDS,
         ch,
         &counts,
@@ -287,7 +286,7 @@ pub fn read_mcap(path: impl AsRef<Path>, options: &ReadOptions) -> Result<Log> {
     let imu_ch = choose(
         path,
         "imu",
-        named(&options.imu_topic).as_deref(),
+        options.imu_topic.as_deref(),
         &[K::Imu],
         ch,
         &counts,

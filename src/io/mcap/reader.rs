@@ -246,23 +246,7 @@ impl McapFile {
     pub fn scan(&self, want: impl Fn(&ChannelInfo) -> bool + Sync) -> Result<Scan<'_>> {
         let profile = self.profile();
         if let Some((chunks, channels)) = self.indexed_plan()? {
-            let wanted: Vec<u16> = channels
-                .values()
-                .filter(|c| want(c))
-                .map(|c| c.id)
-                .collect();
-            let mut items = Vec::new();
-            for ci in &chunks {
-                let has_wanted = ci.message_index_offsets.is_empty()
-                    || ci
-                        .message_index_offsets
-                        .keys()
-                        .any(|id| wanted.contains(id));
-                if !has_wanted {
-                    continue;
-                }
-                items.push(self.chunk_at(ci)?);
-            }
+            let items = self.wanted_chunks(&chunks, &channels, &want)?;
             let (channels, buffers, entries) = self.expand(items, &want, channels)?;
             return Ok(Scan {
                 channels,
@@ -331,6 +315,32 @@ impl McapFile {
         let mut chunks = summary.chunk_indexes;
         chunks.sort_by_key(|c| c.chunk_start_offset);
         Ok(Some((chunks, channels)))
+    }
+
+    /// The chunks of an indexed file that hold a message of a channel `want`
+    /// keeps (a chunk without a message index is kept: its content is unknown).
+    pub(super) fn wanted_chunks(
+        &self,
+        chunks: &[records::ChunkIndex],
+        channels: &BTreeMap<u16, ChannelInfo>,
+        want: &impl Fn(&ChannelInfo) -> bool,
+    ) -> Result<Vec<Item<'_>>> {
+        let wanted: Vec<u16> = channels
+            .values()
+            .filter(|c| want(c))
+            .map(|c| c.id)
+            .collect();
+        chunks
+            .iter()
+            .filter(|ci| {
+                ci.message_index_offsets.is_empty()
+                    || ci
+                        .message_index_offsets
+                        .keys()
+                        .any(|id| wanted.contains(id))
+            })
+            .map(|ci| self.chunk_at(ci))
+            .collect()
     }
 
     pub(super) fn chunk_at(&self, ci: &records::ChunkIndex) -> Result<Item<'_>> {

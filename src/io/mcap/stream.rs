@@ -71,22 +71,7 @@ impl McapFile {
         let profile = self.profile();
         let (mut items, mut known, mode, mut schemas_seen) = match self.indexed_plan()? {
             Some((chunks, channels)) => {
-                let wanted: Vec<u16> = channels
-                    .values()
-                    .filter(|c| want(c))
-                    .map(|c| c.id)
-                    .collect();
-                let mut items = Vec::new();
-                for ci in &chunks {
-                    let has_wanted = ci.message_index_offsets.is_empty()
-                        || ci
-                            .message_index_offsets
-                            .keys()
-                            .any(|id| wanted.contains(id));
-                    if has_wanted {
-                        items.push(self.chunk_at(ci)?);
-                    }
-                }
+                let items = self.wanted_chunks(&chunks, &channels, &want)?;
                 (items, channels, ReadMode::Indexed, BTreeMap::new())
             }
             None => {
