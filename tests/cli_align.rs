@@ -1,32 +1,9 @@
 //! `slam2world align` as a user runs it: exit codes 0 / 1 (bad data, one
 //! line) / 2 (usage), text and JSON output.
 
+mod common;
+use common::{bin, data, stderr};
 use std::path::{Path, PathBuf};
-use std::process::{Command, Output};
-
-fn bin(args: &[&str]) -> Output {
-    Command::new(env!("CARGO_BIN_EXE_slam2world"))
-        .args(args)
-        .output()
-        .expect("the slam2world binary runs")
-}
-
-fn data(folder: &str, file: &str) -> Option<PathBuf> {
-    let p = Path::new(env!("CARGO_MANIFEST_DIR"))
-        .join("../shared/data")
-        .join(folder)
-        .join(file);
-    if p.exists() {
-        Some(p)
-    } else {
-        eprintln!("skipped: {} is absent", p.display());
-        None
-    }
-}
-
-fn stderr(o: &Output) -> String {
-    String::from_utf8_lossy(&o.stderr).into_owned()
-}
 
 /// A synthetic pair of TUM files: `est` is `ref` mapped by a known Sim(3) inverse.
 fn synthetic(dir: &Path) -> (PathBuf, PathBuf) {

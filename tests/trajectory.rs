@@ -2,25 +2,13 @@
 //! against the reference numbers in each folder's PROVENANCE.md (computed with
 //! evo 1.38.1; the Python tests run evo itself). Skips when the data is absent.
 
-use std::path::{Path, PathBuf};
+mod common;
+use common::data;
 
 use nalgebra::Vector3;
 use slam2world::align::AlignMethod;
 use slam2world::trajectory::{align_trajectories, associate, TrajectoryAlignOptions};
 use slam2world::{Error, Sim3, Trajectory};
-
-fn data(folder: &str, file: &str) -> Option<PathBuf> {
-    let p = Path::new(env!("CARGO_MANIFEST_DIR"))
-        .join("../shared/data")
-        .join(folder)
-        .join(file);
-    if p.exists() {
-        Some(p)
-    } else {
-        eprintln!("skipped: {} is absent", p.display());
-        None
-    }
-}
 
 fn rel(a: f64, b: f64) -> f64 {
     (a - b).abs() / b.abs()
