@@ -8,7 +8,7 @@ use criterion::{criterion_group, criterion_main, BenchmarkId, Criterion, Through
 use nalgebra::Vector3;
 use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
-use slam2world::align::{align, AlignMethod, AlignOptions};
+use slam2world::align::{align, fit_flat, AlignMethod, AlignOptions};
 use slam2world::Sim3;
 
 mod common;
@@ -47,6 +47,14 @@ fn bench_align(c: &mut Criterion) {
                 bench.iter(|| align(black_box(&a), black_box(&b), &opts))
             });
         }
+        // The NumPy-layout path of the Python `align`: one vectorised pass,
+        // the residuals left for when they are asked for.
+        let flat = |v: &[Vector3<f64>]| v.iter().flat_map(|p| [p.x, p.y, p.z]).collect::<Vec<_>>();
+        let (fa, fb) = (flat(&a), flat(&b));
+        let opts = AlignOptions::default();
+        g.bench_with_input(BenchmarkId::new("fit_flat", n), &n, |bench, _| {
+            bench.iter(|| fit_flat(black_box(&fa), black_box(&fb), &opts))
+        });
     }
     g.finish();
 }

@@ -6,7 +6,7 @@ use nalgebra::{Matrix4, UnitQuaternion, Vector3, Vector4};
 use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 use rand_distr::{Distribution, StandardNormal, UnitSphere};
-use slam2world::align::{align, align_flat, align_flat_into, AlignMethod, AlignOptions};
+use slam2world::align::{align, align_flat, fit_flat, residuals_flat, AlignMethod, AlignOptions};
 use slam2world::{Error, Sim3};
 
 fn random_rotation(rng: &mut ChaCha8Rng) -> UnitQuaternion<f64> {
@@ -177,29 +177,127 @@ fn large_inputs_parallel_path_and_far_from_origin() {
     assert!((r.transform.scale / 0.37 - 1.0).abs() < 1e-9);
     assert!(r.transform.rotation.angle_to(&t.rotation) < 1e-9);
     assert!(r.rmse < 1e-9 * 1e5);
-    // The flat (NumPy layout) entry point gives the same answer.
+    // The flat (NumPy layout) entry point, whose sums take the vectorised
+    // path, gives the same answer to rounding.
     let flat = |v: &[Vector3<f64>]| v.iter().flat_map(|p| [p.x, p.y, p.z]).collect::<Vec<_>>();
     let f = align_flat(&flat(&a), &flat(&b), &AlignOptions::default()).unwrap();
-    assert_eq!(f.transform, r.transform);
-    assert_eq!(f.residuals, r.residuals);
+    let (ds, dr, dt) = diff(&f.transform, &r.transform, 1e5);
+    assert!(ds < 1e-12 && dr < 1e-12 && dt < 1e-12, "{ds} {dr} {dt}");
     assert!(matches!(
         align_flat(&[0.0; 10], &[0.0; 10], &AlignOptions::default()),
         Err(Error::ShapeMismatch { .. })
     ));
-    // Residuals into a caller's buffer: the same numbers.
+    // Residuals into a caller's buffer: the same numbers as the eager fit.
     let mut out = vec![f64::NAN; a.len()];
-    let fit = align_flat_into(&flat(&a), &flat(&b), &AlignOptions::default(), &mut out).unwrap();
-    assert_eq!((fit.transform, fit.rmse), (r.transform, r.rmse));
-    assert_eq!(out, r.residuals);
+    let rms = residuals_flat(&f.transform, &flat(&a), &flat(&b), &mut out).unwrap();
+    assert_eq!(out, f.residuals);
+    assert_eq!(rms, f.rmse);
     assert!(matches!(
-        align_flat_into(
-            &flat(&a),
-            &flat(&b),
-            &AlignOptions::default(),
-            &mut out[1..]
-        ),
+        residuals_flat(&f.transform, &flat(&a), &flat(&b), &mut out[1..]),
         Err(Error::ShapeMismatch { .. })
     ));
+    assert!(matches!(
+        residuals_flat(&f.transform, &flat(&a), &flat(&b)[3..], &mut out),
+        Err(Error::ShapeMismatch { .. })
+    ));
+}
+
+/// Noisy pairs: `b = T(a) + σ·n` around a far-away centre.
+fn noisy(
+    rng: &mut ChaCha8Rng,
+    n: usize,
+    sigma: f64,
+    centre: f64,
+) -> (Vec<Vector3<f64>>, Vec<Vector3<f64>>, Sim3) {
+    let a = random_cloud(rng, n, 3.0, centre);
+    let t = random_sim3(rng, 15.49);
+    let b = a
+        .iter()
+        .map(|p| {
+            let e: [f64; 3] = [
+                StandardNormal.sample(rng),
+                StandardNormal.sample(rng),
+                StandardNormal.sample(rng),
+            ];
+            t.transform_point(p) + Vector3::from(e) * sigma
+        })
+        .collect();
+    (a, b, t)
+}
+
+fn max_abs(v: &[Vector3<f64>]) -> f64 {
+    v.iter().map(|p| p.amax()).fold(0.0, f64::max)
+}
+
+#[test]
+fn one_pass_rmse_equals_the_rms_of_the_residuals() {
+    // The one-pass fit takes the rms residual from moments relative to a
+    // sampled prior; it must equal the rms of the explicit residuals to
+    // rounding, for tiny and large noise, with and without weights, on the
+    // sequential (small) and parallel (large) paths, near and far from the
+    // origin.
+    let mut rng = ChaCha8Rng::seed_from_u64(21);
+    let flat = |v: &[Vector3<f64>]| v.iter().flat_map(|p| [p.x, p.y, p.z]).collect::<Vec<_>>();
+    for &(n, sigma, centre) in &[
+        (10, 1e-2, 0.0),
+        (3_000, 1e-9, 1e3),
+        (100_003, 1e-4, 0.0),
+        (100_003, 1e-6, 1e4),
+        (100_003, 5.0, 10.0),
+    ] {
+        let (a, b, _) = noisy(&mut rng, n, sigma, centre);
+        let (fa, fb) = (flat(&a), flat(&b));
+        for weights in [None, Some((0..n).map(|i| 0.5 + (i % 7) as f64).collect())] {
+            let opts = AlignOptions {
+                weights,
+                ..Default::default()
+            };
+            let eager = align_flat(&fa, &fb, &opts).unwrap();
+            let fit = fit_flat(&fa, &fb, &opts).unwrap();
+            assert_eq!(fit.transform, eager.transform);
+            // Both are exact to the rounding of the residuals themselves,
+            // ε·|b| per coordinate.
+            let tol = 1e-10 + f64::EPSILON * max_abs(&b) / eager.rmse;
+            let rel = (fit.rmse / eager.rmse - 1.0).abs();
+            assert!(rel < tol, "n={n} σ={sigma}: {} vs {}", fit.rmse, eager.rmse);
+            assert!(
+                eager.rmse > 0.5 * sigma && eager.rmse < 40.0 * sigma,
+                "{}",
+                eager.rmse
+            );
+        }
+    }
+}
+
+#[test]
+fn one_pass_rmse_without_a_usable_prior() {
+    // Only rows that the prior's sample skips carry weight: the sample fit is
+    // refused, and the rms residual must still be exact.
+    let mut rng = ChaCha8Rng::seed_from_u64(22);
+    let n = 10_000;
+    let (a, b, t) = noisy(&mut rng, n, 1e-5, 100.0);
+    let w: Vec<f64> = (0..n)
+        .map(|i| if (200..300).contains(&i) { 1.0 } else { 0.0 })
+        .collect();
+    let flat = |v: &[Vector3<f64>]| v.iter().flat_map(|p| [p.x, p.y, p.z]).collect::<Vec<_>>();
+    let opts = AlignOptions {
+        weights: Some(w.clone()),
+        ..Default::default()
+    };
+    let fit = fit_flat(&flat(&a), &flat(&b), &opts).unwrap();
+    let (ds, dr, dt) = diff(&fit.transform, &t, 100.0);
+    assert!(ds < 1e-5 && dr < 1e-5 && dt < 1e-5, "{ds} {dr} {dt}");
+    let expect = (200..300)
+        .map(|i| (b[i] - fit.transform.transform_point(&a[i])).norm_squared())
+        .sum::<f64>()
+        / 100.0;
+    let tol = 1e-10 + f64::EPSILON * max_abs(&b) / fit.rmse;
+    assert!(
+        (fit.rmse / expect.sqrt() - 1.0).abs() < tol,
+        "{} {}",
+        fit.rmse,
+        expect.sqrt()
+    );
 }
 
 #[test]

@@ -30,7 +30,7 @@ use crate::error::{Error, Result};
 use crate::geometry::Sim3;
 
 pub use moments::Rows;
-use moments::{FlatRows, Moments};
+use moments::{FlatRows, Moments, Prior};
 
 /// Relative eigen-gap of Horn's `N` below which the rotation is refused as
 /// undetermined (collinear points, or an exact reflection ambiguity).
@@ -42,6 +42,17 @@ pub const MIN_RELATIVE_SPREAD: f64 = 1e-12;
 
 /// Points per parallel work item of the residual pass.
 const RESIDUALS_PER_TASK: usize = 1 << 15;
+
+/// Pairs (at most) fitted first, in [`PRIOR_BLOCKS`] evenly spaced runs, for
+/// the prior guess that the full moments are taken relative to.
+const PRIOR_SAMPLES: usize = 2048;
+const PRIOR_BLOCKS: usize = 16;
+
+/// The residual sum of squares is taken from the moments when it is at least
+/// this fraction of the magnitude of the terms it is summed from (rounding
+/// error then below about 1e-12 relative); below, one more pass sums the
+/// squared residuals directly.
+const CLOSED_FORM_MIN_FRACTION: f64 = 1e-4;
 
 /// How the rotation is solved for.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
@@ -143,15 +154,7 @@ pub fn align(
 /// [`align`] on flat row-major `(N, 3)` slices (`[x0, y0, z0, x1, …]`), as
 /// NumPy stores them; nothing is copied.
 pub fn align_flat(source: &[f64], target: &[f64], opts: &AlignOptions) -> Result<Alignment> {
-    for (what, s) in [("source", source), ("target", target)] {
-        if s.len() % 3 != 0 {
-            return Err(Error::ShapeMismatch {
-                what: what.into(),
-                expected: "(N, 3)".into(),
-                got: format!("{} values", s.len()),
-            });
-        }
-    }
+    check_flat(source, target)?;
     align_rows(&FlatRows(source), &FlatRows(target), opts)
 }
 
@@ -161,7 +164,7 @@ pub fn align_rows<A: Rows + ?Sized, B: Rows + ?Sized>(
     target: &B,
     opts: &AlignOptions,
 ) -> Result<Alignment> {
-    let (transform, diagnostics) = fit(source, target, opts)?;
+    let (transform, diagnostics, _) = fit(source, target, opts)?;
     let mut residuals = vec![0.0; source.n_rows()];
     let rmse = residuals_into(
         &transform,
@@ -178,7 +181,7 @@ pub fn align_rows<A: Rows + ?Sized, B: Rows + ?Sized>(
     })
 }
 
-/// An [`Alignment`] whose residuals were written to a caller's buffer.
+/// An [`Alignment`] without the per-pair residuals ([`fit_flat`]).
 #[derive(Clone, Debug, PartialEq)]
 pub struct Fit {
     /// `T_target_source`.
@@ -189,14 +192,42 @@ pub struct Fit {
     pub diagnostics: AlignDiagnostics,
 }
 
-/// [`align_flat`] writing the residuals into `residuals` (one per pair), so
-/// that the caller chooses the allocation (e.g. a NumPy array).
-pub fn align_flat_into(
+/// [`align_flat`] without the per-pair residuals: one pass over the data
+/// (the rms residual comes from the moments; see [`residuals_flat`] for the
+/// residuals themselves).
+pub fn fit_flat(source: &[f64], target: &[f64], opts: &AlignOptions) -> Result<Fit> {
+    check_flat(source, target)?;
+    let (transform, diagnostics, rmse) = fit(&FlatRows(source), &FlatRows(target), opts)?;
+    Ok(Fit {
+        transform,
+        rmse,
+        diagnostics,
+    })
+}
+
+/// Per pair `‖target_i − T(source_i)‖` of flat row-major `(N, 3)` slices into
+/// `out` (length N), in parallel for large inputs; returns their rms.
+pub fn residuals_flat(
+    transform: &Sim3,
     source: &[f64],
     target: &[f64],
-    opts: &AlignOptions,
-    residuals: &mut [f64],
-) -> Result<Fit> {
+    out: &mut [f64],
+) -> Result<f64> {
+    check_flat(source, target)?;
+    let (a, b) = (FlatRows(source), FlatRows(target));
+    for (what, n) in [("target", b.n_rows()), ("residuals", out.len())] {
+        if n != a.n_rows() {
+            return Err(Error::ShapeMismatch {
+                what: what.into(),
+                expected: format!("{} rows, one per source point", a.n_rows()),
+                got: format!("{n}"),
+            });
+        }
+    }
+    Ok(residuals_into(transform, &a, &b, None, out))
+}
+
+fn check_flat(source: &[f64], target: &[f64]) -> Result<()> {
     for (what, s) in [("source", source), ("target", target)] {
         if s.len() % 3 != 0 {
             return Err(Error::ShapeMismatch {
@@ -206,29 +237,16 @@ pub fn align_flat_into(
             });
         }
     }
-    let (a, b) = (FlatRows(source), FlatRows(target));
-    if residuals.len() != a.n_rows() {
-        return Err(Error::ShapeMismatch {
-            what: "residuals".into(),
-            expected: format!("({},), one per pair", a.n_rows()),
-            got: format!("({},)", residuals.len()),
-        });
-    }
-    let (transform, diagnostics) = fit(&a, &b, opts)?;
-    let rmse = residuals_into(&transform, &a, &b, opts.weights.as_deref(), residuals);
-    Ok(Fit {
-        transform,
-        rmse,
-        diagnostics,
-    })
+    Ok(())
 }
 
-/// Checks the input, accumulates the moments and solves.
+/// Checks the input, accumulates the moments and solves; returns the
+/// transform, the diagnostics and the (weighted) rms residual.
 fn fit<A: Rows + ?Sized, B: Rows + ?Sized>(
     source: &A,
     target: &B,
     opts: &AlignOptions,
-) -> Result<(Sim3, AlignDiagnostics)> {
+) -> Result<(Sim3, AlignDiagnostics, f64)> {
     let n = source.n_rows();
     if target.n_rows() != n {
         return Err(Error::ShapeMismatch {
@@ -247,11 +265,68 @@ fn fit<A: Rows + ?Sized, B: Rows + ?Sized>(
             got: n,
         });
     }
-    let m = Moments::accumulate(source, target, weights);
+    let prior = sample_prior(source, target, opts);
+    let m = Moments::accumulate(source, target, weights, prior.as_ref());
     if !m.is_finite() {
         return Err(first_non_finite(source, target));
     }
-    solve(&m, opts)
+    let (t, diagnostics) = solve(&m, opts)?;
+    let (sse, magnitude) = m.residual_sum_of_squares(&(t.rotation_matrix() * t.scale));
+    let sse = if sse.is_finite() && sse >= CLOSED_FORM_MIN_FRACTION * magnitude {
+        sse
+    } else {
+        residual_sse(&t, source, target, weights)
+    };
+    let rmse = (sse / m.weight_sum).max(0.0).sqrt();
+    Ok((t, diagnostics, rmse))
+}
+
+/// The fit of an even sample of the pairs (all of them when there are few),
+/// as the guess the full moments are taken relative to; `None` when the
+/// sample does not determine it (the full fit then still is exact, and its
+/// rms residual may take one more pass).
+fn sample_prior<A: Rows + ?Sized, B: Rows + ?Sized>(
+    source: &A,
+    target: &B,
+    opts: &AlignOptions,
+) -> Option<Prior> {
+    let n = source.n_rows();
+    let run = PRIOR_SAMPLES / PRIOR_BLOCKS;
+    let starts: Vec<usize> = if n <= PRIOR_SAMPLES {
+        vec![0]
+    } else {
+        (0..PRIOR_BLOCKS)
+            .map(|k| k * (n - run) / (PRIOR_BLOCKS - 1))
+            .collect()
+    };
+    let len = if n <= PRIOR_SAMPLES { n } else { run };
+    let mut a = Vec::with_capacity(starts.len() * len);
+    let mut b = Vec::with_capacity(starts.len() * len);
+    let mut w = opts
+        .weights
+        .as_ref()
+        .map(|_| Vec::with_capacity(starts.len() * len));
+    for &lo in &starts {
+        a.extend(source.rows(lo, lo + len).map(Vector3::from));
+        b.extend(target.rows(lo, lo + len).map(Vector3::from));
+        if let (Some(w), Some(all)) = (w.as_mut(), opts.weights.as_ref()) {
+            w.extend_from_slice(&all[lo..lo + len]);
+        }
+    }
+    if let Some(w) = &w {
+        if w.iter().filter(|&&v| v > 0.0).count() < 3 {
+            return None;
+        }
+    }
+    let m = Moments::accumulate(a.as_slice(), b.as_slice(), w.as_deref(), None);
+    if !m.is_finite() {
+        return None;
+    }
+    let (t, _) = solve(&m, opts).ok()?;
+    Some(Prior {
+        m: t.rotation_matrix() * t.scale,
+        t: t.translation,
+    })
 }
 
 fn check_weights(w: &[f64], n: usize) -> Result<()> {
@@ -402,6 +477,62 @@ fn solve(m: &Moments, opts: &AlignOptions) -> Result<(Sim3, AlignDiagnostics)> {
     Ok((t, diagnostics))
 }
 
+/// `s·R` and `t` of a transform as plain arrays, for the residual loops.
+fn affine(t: &Sim3) -> ([[f64; 3]; 3], [f64; 3]) {
+    let m = t.rotation_matrix() * t.scale;
+    (
+        [
+            [m[(0, 0)], m[(0, 1)], m[(0, 2)]],
+            [m[(1, 0)], m[(1, 1)], m[(1, 2)]],
+            [m[(2, 0)], m[(2, 1)], m[(2, 2)]],
+        ],
+        [t.translation.x, t.translation.y, t.translation.z],
+    )
+}
+
+/// `‖q − (m·p + t)‖²`.
+#[inline(always)]
+fn squared_error(m: &[[f64; 3]; 3], t: &[f64; 3], p: [f64; 3], q: [f64; 3]) -> f64 {
+    let ex = m[0][0] * p[0] + m[0][1] * p[1] + m[0][2] * p[2] + t[0] - q[0];
+    let ey = m[1][0] * p[0] + m[1][1] * p[1] + m[1][2] * p[2] + t[1] - q[1];
+    let ez = m[2][0] * p[0] + m[2][1] * p[1] + m[2][2] * p[2] + t[2] - q[2];
+    ex * ex + ey * ey + ez * ez
+}
+
+/// `Σ w·‖b_i − T(a_i)‖²`, in parallel for large inputs (nothing stored).
+fn residual_sse<A: Rows + ?Sized, B: Rows + ?Sized>(
+    t: &Sim3,
+    a: &A,
+    b: &B,
+    weights: Option<&[f64]>,
+) -> f64 {
+    let (m, tr) = affine(t);
+    let block = |lo: usize, hi: usize| -> f64 {
+        let errors = a
+            .rows(lo, hi)
+            .zip(b.rows(lo, hi))
+            .map(|(p, q)| squared_error(&m, &tr, p, q));
+        match weights {
+            None => errors.sum(),
+            Some(w) => errors.zip(&w[lo..hi]).map(|(e, w)| e * w).sum(),
+        }
+    };
+    let n = a.n_rows();
+    if n <= RESIDUALS_PER_TASK {
+        return block(0, n);
+    }
+    (0..n.div_ceil(RESIDUALS_PER_TASK))
+        .into_par_iter()
+        .with_max_len(1)
+        .map(|c| {
+            block(
+                c * RESIDUALS_PER_TASK,
+                ((c + 1) * RESIDUALS_PER_TASK).min(n),
+            )
+        })
+        .sum()
+}
+
 /// Residual norms `‖b_i − T(a_i)‖` into `out` (length N) and their
 /// (weighted) rms, in parallel for large inputs.
 fn residuals_into<A: Rows + ?Sized, B: Rows + ?Sized>(
@@ -412,13 +543,7 @@ fn residuals_into<A: Rows + ?Sized, B: Rows + ?Sized>(
     out: &mut [f64],
 ) -> f64 {
     let n = a.n_rows();
-    let m = t.rotation_matrix() * t.scale;
-    let m = [
-        [m[(0, 0)], m[(0, 1)], m[(0, 2)]],
-        [m[(1, 0)], m[(1, 1)], m[(1, 2)]],
-        [m[(2, 0)], m[(2, 1)], m[(2, 2)]],
-    ];
-    let tr = [t.translation.x, t.translation.y, t.translation.z];
+    let (m, tr) = affine(t);
     // Three simple loops over a cache-sized block (squared norms; their
     // weighted sum in independent lanes; square roots) vectorise better than one.
     let block = |start: usize, dst: &mut [f64]| -> f64 {
@@ -427,10 +552,7 @@ fn residuals_into<A: Rows + ?Sized, B: Rows + ?Sized>(
             .iter_mut()
             .zip(a.rows(start, end).zip(b.rows(start, end)))
         {
-            let ex = m[0][0] * p[0] + m[0][1] * p[1] + m[0][2] * p[2] + tr[0] - q[0];
-            let ey = m[1][0] * p[0] + m[1][1] * p[1] + m[1][2] * p[2] + tr[1] - q[1];
-            let ez = m[2][0] * p[0] + m[2][1] * p[1] + m[2][2] * p[2] + tr[2] - q[2];
-            *d = ex * ex + ey * ey + ez * ez;
+            *d = squared_error(&m, &tr, p, q);
         }
         let sse = match weights {
             None => lane_sum(dst),

@@ -13,7 +13,7 @@ use numpy::{
 };
 use pyo3::prelude::*;
 
-use super::convert::Points;
+use super::convert::{c_slice, Points};
 use super::geometry::PySim3;
 use crate::cloud::{self, PointCloud, PointFilter};
 use crate::error::Error;
@@ -117,9 +117,9 @@ fn image_f32(obj: &Bound<'_, PyAny>, what: &str, h: usize, w: usize) -> PyResult
             format!("{:?}", a.shape()),
         ));
     }
-    Ok(match a.as_slice() {
-        Ok(s) => s.to_vec(),
-        Err(_) => a.as_array().iter().copied().collect(),
+    Ok(match c_slice(&a) {
+        Some(s) => s.to_vec(),
+        None => a.as_array().iter().copied().collect(),
     })
 }
 
@@ -130,9 +130,9 @@ fn image_rgb(obj: &Bound<'_, PyAny>, h: usize, w: usize) -> PyResult<Vec<u8>> {
         .cast::<PyArrayDyn<u8>>()
         .map_err(|_| shape_err("color", expected(), "not a uint8 array".into()))?
         .readonly();
-    let v: Vec<u8> = match a.as_slice() {
-        Ok(s) => s.to_vec(),
-        Err(_) => a.as_array().iter().copied().collect(),
+    let v: Vec<u8> = match c_slice(&a) {
+        Some(s) => s.to_vec(),
+        None => a.as_array().iter().copied().collect(),
     };
     match a.shape() {
         [hh, ww] if *hh == h && *ww == w => Ok(v.iter().flat_map(|&g| [g, g, g]).collect()),

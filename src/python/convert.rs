@@ -3,13 +3,25 @@
 
 use nalgebra::{Matrix3, Matrix4, Vector3};
 use numpy::ndarray::Array2;
+use numpy::ndarray::Dimension;
 use numpy::{
-    AllowTypeChange, IntoPyArray, PyArray2, PyArrayLike1, PyArrayLike2, PyArrayMethods,
-    PyUntypedArrayMethods,
+    AllowTypeChange, Element, IntoPyArray, PyArray2, PyArrayLike1, PyArrayLike2, PyArrayMethods,
+    PyReadonlyArray, PyUntypedArrayMethods,
 };
 use pyo3::prelude::*;
 
 use crate::error::Error;
+
+/// The array's data as one row-major slice, or `None` when it is not
+/// C-contiguous (`as_slice` also accepts Fortran order, whose slice would be
+/// read column by column).
+pub fn c_slice<'a, T: Element, D: Dimension>(a: &'a PyReadonlyArray<'_, T, D>) -> Option<&'a [T]> {
+    if a.is_c_contiguous() {
+        a.as_slice().ok()
+    } else {
+        None
+    }
+}
 
 fn shape_err(what: &str, expected: &str, shape: &[usize]) -> PyErr {
     Error::ShapeMismatch {
@@ -29,9 +41,9 @@ pub fn rows_f64(obj: &Bound<'_, PyAny>, what: &str, cols: usize) -> PyResult<Vec
     if shape[1] != cols {
         return Err(shape_err(what, &format!("(N, {cols})"), &shape));
     }
-    let v: Vec<f64> = match arr.as_slice() {
-        Ok(s) => s.to_vec(),
-        Err(_) => arr.as_array().iter().copied().collect(),
+    let v: Vec<f64> = match c_slice(&arr) {
+        Some(s) => s.to_vec(),
+        None => arr.as_array().iter().copied().collect(),
     };
     crate::error::check_rows(what, &v, cols)?;
     Ok(v)

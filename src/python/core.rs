@@ -9,9 +9,10 @@ use numpy::{
     PyUntypedArrayMethods, ToPyArray,
 };
 use pyo3::prelude::*;
+use pyo3::sync::PyOnceLock;
 use pyo3::types::{PyDict, PyTuple};
 
-use super::convert::{rows_f64, to_array2, vec_f64};
+use super::convert::{c_slice, rows_f64, to_array2, vec_f64};
 use super::geometry::PySim3;
 use crate::align::covariance::{covariance, Covariance};
 use crate::align::extended::{
@@ -20,7 +21,9 @@ use crate::align::extended::{
 use crate::align::robust::{align_robust, RobustOptions};
 use crate::align::stages::Stages;
 use crate::align::time_offset::TimeOffsetOptions;
-use crate::align::{align_flat_into, AlignDiagnostics, AlignMethod, AlignOptions, Alignment};
+use crate::align::{
+    fit_flat, residuals_flat, AlignDiagnostics, AlignMethod, AlignOptions, Alignment,
+};
 use crate::error::Error;
 use crate::geometry::unit_quaternion_xyzw;
 use crate::trajectory::{
@@ -50,9 +53,9 @@ fn with_points<R>(
         }
         .into());
     }
-    match arr.as_slice() {
-        Ok(s) => f(s),
-        Err(_) => {
+    match c_slice(&arr) {
+        Some(s) => f(s),
+        None => {
             let v: Vec<f64> = arr.as_array().iter().copied().collect();
             f(&v)
         }
@@ -87,14 +90,17 @@ fn diagnostics_dict<'py>(py: Python<'py>, d: &AlignDiagnostics) -> PyResult<Boun
 pub struct PyAlignment {
     transform: crate::geometry::Sim3,
     rmse: f64,
-    residuals: Py<PyArray1<f64>>,
+    /// Filled with the fit, or on first request from the input arrays.
+    residuals: PyOnceLock<Py<PyArray1<f64>>>,
     diagnostics: AlignDiagnostics,
     inliers: Option<Py<PyArray1<bool>>>,
     covariance: CovarianceSource,
 }
 
-/// Where an alignment's covariance comes from: computed with the fit, or on
-/// request from the input arrays (so that a plain `align` pays nothing for it).
+/// Where an alignment's covariance (and its residuals, when not computed with
+/// the fit) come from: computed with the fit, or on request from the input
+/// arrays (so that a plain `align` reads its input once and pays nothing for
+/// what is not asked for).
 pub(crate) enum CovarianceSource {
     Known(Option<Box<Covariance>>),
     Lazy {
@@ -107,10 +113,13 @@ pub(crate) enum CovarianceSource {
 
 impl PyAlignment {
     pub(crate) fn new(py: Python<'_>, a: Alignment) -> Self {
+        let residuals = PyOnceLock::new();
+        // A new cell is empty: this cannot fail.
+        let _ = residuals.set(py, a.residuals.into_pyarray(py).unbind());
         PyAlignment {
             transform: a.transform,
             rmse: a.rmse,
-            residuals: a.residuals.into_pyarray(py).unbind(),
+            residuals,
             diagnostics: a.diagnostics,
             inliers: None,
             covariance: CovarianceSource::Known(None),
@@ -202,10 +211,35 @@ impl PyAlignment {
         self.rmse
     }
 
-    /// Per pair `‖target_i − T(source_i)‖`, shape (N,).
+    /// Per pair `‖target_i − T(source_i)‖`, shape (N,) (computed on first
+    /// access from the arrays given to `align`, which are kept, not copied).
     #[getter]
-    fn residuals(&self, py: Python<'_>) -> Py<PyArray1<f64>> {
-        self.residuals.clone_ref(py)
+    fn residuals(&self, py: Python<'_>) -> PyResult<Py<PyArray1<f64>>> {
+        let r = self.residuals.get_or_try_init(py, || {
+            let CovarianceSource::Lazy { source, target, .. } = &self.covariance else {
+                return Err(PyErr::from(Error::invalid(
+                    "residuals",
+                    "neither computed with the fit nor kept inputs to compute them from",
+                )));
+            };
+            let t = self.transform;
+            with_points(source.bind(py), "source", |s| {
+                with_points(target.bind(py), "target", |b| {
+                    // NumPy allocates (huge pages for large arrays); filled
+                    // without the GIL.
+                    let out = PyArray1::<f64>::zeros(py, s.len() / 3, false);
+                    {
+                        let mut rw = out.readwrite();
+                        let dst = rw
+                            .as_slice_mut()
+                            .map_err(|e| PyErr::from(Error::invalid("residuals", e.to_string())))?;
+                        py.detach(|| residuals_flat(&t, s, b, dst))?;
+                    }
+                    Ok(out.unbind())
+                })
+            })
+        })?;
+        Ok(r.clone_ref(py))
     }
 
     /// Conditioning: `n`, `weight_sum`, `eigenvalues` (Horn's N, largest first),
@@ -302,27 +336,18 @@ fn align_py(
         weights: opts.weights.clone(),
         scale,
     };
-    with_points(source, "source", |s| {
+    let fit = with_points(source, "source", |s| {
         with_points(target, "target", |t| {
-            // NumPy allocates the residuals (huge pages for large arrays);
-            // the fit writes into them without the GIL.
-            let residuals = PyArray1::<f64>::zeros(py, s.len() / 3, false);
-            let fit = {
-                let mut rw = residuals.readwrite();
-                let out = rw
-                    .as_slice_mut()
-                    .map_err(|e| PyErr::from(Error::invalid("residuals", e.to_string())))?;
-                py.detach(|| align_flat_into(s, t, &opts, out))?
-            };
-            Ok(PyAlignment {
-                transform: fit.transform,
-                rmse: fit.rmse,
-                residuals: residuals.unbind(),
-                diagnostics: fit.diagnostics,
-                inliers: None,
-                covariance: lazy,
-            })
+            Ok(py.detach(|| fit_flat(s, t, &opts))?)
         })
+    })?;
+    Ok(PyAlignment {
+        transform: fit.transform,
+        rmse: fit.rmse,
+        residuals: PyOnceLock::new(),
+        diagnostics: fit.diagnostics,
+        inliers: None,
+        covariance: lazy,
     })
 }
 

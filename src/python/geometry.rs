@@ -6,7 +6,7 @@ use numpy::{IntoPyArray, PyArray1, PyArray2, ToPyArray};
 use pyo3::prelude::*;
 use pyo3::types::PyTuple;
 
-use super::convert::{matrix3, matrix4, matrix_to_array, vec_f64, vector3, Points};
+use super::convert::{c_slice, matrix3, matrix4, matrix_to_array, vec_f64, vector3, Points};
 use crate::geometry::{rotation_from_matrix, PointScalar, Sim3};
 
 /// A similarity transform `p ↦ s·R·p + t`; `T_a_b` maps frame-b coordinates into frame a.
@@ -44,16 +44,16 @@ fn apply_typed<T: PointScalar + numpy::Element>(
 /// Maps `(N, 3)` points, keeping float32 as float32; the GIL is released.
 pub fn apply_points(py: Python<'_>, t: &Sim3, points: &Bound<'_, PyAny>) -> PyResult<Py<PyAny>> {
     match Points::extract(points, "points")? {
-        Points::F32(a) => match a.as_slice() {
-            Ok(s) => apply_typed(py, t, s),
-            Err(_) => {
+        Points::F32(a) => match c_slice(&a) {
+            Some(s) => apply_typed(py, t, s),
+            None => {
                 let v: Vec<f32> = a.as_array().iter().copied().collect();
                 apply_typed(py, t, &v)
             }
         },
-        Points::F64(a) => match a.as_slice() {
-            Ok(s) => apply_typed(py, t, s),
-            Err(_) => {
+        Points::F64(a) => match c_slice(&a) {
+            Some(s) => apply_typed(py, t, s),
+            None => {
                 let v: Vec<f64> = a.as_array().iter().copied().collect();
                 apply_typed(py, t, &v)
             }

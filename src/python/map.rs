@@ -8,7 +8,7 @@ use numpy::{AllowTypeChange, IntoPyArray, PyArray1, PyArray2, PyArrayLike1};
 use pyo3::prelude::*;
 use pyo3::types::PyDict;
 
-use super::convert::{rows_f64, to_array2, vector3, Points};
+use super::convert::{c_slice, rows_f64, to_array2, vector3, Points};
 use crate::error::Error;
 use crate::map::{MapParams, OccupancyMap, VoxelState};
 
@@ -21,9 +21,9 @@ pub struct PyOccupancyMap {
 /// `(N, 3)` points as `f32` (OctoMap's point type), copied only when needed.
 fn points_f32(obj: &Bound<'_, PyAny>, what: &str) -> PyResult<Vec<f32>> {
     Ok(match Points::extract(obj, what)? {
-        Points::F32(a) => match a.as_slice() {
-            Ok(s) => s.to_vec(),
-            Err(_) => a.as_array().iter().copied().collect(),
+        Points::F32(a) => match c_slice(&a) {
+            Some(s) => s.to_vec(),
+            None => a.as_array().iter().copied().collect(),
         },
         Points::F64(a) => a.as_array().iter().map(|&v| v as f32).collect(),
     })

@@ -10,7 +10,7 @@ use pyo3::prelude::*;
 use pyo3::types::PyDict;
 
 use super::cloud::PyKeyframe;
-use super::convert::{rows_f64, to_array2, vec_f64, Points};
+use super::convert::{c_slice, rows_f64, to_array2, vec_f64, Points};
 use super::core::PyTrajectory;
 use super::geometry::PySim3;
 use crate::error::Error;
@@ -358,9 +358,9 @@ fn simulate_py(
 
 fn with_points<R>(points: &Bound<'_, PyAny>, f: impl FnOnce(&[f32]) -> R) -> PyResult<R> {
     Ok(match Points::extract(points, "points")? {
-        Points::F32(a) => match a.as_slice() {
-            Ok(s) => f(s),
-            Err(_) => f(&a.as_array().iter().copied().collect::<Vec<f32>>()),
+        Points::F32(a) => match c_slice(&a) {
+            Some(s) => f(s),
+            None => f(&a.as_array().iter().copied().collect::<Vec<f32>>()),
         },
         Points::F64(a) => f(&a.as_array().iter().map(|&v| v as f32).collect::<Vec<f32>>()),
     })

@@ -78,6 +78,10 @@ def test_sim3_apply_keeps_dtype_and_rejects_bad_shapes() -> None:
     # A non-contiguous view is read correctly.
     big = np.arange(60, dtype=np.float64).reshape(10, 6)
     np.testing.assert_allclose(t.apply(big[:, ::2]), apply_np(t, big[:, ::2]))
+    # Fortran order (contiguous, but column by column) is read by rows too.
+    for dtype in (np.float32, np.float64):
+        f = np.asfortranarray(big[:, :3].astype(dtype))
+        np.testing.assert_array_equal(t.apply(f), t.apply(np.ascontiguousarray(f)))
     assert t.apply(np.zeros((0, 3))).shape == (0, 3)
     for bad in (np.zeros((4, 2)), np.zeros(3), np.zeros((2, 3, 1)), "points"):
         with pytest.raises(s2w.InvalidInputError):
@@ -359,3 +363,26 @@ def test_fr2_desk_se3_reproduces_published_rmse() -> None:
     assert sub.n_pairs == r.n_pairs and len(sub.alignment.residuals) == 100
     with pytest.raises(s2w.InvalidInputError, match="matched"):
         s2w.align_trajectories(est, ref, offset=1e6)
+
+
+def test_align_residuals_on_request_match_the_fit() -> None:
+    # `align` reads its input once; the residuals are computed on first access
+    # from the kept arrays (any layout or dtype), and then kept.
+    rng = np.random.default_rng(12)
+    t = random_sim3(rng, 15.49)
+    src = rng.normal(size=(150_000, 3)) * 3 + 100
+    dst = apply_np(t, src) + rng.normal(scale=1e-3, size=src.shape)
+    for a, b in (
+        (src, dst),
+        (src.astype(np.float32), np.asfortranarray(dst)),
+        (src.tolist()[:50], dst[:50]),
+    ):
+        r = s2w.align(a, b)
+        ref = np.linalg.norm(
+            np.asarray(b) - apply_np(r.transform, np.asarray(a, dtype=np.float64)), axis=1
+        )
+        res = r.residuals
+        assert res is r.residuals
+        assert res.shape == (len(ref),) and res.dtype == np.float64
+        np.testing.assert_allclose(res, ref, rtol=1e-9, atol=1e-12)
+        assert abs(r.rmse / np.sqrt(np.mean(ref**2)) - 1) < 1e-9

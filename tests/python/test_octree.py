@@ -205,6 +205,9 @@ def test_float32_and_float64_points_give_the_same_map() -> None:
     b.insert(pts, origin)
     assert a.num_nodes == b.num_nodes and a.num_leaf_nodes == b.num_leaf_nodes
     assert a.memory_bytes > 0
+    c = OccupancyMap(0.1)
+    c.insert(np.asfortranarray(pts.astype(np.float32)), origin)  # read by rows, not columns
+    np.testing.assert_array_equal(c.occupied_centers(), a.occupied_centers())
 
 
 def test_bad_input_is_rejected() -> None:
