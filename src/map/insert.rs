@@ -1,16 +1,17 @@
 //! Scan insertion: OctoMap's `computeUpdate` (free keys along each ray by its
 //! 3-D DDA `computeRayKeys`, occupied endpoint keys, occupied winning) run in
-//! parallel into per-scan bitsets, then one ordered batch update of the tree.
+//! parallel into per-thread bitsets over the scan's key box, merged, then one
+//! ordered batch update of the tree.
 //!
 //! The key sets are sets: whatever the thread count or the order in which
 //! rays are traced, the sorted update list and hence the tree are the same.
 
 use std::collections::BTreeMap;
-use std::sync::atomic::{AtomicU64, Ordering};
 
 use rayon::prelude::*;
 
-use super::key::{key_to_coord, morton, point_to_key, Key};
+use super::dda::{f32_norm, ray_keys, set_bit, trace_lanes, Lane, Layout, Prepared, LAYOUT_MARGIN};
+use super::key::{morton, point_to_key, Key};
 use super::OccupancyMap;
 use crate::error::{Error, Result};
 
@@ -26,267 +27,6 @@ pub struct ScanUpdate {
     pub free: usize,
     /// Voxels updated as occupied.
     pub occupied: usize,
-}
-
-/// Calls `visit` for every key of OctoMap's `computeRayKeys(origin, end)`:
-/// the voxels the segment crosses, origin voxel included, end voxel excluded.
-/// Returns `false` (and visits nothing) when either point lies outside the
-/// tree. Arithmetic mirrors OctoMap's `f32` points and `f64` steps so that
-/// the same keys come out.
-#[inline]
-pub(crate) fn ray_keys(
-    origin: [f32; 3],
-    end: [f32; 3],
-    resolution: f64,
-    resolution_factor: f64,
-    mut visit: impl FnMut(Key),
-) -> bool {
-    let (Some(ko), Some(ke)) = (
-        point_to_key(origin, resolution_factor),
-        point_to_key(end, resolution_factor),
-    ) else {
-        return false;
-    };
-    if ko == ke {
-        return true;
-    }
-    visit(ko);
-    let mut dir = [end[0] - origin[0], end[1] - origin[1], end[2] - origin[2]];
-    let length = f32_norm(dir) as f32;
-    for d in &mut dir {
-        *d /= length;
-    }
-    let mut step = [0i32; 3];
-    let mut t_max = [f64::MAX; 3];
-    let mut t_delta = [f64::MAX; 3];
-    for i in 0..3 {
-        step[i] = if dir[i] > 0.0 {
-            1
-        } else if dir[i] < 0.0 {
-            -1
-        } else {
-            0
-        };
-        if step[i] != 0 {
-            let mut border = key_to_coord(ko[i], resolution);
-            border += (step[i] as f64 * resolution * 0.5) as f32 as f64;
-            t_max[i] = (border - origin[i] as f64) / dir[i] as f64;
-            t_delta[i] = resolution / (dir[i] as f64).abs();
-        }
-    }
-    let length = length as f64;
-    let mut cur = [ko[0] as i32, ko[1] as i32, ko[2] as i32];
-    let end_k = [ke[0] as i32, ke[1] as i32, ke[2] as i32];
-    loop {
-        let dim = if t_max[0] < t_max[1] {
-            if t_max[0] < t_max[2] {
-                0
-            } else {
-                2
-            }
-        } else if t_max[1] < t_max[2] {
-            1
-        } else {
-            2
-        };
-        cur[dim] += step[dim];
-        t_max[dim] += t_delta[dim];
-        if cur == end_k {
-            return true;
-        }
-        let dist = t_max[0].min(t_max[1]).min(t_max[2]);
-        if dist > length || !(0..65536).contains(&cur[dim]) {
-            return true;
-        }
-        visit([cur[0] as u16, cur[1] as u16, cur[2] as u16]);
-    }
-}
-
-/// [`ray_keys`] specialised to marking a [`Grid`]: the same keys, with the
-/// grid index advanced incrementally and the axis choice free of branches.
-/// Keys outside the grid go to `outside` (Morton code `<< 1`).
-#[inline]
-fn ray_into_grid(
-    origin: [f32; 3],
-    end: [f32; 3],
-    resolution: f64,
-    resolution_factor: f64,
-    grid: &Grid,
-    outside: &mut Vec<u64>,
-) {
-    let (Some(ko), Some(ke)) = (
-        point_to_key(origin, resolution_factor),
-        point_to_key(end, resolution_factor),
-    ) else {
-        return;
-    };
-    if ko == ke {
-        return;
-    }
-    let Some(mut idx) = grid.index(ko) else {
-        // The origin lies outside the grid only for degenerate boxes: take the slow path.
-        ray_keys(origin, end, resolution, resolution_factor, |k| {
-            match grid.index(k) {
-                Some(j) => Grid::set(&grid.free, j),
-                None => outside.push(morton(k) << 1),
-            }
-        });
-        return;
-    };
-    Grid::set(&grid.free, idx);
-    let mut dir = [end[0] - origin[0], end[1] - origin[1], end[2] - origin[2]];
-    let length = f32_norm(dir) as f32;
-    for d in &mut dir {
-        *d /= length;
-    }
-    let (step, t_max, t_delta) = dda_init(ko, origin, dir, resolution);
-    let length = length as f64;
-    // Position relative to the grid's lower corner, kept in registers; the
-    // end is reached when the grid index equals the end voxel's.
-    let mut rel = [
-        ko[0] as i64 - grid.lo[0] as i64,
-        ko[1] as i64 - grid.lo[1] as i64,
-        ko[2] as i64 - grid.lo[2] as i64,
-    ];
-    let Some(end_idx) = grid.index(ke) else {
-        return;
-    };
-    let stride = [1i64, grid.row as i64, (grid.row * grid.dim[1]) as i64];
-    let dims = [grid.dim[0] as i64, grid.dim[1] as i64, grid.dim[2] as i64];
-    let (mut tx, mut ty, mut tz) = (t_max[0], t_max[1], t_max[2]);
-    let mut sidx = idx as i64;
-    let end_idx = end_idx as i64;
-    let (ds, dd) = (
-        [
-            step[0] * stride[0],
-            step[1] * stride[1],
-            step[2] * stride[2],
-        ],
-        t_delta,
-    );
-    // While the current voxel is at least two voxels (Chebyshev) from the end
-    // voxel, the end can be neither reached nor passed: the exit distance is
-    // then at least one voxel short of `length`, far beyond rounding. Those
-    // checks start once fewer steps remain.
-    let cheb = (0..3)
-        .map(|i| (ke[i] as i64 - ko[i] as i64).abs())
-        .max()
-        .unwrap_or(0);
-    let mut safe = (cheb - 2).max(0);
-    while safe > 0 {
-        let dim = if tx < ty {
-            if tx < tz {
-                0
-            } else {
-                2
-            }
-        } else if ty < tz {
-            1
-        } else {
-            2
-        };
-        let r = rel[dim] + step[dim];
-        if (r as u64) >= dims[dim] as u64 {
-            break;
-        }
-        match dim {
-            0 => tx += dd[0],
-            1 => ty += dd[1],
-            _ => tz += dd[2],
-        }
-        rel[dim] = r;
-        sidx += ds[dim];
-        Grid::set(&grid.free, sidx as usize);
-        safe -= 1;
-    }
-    loop {
-        // OctoMap's axis choice (ties go to the later axis).
-        let dim = if tx < ty {
-            if tx < tz {
-                tx += dd[0];
-                0
-            } else {
-                tz += dd[2];
-                2
-            }
-        } else if ty < tz {
-            ty += dd[1];
-            1
-        } else {
-            tz += dd[2];
-            2
-        };
-        rel[dim] += step[dim];
-        sidx += ds[dim];
-        let inside = (rel[dim] as u64) < dims[dim] as u64;
-        if inside && sidx == end_idx {
-            return;
-        }
-        if tx.min(ty).min(tz) > length {
-            return;
-        }
-        if !inside {
-            // Left the grid (only by rounding past the end voxel): go on key by key.
-            let mut t = [tx, ty, tz];
-            let end_rel = [0, 1, 2].map(|i| ke[i] as i64 - grid.lo[i] as i64);
-            loop {
-                let k = [0, 1, 2].map(|i| rel[i] + grid.lo[i] as i64);
-                if !k.iter().all(|&v| (0..65536).contains(&v)) {
-                    return;
-                }
-                let key = [k[0] as u16, k[1] as u16, k[2] as u16];
-                match grid.index(key) {
-                    Some(j) => Grid::set(&grid.free, j),
-                    None => outside.push(morton(key) << 1),
-                }
-                let m01 = usize::from(t[0] >= t[1]);
-                let dim = if t[m01] < t[2] { m01 } else { 2 };
-                rel[dim] += step[dim];
-                t[dim] += dd[dim];
-                if rel == end_rel || t[0].min(t[1]).min(t[2]) > length {
-                    return;
-                }
-            }
-        }
-        idx = sidx as usize;
-        Grid::set(&grid.free, idx);
-    }
-}
-
-/// Step signs, first crossing distances and per-voxel distances of
-/// OctoMap's DDA (`f32` direction, `f64` distances).
-#[inline]
-fn dda_init(
-    ko: Key,
-    origin: [f32; 3],
-    dir: [f32; 3],
-    resolution: f64,
-) -> ([i64; 3], [f64; 3], [f64; 3]) {
-    let mut step = [0i64; 3];
-    let mut t_max = [f64::MAX; 3];
-    let mut t_delta = [f64::MAX; 3];
-    for i in 0..3 {
-        step[i] = if dir[i] > 0.0 {
-            1
-        } else if dir[i] < 0.0 {
-            -1
-        } else {
-            0
-        };
-        if step[i] != 0 {
-            let mut border = key_to_coord(ko[i], resolution);
-            border += (step[i] as f64 * resolution * 0.5) as f32 as f64;
-            t_max[i] = (border - origin[i] as f64) / dir[i] as f64;
-            t_delta[i] = resolution / (dir[i] as f64).abs();
-        }
-    }
-    (step, t_max, t_delta)
-}
-
-/// OctoMap's `Vector3::norm`: the squared norm summed in `f32`, its root in `f64`.
-#[inline]
-fn f32_norm(v: [f32; 3]) -> f64 {
-    ((v[0] * v[0] + v[1] * v[1] + v[2] * v[2]) as f64).sqrt()
 }
 
 /// Where one point's ray ends and whether its endpoint is an occupied voxel.
@@ -346,39 +86,51 @@ impl KeyBox {
     }
 }
 
-/// One scan's free and occupied voxels as a dense bitset over its key box.
-struct Grid {
-    lo: [i32; 3],
-    dim: [usize; 3],
-    /// Bits per x row: `dim[0]` rounded up to whole words, so that no word
-    /// spans two rows.
-    row: usize,
-    free: Vec<AtomicU64>,
-    occ: Vec<AtomicU64>,
+/// One scan's free and occupied voxels as bitsets over its key [`Layout`],
+/// and the (rare) keys outside it as update items (Morton code `<< 1`, bit 0
+/// set for occupied).
+struct Marks {
+    free: Vec<u64>,
+    occ: Vec<u64>,
+    outside: Vec<u64>,
 }
 
-impl Grid {
-    #[inline]
-    fn index(&self, k: Key) -> Option<usize> {
-        let x = k[0] as i32 - self.lo[0];
-        let y = k[1] as i32 - self.lo[1];
-        let z = k[2] as i32 - self.lo[2];
-        if x < 0 || y < 0 || z < 0 {
-            return None;
+impl Marks {
+    fn new(words: usize) -> Marks {
+        Marks {
+            free: vec![0; words],
+            occ: vec![0; words],
+            outside: Vec::new(),
         }
-        let (x, y, z) = (x as usize, y as usize, z as usize);
-        if x >= self.dim[0] || y >= self.dim[1] || z >= self.dim[2] {
-            return None;
-        }
-        Some(x + self.row * (y + self.dim[1] * z))
     }
 
+    /// The union of two scans' marks.
+    fn merge(mut self, other: Marks) -> Marks {
+        for (a, b) in self.free.iter_mut().zip(&other.free) {
+            *a |= b;
+        }
+        for (a, b) in self.occ.iter_mut().zip(&other.occ) {
+            *a |= b;
+        }
+        self.outside.extend(other.outside);
+        self
+    }
+
+    /// Marks a free key.
     #[inline]
-    fn set(words: &[AtomicU64], i: usize) {
-        let w = &words[i >> 6];
-        let bit = 1u64 << (i & 63);
-        if w.load(Ordering::Relaxed) & bit == 0 {
-            w.fetch_or(bit, Ordering::Relaxed);
+    fn free(&mut self, layout: &Layout, k: Key) {
+        match layout.index(k) {
+            Some(j) => set_bit(&mut self.free, j),
+            None => self.outside.push(morton(k) << 1),
+        }
+    }
+
+    /// Marks an occupied key.
+    #[inline]
+    fn occupied(&mut self, layout: &Layout, k: Key) {
+        match layout.index(k) {
+            Some(j) => set_bit(&mut self.occ, j),
+            None => self.outside.push((morton(k) << 1) | 1),
         }
     }
 }
@@ -482,94 +234,116 @@ impl OccupancyMap {
         if n == 0 {
             return Vec::new();
         }
-        let pt = |i: usize| [points[3 * i], points[3 * i + 1], points[3 * i + 2]];
+        let ranges: Vec<std::ops::Range<usize>> = (0..n)
+            .step_by(CHUNK)
+            .map(|s| s..(s + CHUNK).min(n))
+            .collect();
+        let par_min = ranges
+            .len()
+            .div_ceil(2 * rayon::current_num_threads())
+            .max(1);
 
-        // Key box of the scan: origin and ray ends.
-        let box_of = |r: std::ops::Range<usize>| {
+        // Ray ends (max range applied) and the key box of the scan.
+        let end_of = |i: usize| {
+            ray_end(
+                [points[3 * i], points[3 * i + 1], points[3 * i + 2]],
+                origin,
+                max_range,
+            )
+        };
+        let ends: Vec<([f32; 3], bool)> = if parallel {
+            (0..n).into_par_iter().map(end_of).collect()
+        } else {
+            (0..n).map(end_of).collect()
+        };
+        let box_of = |r: &std::ops::Range<usize>| {
             let mut b = KeyBox::EMPTY;
-            for i in r {
-                let (e, _) = ray_end(pt(i), origin, max_range);
-                if let Some(k) = point_to_key(e, rf) {
+            for (e, _) in &ends[r.clone()] {
+                if let Some(k) = point_to_key(*e, rf) {
                     b.add(k);
                 }
             }
             b
         };
-        let ranges: Vec<std::ops::Range<usize>> = (0..n)
-            .step_by(CHUNK)
-            .map(|s| s..(s + CHUNK).min(n))
-            .collect();
         let mut bx = if parallel {
             ranges
                 .par_iter()
-                .map(|r| box_of(r.clone()))
+                .map(box_of)
                 .reduce(|| KeyBox::EMPTY, KeyBox::union)
         } else {
-            ranges
-                .iter()
-                .map(|r| box_of(r.clone()))
-                .fold(KeyBox::EMPTY, KeyBox::union)
+            ranges.iter().map(box_of).fold(KeyBox::EMPTY, KeyBox::union)
         };
-        if let Some(k) = point_to_key(origin, rf) {
+        let ko = point_to_key(origin, rf);
+        if let Some(k) = ko {
             bx.add(k);
         }
         if bx.lo[0] > bx.hi[0] {
             return Vec::new();
         }
-        // One voxel of margin for rays that round past their end voxel.
-        let lo = bx.lo.map(|v| (v - 1).max(0));
-        let hi = bx.hi.map(|v| (v + 1).min(65535));
-        let dim = [
-            (hi[0] - lo[0] + 1) as usize,
-            (hi[1] - lo[1] + 1) as usize,
-            (hi[2] - lo[2] + 1) as usize,
-        ];
-        let row = dim[0].div_ceil(64) * 64;
-        let bits = row as u64 * dim[1] as u64 * dim[2] as u64;
+        // A margin around the box for the voxels rays cross beside their ends.
+        let lo = bx.lo.map(|v| (v - LAYOUT_MARGIN).max(0));
+        let hi = bx.hi.map(|v| (v + LAYOUT_MARGIN).min(65535));
+        let layout = Layout::new(lo, hi);
+        let bits = layout.row as u64 * layout.dim[1] as u64 * layout.dim[2] as u64;
 
         let mut items = if bits <= MAX_GRID_BITS {
-            let words = (bits / 64) as usize;
-            let grid = Grid {
-                lo,
-                dim,
-                row,
-                free: (0..words).map(|_| AtomicU64::new(0)).collect(),
-                occ: (0..words).map(|_| AtomicU64::new(0)).collect(),
-            };
-            let trace = |r: std::ops::Range<usize>| -> Vec<u64> {
-                let mut outside = Vec::new();
-                for i in r {
-                    let (e, occupied) = ray_end(pt(i), origin, max_range);
-                    ray_into_grid(origin, e, res, rf, &grid, &mut outside);
-                    if occupied {
-                        if let Some(k) = point_to_key(e, rf) {
-                            match grid.index(k) {
-                                Some(j) => Grid::set(&grid.occ, j),
-                                None => outside.push((morton(k) << 1) | 1),
+            let words = layout.words();
+            let trace = |mut marks: Marks, r: &std::ops::Range<usize>| -> Marks {
+                let ends = &ends[r.clone()];
+                let mut slow = Vec::new();
+                // OctoMap traces no ray from an origin outside the tree.
+                if let Some(ko) = ko {
+                    let mut i = 0;
+                    let next = || {
+                        while let Some((e, _)) = ends.get(i) {
+                            i += 1;
+                            match Lane::prepare(origin, ko, *e, res, rf, &layout) {
+                                Prepared::Lane(l) => return Some(l),
+                                Prepared::Slow => slow.push(i - 1),
+                                Prepared::Empty => {}
                             }
+                        }
+                        None
+                    };
+                    trace_lanes(next, &mut marks.free);
+                }
+                for j in slow {
+                    ray_keys(origin, ends[j].0, res, rf, |k| marks.free(&layout, k));
+                }
+                for (e, occupied) in ends {
+                    if *occupied {
+                        if let Some(k) = point_to_key(*e, rf) {
+                            marks.occupied(&layout, k);
                         }
                     }
                 }
-                outside
+                marks
             };
-            let outside: Vec<Vec<u64>> = if parallel {
-                ranges.par_iter().map(|r| trace(r.clone())).collect()
+            let marks = if parallel {
+                ranges
+                    .par_iter()
+                    .with_min_len(par_min)
+                    .fold(|| Marks::new(words), trace)
+                    .reduce_with(Marks::merge)
             } else {
-                ranges.iter().map(|r| trace(r.clone())).collect()
+                Some(ranges.iter().fold(Marks::new(words), trace))
             };
-            let words_per_row = row / 64;
+            let Some(marks) = marks else {
+                return Vec::new();
+            };
+            let words_per_row = layout.row / 64;
             let extract = |w0: usize, w1: usize| -> Vec<u64> {
                 let mut out = Vec::new();
                 for w in w0..w1 {
-                    let o = grid.occ[w].load(Ordering::Relaxed);
-                    let f = grid.free[w].load(Ordering::Relaxed) & !o;
+                    let o = marks.occ[w];
+                    let f = marks.free[w] & !o;
                     if f | o == 0 {
                         continue;
                     }
                     // One row per word: y, z and their Morton bits once per word.
                     let r = w / words_per_row;
-                    let y = (lo[1] + (r % dim[1]) as i32) as u16;
-                    let z = (lo[2] + (r / dim[1]) as i32) as u16;
+                    let y = (lo[1] + (r % layout.dim[1]) as i32) as u16;
+                    let z = (lo[2] + (r / layout.dim[1]) as i32) as u16;
                     let yz = morton([0, y, z]);
                     let x0 = lo[0] + ((w % words_per_row) * 64) as i32;
                     for (mut m, flag) in [(f, 0u64), (o, 1u64)] {
@@ -594,19 +368,16 @@ impl OccupancyMap {
                 spans.iter().map(|&(a, b)| extract(a, b)).collect()
             };
             let mut items: Vec<u64> = parts.concat();
-            for o in outside {
-                items.extend(o);
-            }
+            items.extend(marks.outside);
             items
         } else {
             // Very large scans: every key in a list, sorted and deduplicated below.
-            let trace = |r: std::ops::Range<usize>| -> Vec<u64> {
+            let trace = |r: &std::ops::Range<usize>| -> Vec<u64> {
                 let mut out = Vec::new();
-                for i in r {
-                    let (e, occupied) = ray_end(pt(i), origin, max_range);
-                    ray_keys(origin, e, res, rf, |k| out.push(morton(k) << 1));
-                    if occupied {
-                        if let Some(k) = point_to_key(e, rf) {
+                for (e, occupied) in &ends[r.clone()] {
+                    ray_keys(origin, *e, res, rf, |k| out.push(morton(k) << 1));
+                    if *occupied {
+                        if let Some(k) = point_to_key(*e, rf) {
                             out.push((morton(k) << 1) | 1);
                         }
                     }
@@ -616,9 +387,9 @@ impl OccupancyMap {
                 out
             };
             let parts: Vec<Vec<u64>> = if parallel {
-                ranges.par_iter().map(|r| trace(r.clone())).collect()
+                ranges.par_iter().map(trace).collect()
             } else {
-                ranges.iter().map(|r| trace(r.clone())).collect()
+                ranges.iter().map(trace).collect()
             };
             parts.concat()
         };
@@ -655,62 +426,4 @@ pub(crate) fn check_points(what: &str, points: &[f32]) -> Result<()> {
         });
     }
     Ok(())
-}
-
-#[cfg(test)]
-mod tests {
-    use super::*;
-    use rand::{Rng, SeedableRng};
-
-    /// The grid-specialised tracer visits exactly OctoMap's ray keys.
-    #[test]
-    fn grid_tracer_matches_reference_ray_keys() {
-        let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(5);
-        let (res, rf) = (0.1, 1.0 / 0.1);
-        for _ in 0..2000 {
-            let o = [0, 1, 2].map(|_| rng.random_range(-2.0f32..2.0));
-            let mut e = [0, 1, 2].map(|_| rng.random_range(-6.0f32..6.0));
-            if rng.random_bool(0.2) {
-                e[1] = o[1]; // axis-parallel components
-            }
-            let mut reference = Vec::new();
-            ray_keys(o, e, res, rf, |k| reference.push(morton(k) << 1));
-            reference.sort_unstable();
-            reference.dedup();
-
-            let mut bx = KeyBox::EMPTY;
-            bx.add(point_to_key(o, rf).unwrap());
-            bx.add(point_to_key(e, rf).unwrap());
-            let lo = bx.lo.map(|v| v - 1);
-            let dim = [0, 1, 2].map(|i| (bx.hi[i] + 1 - lo[i] + 1) as usize);
-            let row = dim[0].div_ceil(64) * 64;
-            let words = row * dim[1] * dim[2] / 64;
-            let grid = Grid {
-                lo,
-                dim,
-                row,
-                free: (0..words).map(|_| AtomicU64::new(0)).collect(),
-                occ: Vec::new(),
-            };
-            let mut outside = Vec::new();
-            ray_into_grid(o, e, res, rf, &grid, &mut outside);
-            let mut got = outside;
-            for (w, word) in grid.free.iter().enumerate() {
-                let mut m = word.load(Ordering::Relaxed);
-                while m != 0 {
-                    let j = (w << 6) | m.trailing_zeros() as usize;
-                    m &= m - 1;
-                    let k = [
-                        (lo[0] + (j % row) as i32) as u16,
-                        (lo[1] + (j / row % dim[1]) as i32) as u16,
-                        (lo[2] + (j / row / dim[1]) as i32) as u16,
-                    ];
-                    got.push(morton(k) << 1);
-                }
-            }
-            got.sort_unstable();
-            got.dedup();
-            assert_eq!(got, reference, "ray {o:?} -> {e:?}");
-        }
-    }
 }
