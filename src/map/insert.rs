@@ -281,8 +281,9 @@ impl OccupancyMap {
             return Vec::new();
         }
         // A margin around the box for the voxels rays cross beside their ends.
-        let lo = bx.lo.map(|v| (v - LAYOUT_MARGIN).max(0));
-        let hi = bx.hi.map(|v| (v + LAYOUT_MARGIN).min(65535));
+        // Aligned to whole 4×4×4 bricks for the extraction in Morton order.
+        let lo = bx.lo.map(|v| (v - LAYOUT_MARGIN).max(0) & !3);
+        let hi = bx.hi.map(|v| (v + LAYOUT_MARGIN).min(65535) | 3);
         let layout = Layout::new(lo, hi);
         let bits = layout.row as u64 * layout.dim[1] as u64 * layout.dim[2] as u64;
 
@@ -331,43 +332,43 @@ impl OccupancyMap {
             let Some(marks) = marks else {
                 return Vec::new();
             };
-            let words_per_row = layout.row / 64;
-            let extract = |w0: usize, w1: usize| -> Vec<u64> {
-                let mut out = Vec::new();
-                for w in w0..w1 {
-                    let o = marks.occ[w];
-                    let f = marks.free[w] & !o;
-                    if f | o == 0 {
-                        continue;
-                    }
-                    // One row per word: y, z and their Morton bits once per word.
-                    let r = w / words_per_row;
-                    let y = (lo[1] + (r % layout.dim[1]) as i32) as u16;
-                    let z = (lo[2] + (r / layout.dim[1]) as i32) as u16;
-                    let yz = morton([0, y, z]);
-                    let x0 = lo[0] + ((w % words_per_row) * 64) as i32;
-                    for (mut m, flag) in [(f, 0u64), (o, 1u64)] {
-                        while m != 0 {
-                            let b = m.trailing_zeros() as i32;
-                            m &= m - 1;
-                            let x = (x0 + b) as u16;
-                            out.push(((morton([x, 0, 0]) | yz) << 1) | flag);
-                        }
-                    }
-                }
-                out
-            };
-            let step = 4096;
-            let spans: Vec<(usize, usize)> = (0..words)
-                .step_by(step)
-                .map(|s| (s, (s + step).min(words)))
-                .collect();
-            let parts: Vec<Vec<u64>> = if parallel {
-                spans.par_iter().map(|&(a, b)| extract(a, b)).collect()
+            // Non-empty 4×4×4 bricks as (Morton code of their lowest key,
+            // free and occupied voxels in Morton order), sorted: their
+            // voxels then come out in Morton order without sorting them.
+            let slabs: Vec<usize> = (0..layout.dim[2] / 4).collect();
+            let mut bricks: Vec<(u64, u64, u64)> = if parallel {
+                slabs
+                    .par_iter()
+                    .flat_map_iter(|&bz| bricks_of_slab(&marks, &layout, bz))
+                    .collect()
             } else {
-                spans.iter().map(|&(a, b)| extract(a, b)).collect()
+                slabs
+                    .iter()
+                    .flat_map(|&bz| bricks_of_slab(&marks, &layout, bz))
+                    .collect()
             };
-            let mut items: Vec<u64> = parts.concat();
+            if parallel {
+                bricks.par_sort_unstable_by_key(|b| b.0);
+            } else {
+                bricks.sort_unstable_by_key(|b| b.0);
+            }
+            let count: usize = bricks
+                .iter()
+                .map(|b| (b.1 | b.2).count_ones() as usize)
+                .sum();
+            let mut items = Vec::with_capacity(count + marks.outside.len());
+            for &(code, f, o) in &bricks {
+                let mut m = f | o;
+                while m != 0 {
+                    let c = m.trailing_zeros() as u64;
+                    m &= m - 1;
+                    items.push(((code | c) << 1) | ((o >> c) & 1));
+                }
+            }
+            if marks.outside.is_empty() {
+                // Sorted and unique already (free bits exclude occupied ones).
+                return items;
+            }
             items.extend(marks.outside);
             items
         } else {
@@ -408,6 +409,73 @@ impl OccupancyMap {
         }
         out
     }
+}
+
+/// A 4-bit x row of a brick spread to its Morton positions (bit `dx` of the
+/// nibble to bit `dx & 1 | (dx & 2) << 2`).
+const SPREAD4: [u64; 16] = {
+    let mut t = [0u64; 16];
+    let mut v = 0;
+    while v < 16 {
+        let mut dx = 0;
+        while dx < 4 {
+            if v >> dx & 1 == 1 {
+                t[v] |= 1 << ((dx & 1) | (dx & 2) << 2);
+            }
+            dx += 1;
+        }
+        v += 1;
+    }
+    t
+};
+
+/// The non-empty 4×4×4 bricks of brick slab `bz` (z keys `4·bz .. 4·bz + 4`
+/// of the layout): Morton code of the brick's lowest key, and its free
+/// (not occupied) and occupied voxels as 64-bit masks in Morton order.
+fn bricks_of_slab(marks: &Marks, layout: &Layout, bz: usize) -> Vec<(u64, u64, u64)> {
+    let wpr = layout.row / 64;
+    let mut out = Vec::new();
+    // Shift of a brick row (dy, dz) in the brick's Morton mask.
+    let row_shift =
+        |dy: usize, dz: usize| 2 * ((dy & 1) | (dy & 2) << 2) + 4 * ((dz & 1) | (dz & 2) << 2);
+    for by in 0..layout.dim[1] / 4 {
+        let row_word = |dy: usize, dz: usize, w: usize| {
+            ((4 * bz + dz) * layout.dim[1] + 4 * by + dy) * wpr + w
+        };
+        for w in 0..wpr {
+            let mut any = 0u64;
+            for dz in 0..4 {
+                for dy in 0..4 {
+                    let i = row_word(dy, dz, w);
+                    any |= marks.free[i] | marks.occ[i];
+                }
+            }
+            while any != 0 {
+                let nib = any.trailing_zeros() / 4;
+                any &= !(0xF << (4 * nib));
+                let (mut f, mut o) = (0u64, 0u64);
+                for dz in 0..4 {
+                    for dy in 0..4 {
+                        let i = row_word(dy, dz, w);
+                        let occ = (marks.occ[i] >> (4 * nib)) & 0xF;
+                        let free = (marks.free[i] >> (4 * nib)) & 0xF & !occ;
+                        let sh = row_shift(dy, dz);
+                        f |= SPREAD4[free as usize] << sh;
+                        o |= SPREAD4[occ as usize] << sh;
+                    }
+                }
+                if f | o != 0 {
+                    let key = [
+                        (layout.lo[0] + (64 * w) as i32 + 4 * nib as i32) as u16,
+                        (layout.lo[1] + 4 * by as i32) as u16,
+                        (layout.lo[2] + 4 * bz as i32) as u16,
+                    ];
+                    out.push((morton(key), f, o));
+                }
+            }
+        }
+    }
+    out
 }
 
 /// Checks an `(N, 3)` row-major point slice: length and finiteness.
