@@ -347,20 +347,25 @@ pub(crate) unsafe fn trace_lanes_avx2(mut next: impl FnMut() -> Option<Lane>, bi
     }
     let pd = |v: [f64; 4]| _mm256_set_pd(v[3], v[2], v[1], v[0]);
     let pi = |v: [i64; 4]| _mm256_set_epi64x(v[3], v[2], v[1], v[0]);
-    let ones = _mm256_castsi256_pd(_mm256_set1_epi64x(-1));
+    let mut tx = pd(lanes.map(|l| l.t[0]));
+    let mut ty = pd(lanes.map(|l| l.t[1]));
+    let mut tz = pd(lanes.map(|l| l.t[2]));
+    let mut dx = pd(lanes.map(|l| l.dd[0]));
+    let mut dy = pd(lanes.map(|l| l.dd[1]));
+    let mut dz = pd(lanes.map(|l| l.dd[2]));
+    let mut len = pd(lanes.map(|l| l.len));
+    let mut sx = pi(lanes.map(|l| l.ds[0]));
+    let mut sy = pi(lanes.map(|l| l.ds[1]));
+    let mut sz = pi(lanes.map(|l| l.ds[2]));
+    let mut end = pi(lanes.map(|l| l.end));
+    let mut idx = pi(lanes.map(|l| l.idx));
+    // Lane l's mask, for replacing one lane of every vector.
+    let lane_mask = [0, 1, 2, 3].map(|l| {
+        let mut m = [0i64; 4];
+        m[l] = -1;
+        pi(m)
+    });
     while live != 0 {
-        let mut tx = pd(lanes.map(|l| l.t[0]));
-        let mut ty = pd(lanes.map(|l| l.t[1]));
-        let mut tz = pd(lanes.map(|l| l.t[2]));
-        let dx = pd(lanes.map(|l| l.dd[0]));
-        let dy = pd(lanes.map(|l| l.dd[1]));
-        let dz = pd(lanes.map(|l| l.dd[2]));
-        let len = pd(lanes.map(|l| l.len));
-        let sx = pi(lanes.map(|l| l.ds[0]));
-        let sy = pi(lanes.map(|l| l.ds[1]));
-        let sz = pi(lanes.map(|l| l.ds[2]));
-        let end = pi(lanes.map(|l| l.end));
-        let mut idx = pi(lanes.map(|l| l.idx));
         let stopped = loop {
             // OctoMap's choice: x if tx < ty and tx < tz, else y if ty < tz, else z.
             let cxy = _mm256_cmp_pd::<_CMP_LT_OQ>(tx, ty);
@@ -368,17 +373,15 @@ pub(crate) unsafe fn trace_lanes_avx2(mut next: impl FnMut() -> Option<Lane>, bi
             let cyz = _mm256_cmp_pd::<_CMP_LT_OQ>(ty, tz);
             let mx = _mm256_and_pd(cxy, cxz);
             let my = _mm256_andnot_pd(cxy, cyz);
-            let mz = _mm256_xor_pd(_mm256_or_pd(mx, my), ones);
-            tx = _mm256_add_pd(tx, _mm256_and_pd(mx, dx));
-            ty = _mm256_add_pd(ty, _mm256_and_pd(my, dy));
-            tz = _mm256_add_pd(tz, _mm256_and_pd(mz, dz));
-            let step = _mm256_or_si256(
-                _mm256_or_si256(
-                    _mm256_and_si256(_mm256_castpd_si256(mx), sx),
-                    _mm256_and_si256(_mm256_castpd_si256(my), sy),
-                ),
-                _mm256_and_si256(_mm256_castpd_si256(mz), sz),
-            );
+            let mxy = _mm256_or_pd(mx, my);
+            tx = _mm256_blendv_pd(tx, _mm256_add_pd(tx, dx), mx);
+            ty = _mm256_blendv_pd(ty, _mm256_add_pd(ty, dy), my);
+            tz = _mm256_blendv_pd(_mm256_add_pd(tz, dz), tz, mxy);
+            let step = _mm256_castpd_si256(_mm256_blendv_pd(
+                _mm256_blendv_pd(_mm256_castsi256_pd(sz), _mm256_castsi256_pd(sy), my),
+                _mm256_castsi256_pd(sx),
+                mx,
+            ));
             idx = _mm256_add_epi64(idx, step);
             let dist = _mm256_min_pd(_mm256_min_pd(tx, ty), tz);
             let stop = _mm256_or_pd(
@@ -403,31 +406,41 @@ pub(crate) unsafe fn trace_lanes_avx2(mut next: impl FnMut() -> Option<Lane>, bi
                 break stop;
             }
         };
-        let lanes_of = |v: __m256i| {
-            [
-                _mm256_extract_epi64::<0>(v),
-                _mm256_extract_epi64::<1>(v),
-                _mm256_extract_epi64::<2>(v),
-                _mm256_extract_epi64::<3>(v),
-            ]
-        };
-        let f64s = |v: __m256d| lanes_of(_mm256_castpd_si256(v)).map(|b| f64::from_bits(b as u64));
-        let (ax, ay, az, ai) = (f64s(tx), f64s(ty), f64s(tz), lanes_of(idx));
-        for (l, lane) in lanes.iter_mut().enumerate() {
-            lane.t = [ax[l], ay[l], az[l]];
-            lane.idx = ai[l];
-            if stopped & (1 << l) != 0 {
-                match next() {
-                    Some(x) => {
-                        *lane = x;
-                        set_bit(bits, x.idx as usize);
-                    }
-                    None => {
-                        *lane = Lane::IDLE;
-                        live &= !(1 << l);
-                    }
-                }
+        for (l, m) in lane_mask.iter().enumerate() {
+            if stopped & (1 << l) == 0 {
+                continue;
             }
+            let x = match next() {
+                Some(x) => {
+                    set_bit(bits, x.idx as usize);
+                    x
+                }
+                None => {
+                    live &= !(1 << l);
+                    Lane::IDLE
+                }
+            };
+            let m = _mm256_castsi256_pd(*m);
+            let f = |v: __m256d, x: f64| _mm256_blendv_pd(v, _mm256_set1_pd(x), m);
+            let i = |v: __m256i, x: i64| {
+                _mm256_castpd_si256(_mm256_blendv_pd(
+                    _mm256_castsi256_pd(v),
+                    _mm256_castsi256_pd(_mm256_set1_epi64x(x)),
+                    m,
+                ))
+            };
+            tx = f(tx, x.t[0]);
+            ty = f(ty, x.t[1]);
+            tz = f(tz, x.t[2]);
+            dx = f(dx, x.dd[0]);
+            dy = f(dy, x.dd[1]);
+            dz = f(dz, x.dd[2]);
+            len = f(len, x.len);
+            sx = i(sx, x.ds[0]);
+            sy = i(sy, x.ds[1]);
+            sz = i(sz, x.ds[2]);
+            end = i(end, x.end);
+            idx = i(idx, x.idx);
         }
     }
 }
