@@ -495,3 +495,174 @@ pub(crate) fn check_points(what: &str, points: &[f32]) -> Result<()> {
     }
     Ok(())
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::map::key::{child_index, TREE_DEPTH};
+    use crate::map::tree::{Node, Tree, LEAF};
+    use crate::map::MapParams;
+    use rand::{Rng, SeedableRng};
+
+    /// OctoMap's `updateNode(key, occupied)` for one key: the early abort on
+    /// a clamped leaf, `updateNodeRecurs` with the expansion of pruned nodes,
+    /// pruning or max-of-children on the way up.
+    fn reference_update(map: &mut OccupancyMap, key: Key, occupied: bool) {
+        let lo = map.lo;
+        if let Some((leaf, _)) = map.tree.search(key) {
+            if (occupied && leaf.value >= lo.max) || (!occupied && leaf.value <= lo.min) {
+                return;
+            }
+        }
+        let t = &mut map.tree;
+        let created = !t.root.exists();
+        let root = if created {
+            t.num_nodes += 1;
+            Node {
+                value: 0.0,
+                child: LEAF,
+            }
+        } else {
+            t.root
+        };
+        t.root = reference_rec(t, root, created, key, 0, occupied, &lo);
+    }
+
+    fn reference_rec(
+        t: &mut Tree,
+        mut node: Node,
+        just_created: bool,
+        key: Key,
+        depth: u32,
+        occupied: bool,
+        lo: &super::super::tree::LogOdds,
+    ) -> Node {
+        if depth == TREE_DEPTH {
+            let v = node.value + if occupied { lo.hit } else { lo.miss };
+            node.value = v.clamp(lo.min, lo.max);
+            return node;
+        }
+        let pos = child_index(key, depth);
+        if !node.has_children() {
+            node.child = if just_created {
+                t.alloc_block([Node::ABSENT; 8])
+            } else {
+                t.num_nodes += 8;
+                t.alloc_block(
+                    [Node {
+                        value: node.value,
+                        child: LEAF,
+                    }; 8],
+                )
+            };
+        }
+        let mut child = t.blocks[node.child as usize][pos];
+        let created = !child.exists();
+        if created {
+            t.num_nodes += 1;
+            child = Node {
+                value: 0.0,
+                child: LEAF,
+            };
+        }
+        let child = reference_rec(t, child, created, key, depth + 1, occupied, lo);
+        t.blocks[node.child as usize][pos] = child;
+        t.finish_inner(node)
+    }
+
+    /// One scan the reference way: the key sets of `computeUpdate` from
+    /// [`ray_keys`] (occupied winning), then one `updateNode` per key.
+    fn reference_scan(map: &mut OccupancyMap, points: &[f32], origin: [f32; 3]) {
+        let (res, rf) = (map.params.resolution, map.resolution_factor);
+        let mut free = std::collections::BTreeSet::new();
+        let mut occ = std::collections::BTreeSet::new();
+        for p in points.chunks_exact(3) {
+            let (e, occupied) = ray_end([p[0], p[1], p[2]], origin, map.params.max_range);
+            ray_keys(origin, e, res, rf, |k| {
+                free.insert(morton(k));
+            });
+            if occupied {
+                if let Some(k) = point_to_key(e, rf) {
+                    occ.insert(morton(k));
+                }
+            }
+        }
+        let mut items: Vec<(u64, bool)> = free
+            .difference(&occ)
+            .map(|&c| (c, false))
+            .chain(occ.iter().map(|&c| (c, true)))
+            .collect();
+        items.sort_unstable();
+        for (c, occupied) in items {
+            reference_update(map, crate::map::key::from_morton(c), occupied);
+        }
+    }
+
+    /// Random scans with rays of every kind: beyond the max range, along the
+    /// axes, through voxel corners (points on the grid), repeated so that
+    /// voxels clamp and nodes prune.
+    fn random_scans(seed: u64, res: f32) -> Vec<([f32; 3], Vec<f32>)> {
+        let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(seed);
+        let mut scans = Vec::new();
+        for s in 0..6 {
+            let origin = if s % 2 == 0 {
+                [0, 1, 2].map(|_| rng.random_range(-8..8) as f32 * res)
+            } else {
+                [0, 1, 2].map(|_| rng.random_range(-1.0f32..1.0))
+            };
+            let mut pts = Vec::new();
+            for i in 0..3000 {
+                let p: [f32; 3] = match i % 4 {
+                    0 => [0, 1, 2].map(|_| rng.random_range(-40..40) as f32 * res),
+                    1 => {
+                        let mut p = origin;
+                        p[rng.random_range(0..3)] += rng.random_range(-6.0f32..6.0);
+                        p
+                    }
+                    _ => [0, 1, 2].map(|_| rng.random_range(-7.0f32..7.0)),
+                };
+                pts.extend_from_slice(&p);
+            }
+            scans.push((origin, pts));
+        }
+        // The same scans again: clamped voxels, pruned nodes, early aborts.
+        let again = scans.clone();
+        scans.extend(again);
+        scans
+    }
+
+    /// The batched insertion (lanes, bricks, ordered batch update) builds
+    /// exactly the tree of OctoMap's per-key updates, sequential and parallel.
+    #[test]
+    fn batched_insertion_equals_per_key_reference() {
+        for (seed, res) in [(1u64, 0.1f32), (2, 0.25), (3, 0.05)] {
+            let params = MapParams {
+                max_range: Some(5.0),
+                ..MapParams::new(res as f64)
+            };
+            let mut reference = OccupancyMap::try_new(params).unwrap();
+            let mut seq = OccupancyMap::try_new(params).unwrap();
+            let mut par = OccupancyMap::try_new(params).unwrap();
+            for (origin, pts) in random_scans(seed, res) {
+                reference_scan(&mut reference, &pts, origin);
+                seq.insert_scan_sequential(&pts, origin).unwrap();
+                par.insert_scan(&pts, origin).unwrap();
+                assert_eq!(seq.num_nodes(), reference.num_nodes(), "seed {seed}");
+                assert!(seq.tree_bits() == reference.tree_bits(), "seed {seed}");
+                assert!(par.tree_bits() == reference.tree_bits(), "seed {seed}");
+            }
+            assert!(reference.num_nodes() > 1000);
+            // The scans reach the clamping bounds and prune (inner leaves).
+            let (mut clamped, mut pruned) = (0, 0);
+            reference.tree.for_each_leaf(|_, depth, v| {
+                clamped += usize::from(v == reference.lo.min);
+                pruned += usize::from(depth < TREE_DEPTH);
+            });
+            assert!(
+                clamped > 0 && pruned > 0,
+                "{clamped} clamped, {pruned} pruned"
+            );
+            seq.check_invariants().unwrap();
+        }
+    }
+}

@@ -193,6 +193,23 @@ impl Tree {
             node.child = self.alloc_block(block);
         }
         let b = node.child as usize;
+        if depth == TREE_DEPTH - 1 {
+            // Children are voxels, one item each (items are unique): update in place.
+            for &it in items {
+                let c = ((it >> 1) & 7) as usize;
+                let mut child = self.blocks[b][c];
+                if !child.exists() {
+                    self.num_nodes += 1;
+                    child = Node {
+                        value: 0.0,
+                        child: LEAF,
+                    };
+                }
+                child.value = lo.apply(child.value, it & 1 == 1);
+                self.blocks[b][c] = child;
+            }
+            return self.finish_inner(node);
+        }
         let shift = 3 * (TREE_DEPTH - 1 - depth) + 1;
         let mut i = 0;
         while i < items.len() {
