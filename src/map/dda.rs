@@ -189,6 +189,15 @@ pub(crate) fn set_bit(bits: &mut [u64], i: usize) {
     }
 }
 
+/// Sets bit `i` of `bits` unconditionally (no branch on the bit's state).
+/// Indices past the end are ignored.
+#[inline(always)]
+fn or_bit(bits: &mut [u64], i: usize) {
+    if let Some(w) = bits.get_mut(i >> 6) {
+        *w |= 1u64 << (i & 63);
+    }
+}
+
 /// One ray in the batched tracer: OctoMap's DDA state with the current voxel
 /// as a bit index of the scan's [`Layout`].
 #[derive(Clone, Copy, Debug)]
@@ -391,16 +400,16 @@ pub(crate) unsafe fn trace_lanes_avx2(mut next: impl FnMut() -> Option<Lane>, bi
             let stop = _mm256_movemask_pd(stop) as u32;
             let mark = live & !stop;
             if mark & 1 != 0 {
-                set_bit(bits, _mm256_extract_epi64::<0>(idx) as usize);
+                or_bit(bits, _mm256_extract_epi64::<0>(idx) as usize);
             }
             if mark & 2 != 0 {
-                set_bit(bits, _mm256_extract_epi64::<1>(idx) as usize);
+                or_bit(bits, _mm256_extract_epi64::<1>(idx) as usize);
             }
             if mark & 4 != 0 {
-                set_bit(bits, _mm256_extract_epi64::<2>(idx) as usize);
+                or_bit(bits, _mm256_extract_epi64::<2>(idx) as usize);
             }
             if mark & 8 != 0 {
-                set_bit(bits, _mm256_extract_epi64::<3>(idx) as usize);
+                or_bit(bits, _mm256_extract_epi64::<3>(idx) as usize);
             }
             if stop != 0 {
                 break stop;
