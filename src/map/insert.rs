@@ -243,36 +243,35 @@ impl OccupancyMap {
             .div_ceil(2 * rayon::current_num_threads())
             .max(1);
 
-        // Ray ends (max range applied) and the key box of the scan.
-        let end_of = |i: usize| {
-            ray_end(
-                [points[3 * i], points[3 * i + 1], points[3 * i + 2]],
-                origin,
-                max_range,
-            )
-        };
-        let ends: Vec<([f32; 3], bool)> = if parallel {
-            (0..n).into_par_iter().map(end_of).collect()
-        } else {
-            (0..n).map(end_of).collect()
-        };
-        let box_of = |r: &std::ops::Range<usize>| {
+        // Ray ends (max range applied) and the key box of the scan, in one pass.
+        let mut ends = vec![([0.0f32; 3], false); n];
+        let ends_of = |(c, out): (usize, &mut [([f32; 3], bool)])| {
             let mut b = KeyBox::EMPTY;
-            for (e, _) in &ends[r.clone()] {
-                if let Some(k) = point_to_key(*e, rf) {
+            for (j, end) in out.iter_mut().enumerate() {
+                let i = c * CHUNK + j;
+                *end = ray_end(
+                    [points[3 * i], points[3 * i + 1], points[3 * i + 2]],
+                    origin,
+                    max_range,
+                );
+                if let Some(k) = point_to_key(end.0, rf) {
                     b.add(k);
                 }
             }
             b
         };
         let mut bx = if parallel {
-            ranges
-                .par_iter()
-                .map(box_of)
+            ends.par_chunks_mut(CHUNK)
+                .enumerate()
+                .map(ends_of)
                 .reduce(|| KeyBox::EMPTY, KeyBox::union)
         } else {
-            ranges.iter().map(box_of).fold(KeyBox::EMPTY, KeyBox::union)
+            ends.chunks_mut(CHUNK)
+                .enumerate()
+                .map(ends_of)
+                .fold(KeyBox::EMPTY, KeyBox::union)
         };
+        let ends = ends;
         let ko = point_to_key(origin, rf);
         if let Some(k) = ko {
             bx.add(k);
