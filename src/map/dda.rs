@@ -242,17 +242,18 @@ impl Lane {
         len: f64::INFINITY,
     };
 
-    /// Prepares the ray from `origin` (voxel `ko`) to `end` in `layout`.
+    /// Prepares the ray from `origin` (voxel `ko`) to `end` (voxel `ke`,
+    /// `None` outside the tree) in `layout`.
     #[inline]
     pub fn prepare(
         origin: [f32; 3],
         ko: Key,
         end: [f32; 3],
+        ke: Option<Key>,
         resolution: f64,
-        resolution_factor: f64,
         layout: &Layout,
     ) -> Prepared {
-        let Some(ke) = point_to_key(end, resolution_factor) else {
+        let Some(ke) = ke else {
             return Prepared::Empty;
         };
         if ko == ke {
@@ -548,10 +549,12 @@ mod tests {
                     Layout::new(lo.map(|v| v - LAYOUT_MARGIN), hi.map(|v| v + LAYOUT_MARGIN));
                 let lanes: Vec<Lane> = ends
                     .iter()
-                    .filter_map(|e| match Lane::prepare(o, ko, *e, res, rf, &layout) {
-                        Prepared::Lane(l) => Some(l),
-                        Prepared::Empty => None,
-                        Prepared::Slow => panic!("short ray {o:?} -> {e:?} taken as slow"),
+                    .filter_map(|e| {
+                        match Lane::prepare(o, ko, *e, point_to_key(*e, rf), res, &layout) {
+                            Prepared::Lane(l) => Some(l),
+                            Prepared::Empty => None,
+                            Prepared::Slow => panic!("short ray {o:?} -> {e:?} taken as slow"),
+                        }
                     })
                     .collect();
                 let mut bits = vec![0u64; layout.words()];
@@ -574,33 +577,23 @@ mod tests {
     fn long_rays_and_rays_near_the_border_are_slow() {
         let (res, rf) = (0.1, 10.0);
         let o = [0.0f32; 3];
-        let ko = point_to_key(o, rf).unwrap();
         let layout = Layout::new([32760; 3], [32800; 3]);
         // Across the tree's diagonal: more than 1e5 voxels long.
         let (o_far, far) = ([-3000.0f32; 3], [3000.0f32; 3]);
-        let ko_far = point_to_key(o_far, rf).unwrap();
         let edge = [3.75f32, 0.0, 0.0]; // key 32805: beyond the margin
+        let prep = |o: [f32; 3], e: [f32; 3], layout: &Layout| {
+            let ko = point_to_key(o, rf).unwrap();
+            Lane::prepare(o, ko, e, point_to_key(e, rf), res, layout)
+        };
+        let whole = Layout::new([0; 3], [65535; 3]);
+        assert!(matches!(prep(o_far, far, &whole), Prepared::Slow));
+        assert!(matches!(prep(o, edge, &layout), Prepared::Slow));
         assert!(matches!(
-            Lane::prepare(
-                o_far,
-                ko_far,
-                far,
-                res,
-                rf,
-                &Layout::new([0; 3], [65535; 3])
-            ),
-            Prepared::Slow
-        ));
-        assert!(matches!(
-            Lane::prepare(o, ko, edge, res, rf, &layout),
-            Prepared::Slow
-        ));
-        assert!(matches!(
-            Lane::prepare(o, ko, [0.01, 0.0, 0.0], res, rf, &layout),
+            prep(o, [0.01, 0.0, 0.0], &layout),
             Prepared::Empty
         ));
         assert!(matches!(
-            Lane::prepare(o, ko, [1.0, 0.5, 0.2], res, rf, &layout),
+            prep(o, [1.0, 0.5, 0.2], &layout),
             Prepared::Lane(_)
         ));
     }

@@ -29,6 +29,15 @@ pub struct ScanUpdate {
     pub occupied: usize,
 }
 
+/// Where one point's ray ends, its key (`None` outside the tree) and whether
+/// it is an occupied voxel.
+#[derive(Clone, Copy, Debug)]
+struct RayEnd {
+    p: [f32; 3],
+    key: Option<Key>,
+    occupied: bool,
+}
+
 /// Where one point's ray ends and whether its endpoint is an occupied voxel.
 #[inline]
 fn ray_end(p: [f32; 3], origin: [f32; 3], max_range: Option<f64>) -> ([f32; 3], bool) {
@@ -244,19 +253,26 @@ impl OccupancyMap {
             .max(1);
 
         // Ray ends (max range applied) and the key box of the scan, in one pass.
-        let mut ends = vec![([0.0f32; 3], false); n];
-        let ends_of = |(c, out): (usize, &mut [([f32; 3], bool)])| {
+        let none = RayEnd {
+            p: [0.0; 3],
+            key: None,
+            occupied: false,
+        };
+        let mut ends = vec![none; n];
+        let ends_of = |(c, out): (usize, &mut [RayEnd])| {
             let mut b = KeyBox::EMPTY;
             for (j, end) in out.iter_mut().enumerate() {
                 let i = c * CHUNK + j;
-                *end = ray_end(
+                let (p, occupied) = ray_end(
                     [points[3 * i], points[3 * i + 1], points[3 * i + 2]],
                     origin,
                     max_range,
                 );
-                if let Some(k) = point_to_key(end.0, rf) {
+                let key = point_to_key(p, rf);
+                if let Some(k) = key {
                     b.add(k);
                 }
+                *end = RayEnd { p, key, occupied };
             }
             b
         };
@@ -295,9 +311,9 @@ impl OccupancyMap {
                 if let Some(ko) = ko {
                     let mut i = 0;
                     let next = || {
-                        while let Some((e, _)) = ends.get(i) {
+                        while let Some(e) = ends.get(i) {
                             i += 1;
-                            match Lane::prepare(origin, ko, *e, res, rf, &layout) {
+                            match Lane::prepare(origin, ko, e.p, e.key, res, &layout) {
                                 Prepared::Lane(l) => return Some(l),
                                 Prepared::Slow => slow.push(i - 1),
                                 Prepared::Empty => {}
@@ -308,13 +324,11 @@ impl OccupancyMap {
                     trace_lanes(next, &mut marks.free);
                 }
                 for j in slow {
-                    ray_keys(origin, ends[j].0, res, rf, |k| marks.free(&layout, k));
+                    ray_keys(origin, ends[j].p, res, rf, |k| marks.free(&layout, k));
                 }
-                for (e, occupied) in ends {
-                    if *occupied {
-                        if let Some(k) = point_to_key(*e, rf) {
-                            marks.occupied(&layout, k);
-                        }
+                for e in ends {
+                    if let (true, Some(k)) = (e.occupied, e.key) {
+                        marks.occupied(&layout, k);
                     }
                 }
                 marks
@@ -374,12 +388,10 @@ impl OccupancyMap {
             // Very large scans: every key in a list, sorted and deduplicated below.
             let trace = |r: &std::ops::Range<usize>| -> Vec<u64> {
                 let mut out = Vec::new();
-                for (e, occupied) in &ends[r.clone()] {
-                    ray_keys(origin, *e, res, rf, |k| out.push(morton(k) << 1));
-                    if *occupied {
-                        if let Some(k) = point_to_key(*e, rf) {
-                            out.push((morton(k) << 1) | 1);
-                        }
+                for e in &ends[r.clone()] {
+                    ray_keys(origin, e.p, res, rf, |k| out.push(morton(k) << 1));
+                    if let (true, Some(k)) = (e.occupied, e.key) {
+                        out.push((morton(k) << 1) | 1);
                     }
                 }
                 out.sort_unstable();
