@@ -102,6 +102,8 @@ struct Marks {
     free: Vec<u64>,
     occ: Vec<u64>,
     outside: Vec<u64>,
+    /// Scratch: the prepared rays of one chunk.
+    lanes: Vec<Lane>,
 }
 
 impl Marks {
@@ -110,6 +112,7 @@ impl Marks {
             free: vec![0; words],
             occ: vec![0; words],
             outside: Vec::new(),
+            lanes: Vec::new(),
         }
     }
 
@@ -309,19 +312,17 @@ impl OccupancyMap {
                 let mut slow = Vec::new();
                 // OctoMap traces no ray from an origin outside the tree.
                 if let Some(ko) = ko {
-                    let mut i = 0;
-                    let next = || {
-                        while let Some(e) = ends.get(i) {
-                            i += 1;
-                            match Lane::prepare(origin, ko, e.p, e.key, res, &layout) {
-                                Prepared::Lane(l) => return Some(l),
-                                Prepared::Slow => slow.push(i - 1),
-                                Prepared::Empty => {}
-                            }
+                    // All lanes first: the divisions of independent rays overlap.
+                    marks.lanes.clear();
+                    for (j, e) in ends.iter().enumerate() {
+                        match Lane::prepare(origin, ko, e.p, e.key, res, &layout) {
+                            Prepared::Lane(l) => marks.lanes.push(l),
+                            Prepared::Slow => slow.push(j),
+                            Prepared::Empty => {}
                         }
-                        None
-                    };
-                    trace_lanes(next, &mut marks.free);
+                    }
+                    let mut lanes = marks.lanes.iter().copied();
+                    trace_lanes(|| lanes.next(), &mut marks.free);
                 }
                 for j in slow {
                     ray_keys(origin, ends[j].p, res, rf, |k| marks.free(&layout, k));
