@@ -4,10 +4,12 @@
 //!
 //! Both step exactly as OctoMap does: `f32` direction, `f64` crossing
 //! distances advanced by repeated addition, the axis of the smallest distance
-//! first (ties to the later axis), and the same two stopping rules (the end
-//! voxel reached, or the next crossing beyond the ray's length). The batched
-//! tracer only changes where the current voxel is kept: as a bit index into
-//! the scan's bitset, advanced by per-axis strides, instead of three keys.
+//! first (ties to the later axis), and the same stopping rules (the end voxel
+//! reached, or the next crossing beyond the ray's length; OctoMap's third,
+//! leaving the tree, cannot apply to a batched ray, whose voxels lie inside a
+//! layout inside the tree). The batched tracer only changes where the current
+//! voxel is kept: as a bit index into the scan's bitset, advanced by per-axis
+//! strides, instead of three keys.
 
 use super::key::{key_to_coord, point_to_key, Key};
 
@@ -191,6 +193,7 @@ pub(crate) fn set_bit(bits: &mut [u64], i: usize) {
 
 /// Sets bit `i` of `bits` unconditionally (no branch on the bit's state).
 /// Indices past the end are ignored.
+#[cfg(target_arch = "x86_64")]
 #[inline(always)]
 fn or_bit(bits: &mut [u64], i: usize) {
     if let Some(w) = bits.get_mut(i >> 6) {
