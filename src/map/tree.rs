@@ -214,8 +214,17 @@ impl Tree {
         let mut i = 0;
         while i < items.len() {
             let c = ((items[i] >> shift) & 7) as usize;
-            // Items share every bit above this level, so child indices ascend.
-            let j = i + items[i..].partition_point(|&it| ((it >> shift) & 7) as usize <= c);
+            // Items share every bit above this level, so child indices ascend:
+            // the end of child c's run by a galloping search from i (the runs
+            // are short next to the slice; this stays near i in memory).
+            let le = |it: u64| ((it >> shift) & 7) as usize <= c;
+            let mut bound = 1;
+            while i + bound < items.len() && le(items[i + bound]) {
+                bound *= 2;
+            }
+            let start = i + bound / 2;
+            let end = (i + bound).min(items.len());
+            let j = start + items[start..end].partition_point(|&it| le(it));
             let mut child = self.blocks[b][c];
             let created = !child.exists();
             if created {
