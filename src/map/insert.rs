@@ -38,12 +38,28 @@ struct RayEnd {
     occupied: bool,
 }
 
+/// `f32_norm(d) > m`, without the square root unless the squared norm lies
+/// within a relative 1e-9 of `m²` (far wider than the rounding of the root
+/// and of `m²`, so the answer is the same).
+#[inline]
+fn beyond(d: [f32; 3], m: f64) -> bool {
+    let s = (d[0] * d[0] + d[1] * d[1] + d[2] * d[2]) as f64;
+    let m2 = m * m;
+    if s > m2 * (1.0 + 1e-9) {
+        true
+    } else if s < m2 * (1.0 - 1e-9) {
+        false
+    } else {
+        f32_norm(d) > m
+    }
+}
+
 /// Where one point's ray ends and whether its endpoint is an occupied voxel.
 #[inline]
 fn ray_end(p: [f32; 3], origin: [f32; 3], max_range: Option<f64>) -> ([f32; 3], bool) {
     let d = [p[0] - origin[0], p[1] - origin[1], p[2] - origin[2]];
     match max_range {
-        Some(m) if f32_norm(d) > m => {
+        Some(m) if beyond(d, m) => {
             // OctoMap: direction = (p - origin).normalized(); origin + direction * (float) maxrange
             let len = f32_norm(d);
             let l = len as f32;
@@ -641,6 +657,28 @@ mod tests {
         let again = scans.clone();
         scans.extend(again);
         scans
+    }
+
+    /// The max-range test without the root decides as the one with it, also
+    /// for points at the range to the last bit.
+    #[test]
+    fn max_range_test_without_root_equals_norm_test() {
+        let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(9);
+        for _ in 0..200_000 {
+            let m = [10.0, 0.3, 7.77, 1e3][rng.random_range(0..4)];
+            let dir = [0, 1, 2].map(|_| rng.random_range(-1.0f32..1.0));
+            let n = f32_norm(dir) as f32;
+            if n < 1e-3 {
+                continue;
+            }
+            let scale = m as f32 * (1.0 + rng.random_range(-4i32..=4) as f32 * f32::EPSILON);
+            let d = dir.map(|v| v / n * scale);
+            assert_eq!(beyond(d, m), f32_norm(d) > m, "{d:?} at {m}");
+        }
+        assert!(
+            !beyond([0.0; 3], 1.0)
+                && beyond([f32::MAX; 3], 1e300) == (f32_norm([f32::MAX; 3]) > 1e300)
+        );
     }
 
     /// The batched insertion (lanes, bricks, ordered batch update) builds
