@@ -19,6 +19,9 @@ use crate::error::{Error, Result};
 const CHUNK: usize = 2048;
 /// Largest per-scan bitset (bits) before falling back to sorting keys.
 const MAX_GRID_BITS: u64 = 1 << 28;
+/// Bytes of the per-thread bitsets of one scan, at most (fewer parallel
+/// work items for very large key boxes).
+const MARKS_BUDGET: usize = 128 << 20;
 
 /// Counts of one scan's update.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
@@ -323,6 +326,10 @@ impl OccupancyMap {
 
         let mut items = if bits <= MAX_GRID_BITS {
             let words = layout.words();
+            // Each work item beyond the first holds bitsets of its own: at
+            // most MARKS_BUDGET bytes of them in all.
+            let most = (MARKS_BUDGET / (words * 16).max(1)).max(1);
+            let par_min = par_min.max(ranges.len().div_ceil(most));
             let trace = |mut marks: Marks, r: &std::ops::Range<usize>| -> Marks {
                 let ends = &ends[r.clone()];
                 let mut slow = Vec::new();
