@@ -660,6 +660,14 @@ mod tests {
             }
             scans.push((origin, pts));
         }
+        // Near two faces of the tree: rays leaving it, a key box cut by it
+        // (rays traced key by key, voxels outside the bitset).
+        let edge = 32768.0 * res;
+        let origin = [edge - 2.0, 0.5, 3.0 - edge];
+        let pts: Vec<f32> = (0..6000)
+            .flat_map(|_| [0, 1, 2].map(|i| origin[i] + rng.random_range(-6.0f32..6.0)))
+            .collect();
+        scans.push((origin, pts));
         // The same scans again: clamped voxels, pruned nodes, early aborts.
         let again = scans.clone();
         scans.extend(again);
