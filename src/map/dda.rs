@@ -282,11 +282,23 @@ impl Lane {
             end: end as i64,
             len,
         };
+        // `crossings` for the three axes, its six divisions side by side.
+        let step = dir.map(step_sign);
+        let mut num = [resolution; 6];
+        let mut den = [1.0f64; 6];
         for i in 0..3 {
-            let step = step_sign(dir[i]);
-            if step != 0 {
-                (lane.t[i], lane.dd[i]) = crossings(ko[i], origin[i], dir[i], step, resolution);
-                lane.ds[i] = step as i64 * stride[i];
+            let border =
+                key_to_coord(ko[i], resolution) + (step[i] as f64 * resolution * 0.5) as f32 as f64;
+            num[i] = border - origin[i] as f64;
+            den[i] = dir[i] as f64;
+            den[i + 3] = (dir[i] as f64).abs();
+        }
+        let q: [f64; 6] = std::array::from_fn(|i| num[i] / den[i]);
+        for i in 0..3 {
+            if step[i] != 0 {
+                lane.t[i] = q[i];
+                lane.dd[i] = q[i + 3];
+                lane.ds[i] = step[i] as i64 * stride[i];
             }
         }
         Prepared::Lane(lane)
