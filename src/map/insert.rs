@@ -1,16 +1,17 @@
 //! Scan insertion: OctoMap's `computeUpdate` (free keys along each ray by its
 //! 3-D DDA `computeRayKeys`, occupied endpoint keys, occupied winning) run in
-//! parallel into per-scan bitsets, then one ordered batch update of the tree.
+//! parallel into per-thread bitsets over the scan's key box, merged, then one
+//! ordered batch update of the tree.
 //!
 //! The key sets are sets: whatever the thread count or the order in which
 //! rays are traced, the sorted update list and hence the tree are the same.
 
 use std::collections::BTreeMap;
-use std::sync::atomic::{AtomicU64, Ordering};
 
 use rayon::prelude::*;
 
-use super::key::{key_to_coord, morton, point_to_key, Key};
+use super::dda::{f32_norm, ray_keys, set_bit, trace_lanes, Lane, Layout, Prepared, LAYOUT_MARGIN};
+use super::key::{morton, point_to_key, Key};
 use super::OccupancyMap;
 use crate::error::{Error, Result};
 
@@ -18,6 +19,9 @@ use crate::error::{Error, Result};
 const CHUNK: usize = 2048;
 /// Largest per-scan bitset (bits) before falling back to sorting keys.
 const MAX_GRID_BITS: u64 = 1 << 28;
+/// Bytes of the per-thread bitsets of one scan, at most (fewer parallel
+/// work items for very large key boxes).
+const MARKS_BUDGET: usize = 128 << 20;
 
 /// Counts of one scan's update.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
@@ -28,265 +32,29 @@ pub struct ScanUpdate {
     pub occupied: usize,
 }
 
-/// Calls `visit` for every key of OctoMap's `computeRayKeys(origin, end)`:
-/// the voxels the segment crosses, origin voxel included, end voxel excluded.
-/// Returns `false` (and visits nothing) when either point lies outside the
-/// tree. Arithmetic mirrors OctoMap's `f32` points and `f64` steps so that
-/// the same keys come out.
-#[inline]
-pub(crate) fn ray_keys(
-    origin: [f32; 3],
-    end: [f32; 3],
-    resolution: f64,
-    resolution_factor: f64,
-    mut visit: impl FnMut(Key),
-) -> bool {
-    let (Some(ko), Some(ke)) = (
-        point_to_key(origin, resolution_factor),
-        point_to_key(end, resolution_factor),
-    ) else {
-        return false;
-    };
-    if ko == ke {
-        return true;
-    }
-    visit(ko);
-    let mut dir = [end[0] - origin[0], end[1] - origin[1], end[2] - origin[2]];
-    let length = f32_norm(dir) as f32;
-    for d in &mut dir {
-        *d /= length;
-    }
-    let mut step = [0i32; 3];
-    let mut t_max = [f64::MAX; 3];
-    let mut t_delta = [f64::MAX; 3];
-    for i in 0..3 {
-        step[i] = if dir[i] > 0.0 {
-            1
-        } else if dir[i] < 0.0 {
-            -1
-        } else {
-            0
-        };
-        if step[i] != 0 {
-            let mut border = key_to_coord(ko[i], resolution);
-            border += (step[i] as f64 * resolution * 0.5) as f32 as f64;
-            t_max[i] = (border - origin[i] as f64) / dir[i] as f64;
-            t_delta[i] = resolution / (dir[i] as f64).abs();
-        }
-    }
-    let length = length as f64;
-    let mut cur = [ko[0] as i32, ko[1] as i32, ko[2] as i32];
-    let end_k = [ke[0] as i32, ke[1] as i32, ke[2] as i32];
-    loop {
-        let dim = if t_max[0] < t_max[1] {
-            if t_max[0] < t_max[2] {
-                0
-            } else {
-                2
-            }
-        } else if t_max[1] < t_max[2] {
-            1
-        } else {
-            2
-        };
-        cur[dim] += step[dim];
-        t_max[dim] += t_delta[dim];
-        if cur == end_k {
-            return true;
-        }
-        let dist = t_max[0].min(t_max[1]).min(t_max[2]);
-        if dist > length || !(0..65536).contains(&cur[dim]) {
-            return true;
-        }
-        visit([cur[0] as u16, cur[1] as u16, cur[2] as u16]);
-    }
+/// Where one point's ray ends, its key (`None` outside the tree) and whether
+/// it is an occupied voxel.
+#[derive(Clone, Copy, Debug)]
+struct RayEnd {
+    p: [f32; 3],
+    key: Option<Key>,
+    occupied: bool,
 }
 
-/// [`ray_keys`] specialised to marking a [`Grid`]: the same keys, with the
-/// grid index advanced incrementally and the axis choice free of branches.
-/// Keys outside the grid go to `outside` (Morton code `<< 1`).
+/// `f32_norm(d) > m`, without the square root unless the squared norm lies
+/// within a relative 1e-9 of `m²` (far wider than the rounding of the root
+/// and of `m²`, so the answer is the same).
 #[inline]
-fn ray_into_grid(
-    origin: [f32; 3],
-    end: [f32; 3],
-    resolution: f64,
-    resolution_factor: f64,
-    grid: &Grid,
-    outside: &mut Vec<u64>,
-) {
-    let (Some(ko), Some(ke)) = (
-        point_to_key(origin, resolution_factor),
-        point_to_key(end, resolution_factor),
-    ) else {
-        return;
-    };
-    if ko == ke {
-        return;
+fn beyond(d: [f32; 3], m: f64) -> bool {
+    let s = (d[0] * d[0] + d[1] * d[1] + d[2] * d[2]) as f64;
+    let m2 = m * m;
+    if s > m2 * (1.0 + 1e-9) {
+        true
+    } else if s < m2 * (1.0 - 1e-9) {
+        false
+    } else {
+        f32_norm(d) > m
     }
-    let Some(mut idx) = grid.index(ko) else {
-        // The origin lies outside the grid only for degenerate boxes: take the slow path.
-        ray_keys(origin, end, resolution, resolution_factor, |k| {
-            match grid.index(k) {
-                Some(j) => Grid::set(&grid.free, j),
-                None => outside.push(morton(k) << 1),
-            }
-        });
-        return;
-    };
-    Grid::set(&grid.free, idx);
-    let mut dir = [end[0] - origin[0], end[1] - origin[1], end[2] - origin[2]];
-    let length = f32_norm(dir) as f32;
-    for d in &mut dir {
-        *d /= length;
-    }
-    let (step, t_max, t_delta) = dda_init(ko, origin, dir, resolution);
-    let length = length as f64;
-    // Position relative to the grid's lower corner, kept in registers; the
-    // end is reached when the grid index equals the end voxel's.
-    let mut rel = [
-        ko[0] as i64 - grid.lo[0] as i64,
-        ko[1] as i64 - grid.lo[1] as i64,
-        ko[2] as i64 - grid.lo[2] as i64,
-    ];
-    let Some(end_idx) = grid.index(ke) else {
-        return;
-    };
-    let stride = [1i64, grid.row as i64, (grid.row * grid.dim[1]) as i64];
-    let dims = [grid.dim[0] as i64, grid.dim[1] as i64, grid.dim[2] as i64];
-    let (mut tx, mut ty, mut tz) = (t_max[0], t_max[1], t_max[2]);
-    let mut sidx = idx as i64;
-    let end_idx = end_idx as i64;
-    let (ds, dd) = (
-        [
-            step[0] * stride[0],
-            step[1] * stride[1],
-            step[2] * stride[2],
-        ],
-        t_delta,
-    );
-    // While the current voxel is at least two voxels (Chebyshev) from the end
-    // voxel, the end can be neither reached nor passed: the exit distance is
-    // then at least one voxel short of `length`, far beyond rounding. Those
-    // checks start once fewer steps remain.
-    let cheb = (0..3)
-        .map(|i| (ke[i] as i64 - ko[i] as i64).abs())
-        .max()
-        .unwrap_or(0);
-    let mut safe = (cheb - 2).max(0);
-    while safe > 0 {
-        let dim = if tx < ty {
-            if tx < tz {
-                0
-            } else {
-                2
-            }
-        } else if ty < tz {
-            1
-        } else {
-            2
-        };
-        let r = rel[dim] + step[dim];
-        if (r as u64) >= dims[dim] as u64 {
-            break;
-        }
-        match dim {
-            0 => tx += dd[0],
-            1 => ty += dd[1],
-            _ => tz += dd[2],
-        }
-        rel[dim] = r;
-        sidx += ds[dim];
-        Grid::set(&grid.free, sidx as usize);
-        safe -= 1;
-    }
-    loop {
-        // OctoMap's axis choice (ties go to the later axis).
-        let dim = if tx < ty {
-            if tx < tz {
-                tx += dd[0];
-                0
-            } else {
-                tz += dd[2];
-                2
-            }
-        } else if ty < tz {
-            ty += dd[1];
-            1
-        } else {
-            tz += dd[2];
-            2
-        };
-        rel[dim] += step[dim];
-        sidx += ds[dim];
-        let inside = (rel[dim] as u64) < dims[dim] as u64;
-        if inside && sidx == end_idx {
-            return;
-        }
-        if tx.min(ty).min(tz) > length {
-            return;
-        }
-        if !inside {
-            // Left the grid (only by rounding past the end voxel): go on key by key.
-            let mut t = [tx, ty, tz];
-            let end_rel = [0, 1, 2].map(|i| ke[i] as i64 - grid.lo[i] as i64);
-            loop {
-                let k = [0, 1, 2].map(|i| rel[i] + grid.lo[i] as i64);
-                if !k.iter().all(|&v| (0..65536).contains(&v)) {
-                    return;
-                }
-                let key = [k[0] as u16, k[1] as u16, k[2] as u16];
-                match grid.index(key) {
-                    Some(j) => Grid::set(&grid.free, j),
-                    None => outside.push(morton(key) << 1),
-                }
-                let m01 = usize::from(t[0] >= t[1]);
-                let dim = if t[m01] < t[2] { m01 } else { 2 };
-                rel[dim] += step[dim];
-                t[dim] += dd[dim];
-                if rel == end_rel || t[0].min(t[1]).min(t[2]) > length {
-                    return;
-                }
-            }
-        }
-        idx = sidx as usize;
-        Grid::set(&grid.free, idx);
-    }
-}
-
-/// Step signs, first crossing distances and per-voxel distances of
-/// OctoMap's DDA (`f32` direction, `f64` distances).
-#[inline]
-fn dda_init(
-    ko: Key,
-    origin: [f32; 3],
-    dir: [f32; 3],
-    resolution: f64,
-) -> ([i64; 3], [f64; 3], [f64; 3]) {
-    let mut step = [0i64; 3];
-    let mut t_max = [f64::MAX; 3];
-    let mut t_delta = [f64::MAX; 3];
-    for i in 0..3 {
-        step[i] = if dir[i] > 0.0 {
-            1
-        } else if dir[i] < 0.0 {
-            -1
-        } else {
-            0
-        };
-        if step[i] != 0 {
-            let mut border = key_to_coord(ko[i], resolution);
-            border += (step[i] as f64 * resolution * 0.5) as f32 as f64;
-            t_max[i] = (border - origin[i] as f64) / dir[i] as f64;
-            t_delta[i] = resolution / (dir[i] as f64).abs();
-        }
-    }
-    (step, t_max, t_delta)
-}
-
-/// OctoMap's `Vector3::norm`: the squared norm summed in `f32`, its root in `f64`.
-#[inline]
-fn f32_norm(v: [f32; 3]) -> f64 {
-    ((v[0] * v[0] + v[1] * v[1] + v[2] * v[2]) as f64).sqrt()
 }
 
 /// Where one point's ray ends and whether its endpoint is an occupied voxel.
@@ -294,7 +62,7 @@ fn f32_norm(v: [f32; 3]) -> f64 {
 fn ray_end(p: [f32; 3], origin: [f32; 3], max_range: Option<f64>) -> ([f32; 3], bool) {
     let d = [p[0] - origin[0], p[1] - origin[1], p[2] - origin[2]];
     match max_range {
-        Some(m) if f32_norm(d) > m => {
+        Some(m) if beyond(d, m) => {
             // OctoMap: direction = (p - origin).normalized(); origin + direction * (float) maxrange
             let len = f32_norm(d);
             let l = len as f32;
@@ -346,39 +114,54 @@ impl KeyBox {
     }
 }
 
-/// One scan's free and occupied voxels as a dense bitset over its key box.
-struct Grid {
-    lo: [i32; 3],
-    dim: [usize; 3],
-    /// Bits per x row: `dim[0]` rounded up to whole words, so that no word
-    /// spans two rows.
-    row: usize,
-    free: Vec<AtomicU64>,
-    occ: Vec<AtomicU64>,
+/// One scan's free and occupied voxels as bitsets over its key [`Layout`],
+/// and the (rare) keys outside it as update items (Morton code `<< 1`, bit 0
+/// set for occupied).
+struct Marks {
+    free: Vec<u64>,
+    occ: Vec<u64>,
+    outside: Vec<u64>,
+    /// Scratch: the prepared rays of one chunk.
+    lanes: Vec<Lane>,
 }
 
-impl Grid {
-    #[inline]
-    fn index(&self, k: Key) -> Option<usize> {
-        let x = k[0] as i32 - self.lo[0];
-        let y = k[1] as i32 - self.lo[1];
-        let z = k[2] as i32 - self.lo[2];
-        if x < 0 || y < 0 || z < 0 {
-            return None;
+impl Marks {
+    fn new(words: usize) -> Marks {
+        Marks {
+            free: vec![0; words],
+            occ: vec![0; words],
+            outside: Vec::new(),
+            lanes: Vec::new(),
         }
-        let (x, y, z) = (x as usize, y as usize, z as usize);
-        if x >= self.dim[0] || y >= self.dim[1] || z >= self.dim[2] {
-            return None;
-        }
-        Some(x + self.row * (y + self.dim[1] * z))
     }
 
+    /// The union of two scans' marks.
+    fn merge(mut self, other: Marks) -> Marks {
+        for (a, b) in self.free.iter_mut().zip(&other.free) {
+            *a |= b;
+        }
+        for (a, b) in self.occ.iter_mut().zip(&other.occ) {
+            *a |= b;
+        }
+        self.outside.extend(other.outside);
+        self
+    }
+
+    /// Marks a free key.
     #[inline]
-    fn set(words: &[AtomicU64], i: usize) {
-        let w = &words[i >> 6];
-        let bit = 1u64 << (i & 63);
-        if w.load(Ordering::Relaxed) & bit == 0 {
-            w.fetch_or(bit, Ordering::Relaxed);
+    fn free(&mut self, layout: &Layout, k: Key) {
+        match layout.index(k) {
+            Some(j) => set_bit(&mut self.free, j),
+            None => self.outside.push(morton(k) << 1),
+        }
+    }
+
+    /// Marks an occupied key.
+    #[inline]
+    fn occupied(&mut self, layout: &Layout, k: Key) {
+        match layout.index(k) {
+            Some(j) => set_bit(&mut self.occ, j),
+            None => self.outside.push((morton(k) << 1) | 1),
         }
     }
 }
@@ -482,133 +265,157 @@ impl OccupancyMap {
         if n == 0 {
             return Vec::new();
         }
-        let pt = |i: usize| [points[3 * i], points[3 * i + 1], points[3 * i + 2]];
-
-        // Key box of the scan: origin and ray ends.
-        let box_of = |r: std::ops::Range<usize>| {
-            let mut b = KeyBox::EMPTY;
-            for i in r {
-                let (e, _) = ray_end(pt(i), origin, max_range);
-                if let Some(k) = point_to_key(e, rf) {
-                    b.add(k);
-                }
-            }
-            b
-        };
         let ranges: Vec<std::ops::Range<usize>> = (0..n)
             .step_by(CHUNK)
             .map(|s| s..(s + CHUNK).min(n))
             .collect();
+        let par_min = ranges
+            .len()
+            .div_ceil(2 * rayon::current_num_threads())
+            .max(1);
+
+        // Ray ends (max range applied) and the key box of the scan, in one pass.
+        let none = RayEnd {
+            p: [0.0; 3],
+            key: None,
+            occupied: false,
+        };
+        let mut ends = vec![none; n];
+        let ends_of = |(c, out): (usize, &mut [RayEnd])| {
+            let mut b = KeyBox::EMPTY;
+            for (j, end) in out.iter_mut().enumerate() {
+                let i = c * CHUNK + j;
+                let (p, occupied) = ray_end(
+                    [points[3 * i], points[3 * i + 1], points[3 * i + 2]],
+                    origin,
+                    max_range,
+                );
+                let key = point_to_key(p, rf);
+                if let Some(k) = key {
+                    b.add(k);
+                }
+                *end = RayEnd { p, key, occupied };
+            }
+            b
+        };
         let mut bx = if parallel {
-            ranges
-                .par_iter()
-                .map(|r| box_of(r.clone()))
+            ends.par_chunks_mut(CHUNK)
+                .enumerate()
+                .map(ends_of)
                 .reduce(|| KeyBox::EMPTY, KeyBox::union)
         } else {
-            ranges
-                .iter()
-                .map(|r| box_of(r.clone()))
+            ends.chunks_mut(CHUNK)
+                .enumerate()
+                .map(ends_of)
                 .fold(KeyBox::EMPTY, KeyBox::union)
         };
-        if let Some(k) = point_to_key(origin, rf) {
+        let ends = ends;
+        let ko = point_to_key(origin, rf);
+        if let Some(k) = ko {
             bx.add(k);
         }
         if bx.lo[0] > bx.hi[0] {
             return Vec::new();
         }
-        // One voxel of margin for rays that round past their end voxel.
-        let lo = bx.lo.map(|v| (v - 1).max(0));
-        let hi = bx.hi.map(|v| (v + 1).min(65535));
-        let dim = [
-            (hi[0] - lo[0] + 1) as usize,
-            (hi[1] - lo[1] + 1) as usize,
-            (hi[2] - lo[2] + 1) as usize,
-        ];
-        let row = dim[0].div_ceil(64) * 64;
-        let bits = row as u64 * dim[1] as u64 * dim[2] as u64;
+        // A margin around the box for the voxels rays cross beside their ends.
+        // Aligned to whole 4×4×4 bricks for the extraction in Morton order.
+        let lo = bx.lo.map(|v| (v - LAYOUT_MARGIN).max(0) & !3);
+        let hi = bx.hi.map(|v| (v + LAYOUT_MARGIN).min(65535) | 3);
+        let layout = Layout::new(lo, hi);
+        let bits = layout.row as u64 * layout.dim[1] as u64 * layout.dim[2] as u64;
 
         let mut items = if bits <= MAX_GRID_BITS {
-            let words = (bits / 64) as usize;
-            let grid = Grid {
-                lo,
-                dim,
-                row,
-                free: (0..words).map(|_| AtomicU64::new(0)).collect(),
-                occ: (0..words).map(|_| AtomicU64::new(0)).collect(),
-            };
-            let trace = |r: std::ops::Range<usize>| -> Vec<u64> {
-                let mut outside = Vec::new();
-                for i in r {
-                    let (e, occupied) = ray_end(pt(i), origin, max_range);
-                    ray_into_grid(origin, e, res, rf, &grid, &mut outside);
-                    if occupied {
-                        if let Some(k) = point_to_key(e, rf) {
-                            match grid.index(k) {
-                                Some(j) => Grid::set(&grid.occ, j),
-                                None => outside.push((morton(k) << 1) | 1),
-                            }
+            let words = layout.words();
+            // Each work item beyond the first holds bitsets of its own: at
+            // most MARKS_BUDGET bytes of them in all.
+            let most = (MARKS_BUDGET / (words * 16).max(1)).max(1);
+            let par_min = par_min.max(ranges.len().div_ceil(most));
+            let trace = |mut marks: Marks, r: &std::ops::Range<usize>| -> Marks {
+                let ends = &ends[r.clone()];
+                let mut slow = Vec::new();
+                // OctoMap traces no ray from an origin outside the tree.
+                if let Some(ko) = ko {
+                    // All lanes first: the divisions of independent rays overlap.
+                    marks.lanes.clear();
+                    for (j, e) in ends.iter().enumerate() {
+                        match Lane::prepare(origin, ko, e.p, e.key, res, &layout) {
+                            Prepared::Lane(l) => marks.lanes.push(l),
+                            Prepared::Slow => slow.push(j),
+                            Prepared::Empty => {}
                         }
                     }
+                    let mut lanes = marks.lanes.iter().copied();
+                    trace_lanes(|| lanes.next(), &mut marks.free);
                 }
-                outside
-            };
-            let outside: Vec<Vec<u64>> = if parallel {
-                ranges.par_iter().map(|r| trace(r.clone())).collect()
-            } else {
-                ranges.iter().map(|r| trace(r.clone())).collect()
-            };
-            let words_per_row = row / 64;
-            let extract = |w0: usize, w1: usize| -> Vec<u64> {
-                let mut out = Vec::new();
-                for w in w0..w1 {
-                    let o = grid.occ[w].load(Ordering::Relaxed);
-                    let f = grid.free[w].load(Ordering::Relaxed) & !o;
-                    if f | o == 0 {
-                        continue;
-                    }
-                    // One row per word: y, z and their Morton bits once per word.
-                    let r = w / words_per_row;
-                    let y = (lo[1] + (r % dim[1]) as i32) as u16;
-                    let z = (lo[2] + (r / dim[1]) as i32) as u16;
-                    let yz = morton([0, y, z]);
-                    let x0 = lo[0] + ((w % words_per_row) * 64) as i32;
-                    for (mut m, flag) in [(f, 0u64), (o, 1u64)] {
-                        while m != 0 {
-                            let b = m.trailing_zeros() as i32;
-                            m &= m - 1;
-                            let x = (x0 + b) as u16;
-                            out.push(((morton([x, 0, 0]) | yz) << 1) | flag);
-                        }
+                for j in slow {
+                    ray_keys(origin, ends[j].p, res, rf, |k| marks.free(&layout, k));
+                }
+                for e in ends {
+                    if let (true, Some(k)) = (e.occupied, e.key) {
+                        marks.occupied(&layout, k);
                     }
                 }
-                out
+                marks
             };
-            let step = 4096;
-            let spans: Vec<(usize, usize)> = (0..words)
-                .step_by(step)
-                .map(|s| (s, (s + step).min(words)))
-                .collect();
-            let parts: Vec<Vec<u64>> = if parallel {
-                spans.par_iter().map(|&(a, b)| extract(a, b)).collect()
+            let marks = if parallel {
+                ranges
+                    .par_iter()
+                    .with_min_len(par_min)
+                    .fold(|| Marks::new(words), trace)
+                    .reduce_with(Marks::merge)
             } else {
-                spans.iter().map(|&(a, b)| extract(a, b)).collect()
+                Some(ranges.iter().fold(Marks::new(words), trace))
             };
-            let mut items: Vec<u64> = parts.concat();
-            for o in outside {
-                items.extend(o);
+            let Some(marks) = marks else {
+                return Vec::new();
+            };
+            // Non-empty 4×4×4 bricks as (Morton code of their lowest key,
+            // free and occupied voxels in Morton order), sorted: their
+            // voxels then come out in Morton order without sorting them.
+            let slabs: Vec<usize> = (0..layout.dim[2] / 4).collect();
+            let mut bricks: Vec<(u64, u64, u64)> = if parallel {
+                slabs
+                    .par_iter()
+                    .flat_map_iter(|&bz| bricks_of_slab(&marks, &layout, bz))
+                    .collect()
+            } else {
+                slabs
+                    .iter()
+                    .flat_map(|&bz| bricks_of_slab(&marks, &layout, bz))
+                    .collect()
+            };
+            if parallel {
+                bricks.par_sort_unstable_by_key(|b| b.0);
+            } else {
+                bricks.sort_unstable_by_key(|b| b.0);
             }
+            let count: usize = bricks
+                .iter()
+                .map(|b| (b.1 | b.2).count_ones() as usize)
+                .sum();
+            let mut items = Vec::with_capacity(count + marks.outside.len());
+            for &(code, f, o) in &bricks {
+                let mut m = f | o;
+                while m != 0 {
+                    let c = m.trailing_zeros() as u64;
+                    m &= m - 1;
+                    items.push(((code | c) << 1) | ((o >> c) & 1));
+                }
+            }
+            if marks.outside.is_empty() {
+                // Sorted and unique already (free bits exclude occupied ones).
+                return items;
+            }
+            items.extend(marks.outside);
             items
         } else {
             // Very large scans: every key in a list, sorted and deduplicated below.
-            let trace = |r: std::ops::Range<usize>| -> Vec<u64> {
+            let trace = |r: &std::ops::Range<usize>| -> Vec<u64> {
                 let mut out = Vec::new();
-                for i in r {
-                    let (e, occupied) = ray_end(pt(i), origin, max_range);
-                    ray_keys(origin, e, res, rf, |k| out.push(morton(k) << 1));
-                    if occupied {
-                        if let Some(k) = point_to_key(e, rf) {
-                            out.push((morton(k) << 1) | 1);
-                        }
+                for e in &ends[r.clone()] {
+                    ray_keys(origin, e.p, res, rf, |k| out.push(morton(k) << 1));
+                    if let (true, Some(k)) = (e.occupied, e.key) {
+                        out.push((morton(k) << 1) | 1);
                     }
                 }
                 out.sort_unstable();
@@ -616,9 +423,9 @@ impl OccupancyMap {
                 out
             };
             let parts: Vec<Vec<u64>> = if parallel {
-                ranges.par_iter().map(|r| trace(r.clone())).collect()
+                ranges.par_iter().map(trace).collect()
             } else {
-                ranges.iter().map(|r| trace(r.clone())).collect()
+                ranges.iter().map(trace).collect()
             };
             parts.concat()
         };
@@ -637,6 +444,73 @@ impl OccupancyMap {
         }
         out
     }
+}
+
+/// A 4-bit x row of a brick spread to its Morton positions (bit `dx` of the
+/// nibble to bit `dx & 1 | (dx & 2) << 2`).
+const SPREAD4: [u64; 16] = {
+    let mut t = [0u64; 16];
+    let mut v = 0;
+    while v < 16 {
+        let mut dx = 0;
+        while dx < 4 {
+            if v >> dx & 1 == 1 {
+                t[v] |= 1 << ((dx & 1) | (dx & 2) << 2);
+            }
+            dx += 1;
+        }
+        v += 1;
+    }
+    t
+};
+
+/// The non-empty 4×4×4 bricks of brick slab `bz` (z keys `4·bz .. 4·bz + 4`
+/// of the layout): Morton code of the brick's lowest key, and its free
+/// (not occupied) and occupied voxels as 64-bit masks in Morton order.
+fn bricks_of_slab(marks: &Marks, layout: &Layout, bz: usize) -> Vec<(u64, u64, u64)> {
+    let wpr = layout.row / 64;
+    let mut out = Vec::new();
+    // Shift of a brick row (dy, dz) in the brick's Morton mask.
+    let row_shift =
+        |dy: usize, dz: usize| 2 * ((dy & 1) | (dy & 2) << 2) + 4 * ((dz & 1) | (dz & 2) << 2);
+    for by in 0..layout.dim[1] / 4 {
+        let row_word = |dy: usize, dz: usize, w: usize| {
+            ((4 * bz + dz) * layout.dim[1] + 4 * by + dy) * wpr + w
+        };
+        for w in 0..wpr {
+            let mut any = 0u64;
+            for dz in 0..4 {
+                for dy in 0..4 {
+                    let i = row_word(dy, dz, w);
+                    any |= marks.free[i] | marks.occ[i];
+                }
+            }
+            while any != 0 {
+                let nib = any.trailing_zeros() / 4;
+                any &= !(0xF << (4 * nib));
+                let (mut f, mut o) = (0u64, 0u64);
+                for dz in 0..4 {
+                    for dy in 0..4 {
+                        let i = row_word(dy, dz, w);
+                        let occ = (marks.occ[i] >> (4 * nib)) & 0xF;
+                        let free = (marks.free[i] >> (4 * nib)) & 0xF & !occ;
+                        let sh = row_shift(dy, dz);
+                        f |= SPREAD4[free as usize] << sh;
+                        o |= SPREAD4[occ as usize] << sh;
+                    }
+                }
+                if f | o != 0 {
+                    let key = [
+                        (layout.lo[0] + (64 * w) as i32 + 4 * nib as i32) as u16,
+                        (layout.lo[1] + 4 * by as i32) as u16,
+                        (layout.lo[2] + 4 * bz as i32) as u16,
+                    ];
+                    out.push((morton(key), f, o));
+                }
+            }
+        }
+    }
+    out
 }
 
 /// Checks an `(N, 3)` row-major point slice: length and finiteness.
@@ -660,57 +534,200 @@ pub(crate) fn check_points(what: &str, points: &[f32]) -> Result<()> {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::map::key::{child_index, TREE_DEPTH};
+    use crate::map::tree::{Node, Tree, LEAF};
+    use crate::map::MapParams;
     use rand::{Rng, SeedableRng};
 
-    /// The grid-specialised tracer visits exactly OctoMap's ray keys.
-    #[test]
-    fn grid_tracer_matches_reference_ray_keys() {
-        let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(5);
-        let (res, rf) = (0.1, 1.0 / 0.1);
-        for _ in 0..2000 {
-            let o = [0, 1, 2].map(|_| rng.random_range(-2.0f32..2.0));
-            let mut e = [0, 1, 2].map(|_| rng.random_range(-6.0f32..6.0));
-            if rng.random_bool(0.2) {
-                e[1] = o[1]; // axis-parallel components
+    /// OctoMap's `updateNode(key, occupied)` for one key: the early abort on
+    /// a clamped leaf, `updateNodeRecurs` with the expansion of pruned nodes,
+    /// pruning or max-of-children on the way up.
+    fn reference_update(map: &mut OccupancyMap, key: Key, occupied: bool) {
+        let lo = map.lo;
+        if let Some((leaf, _)) = map.tree.search(key) {
+            if (occupied && leaf.value >= lo.max) || (!occupied && leaf.value <= lo.min) {
+                return;
             }
-            let mut reference = Vec::new();
-            ray_keys(o, e, res, rf, |k| reference.push(morton(k) << 1));
-            reference.sort_unstable();
-            reference.dedup();
+        }
+        let t = &mut map.tree;
+        let created = !t.root.exists();
+        let root = if created {
+            t.num_nodes += 1;
+            Node {
+                value: 0.0,
+                child: LEAF,
+            }
+        } else {
+            t.root
+        };
+        t.root = reference_rec(t, root, created, key, 0, occupied, &lo);
+    }
 
-            let mut bx = KeyBox::EMPTY;
-            bx.add(point_to_key(o, rf).unwrap());
-            bx.add(point_to_key(e, rf).unwrap());
-            let lo = bx.lo.map(|v| v - 1);
-            let dim = [0, 1, 2].map(|i| (bx.hi[i] + 1 - lo[i] + 1) as usize);
-            let row = dim[0].div_ceil(64) * 64;
-            let words = row * dim[1] * dim[2] / 64;
-            let grid = Grid {
-                lo,
-                dim,
-                row,
-                free: (0..words).map(|_| AtomicU64::new(0)).collect(),
-                occ: Vec::new(),
+    fn reference_rec(
+        t: &mut Tree,
+        mut node: Node,
+        just_created: bool,
+        key: Key,
+        depth: u32,
+        occupied: bool,
+        lo: &super::super::tree::LogOdds,
+    ) -> Node {
+        if depth == TREE_DEPTH {
+            let v = node.value + if occupied { lo.hit } else { lo.miss };
+            node.value = v.clamp(lo.min, lo.max);
+            return node;
+        }
+        let pos = child_index(key, depth);
+        if !node.has_children() {
+            node.child = if just_created {
+                t.alloc_block([Node::ABSENT; 8])
+            } else {
+                t.num_nodes += 8;
+                t.alloc_block(
+                    [Node {
+                        value: node.value,
+                        child: LEAF,
+                    }; 8],
+                )
             };
-            let mut outside = Vec::new();
-            ray_into_grid(o, e, res, rf, &grid, &mut outside);
-            let mut got = outside;
-            for (w, word) in grid.free.iter().enumerate() {
-                let mut m = word.load(Ordering::Relaxed);
-                while m != 0 {
-                    let j = (w << 6) | m.trailing_zeros() as usize;
-                    m &= m - 1;
-                    let k = [
-                        (lo[0] + (j % row) as i32) as u16,
-                        (lo[1] + (j / row % dim[1]) as i32) as u16,
-                        (lo[2] + (j / row / dim[1]) as i32) as u16,
-                    ];
-                    got.push(morton(k) << 1);
+        }
+        let mut child = t.blocks[node.child as usize][pos];
+        let created = !child.exists();
+        if created {
+            t.num_nodes += 1;
+            child = Node {
+                value: 0.0,
+                child: LEAF,
+            };
+        }
+        let child = reference_rec(t, child, created, key, depth + 1, occupied, lo);
+        t.blocks[node.child as usize][pos] = child;
+        t.finish_inner(node)
+    }
+
+    /// One scan the reference way: the key sets of `computeUpdate` from
+    /// [`ray_keys`] (occupied winning), then one `updateNode` per key.
+    fn reference_scan(map: &mut OccupancyMap, points: &[f32], origin: [f32; 3]) {
+        let (res, rf) = (map.params.resolution, map.resolution_factor);
+        let mut free = std::collections::BTreeSet::new();
+        let mut occ = std::collections::BTreeSet::new();
+        for p in points.chunks_exact(3) {
+            let (e, occupied) = ray_end([p[0], p[1], p[2]], origin, map.params.max_range);
+            ray_keys(origin, e, res, rf, |k| {
+                free.insert(morton(k));
+            });
+            if occupied {
+                if let Some(k) = point_to_key(e, rf) {
+                    occ.insert(morton(k));
                 }
             }
-            got.sort_unstable();
-            got.dedup();
-            assert_eq!(got, reference, "ray {o:?} -> {e:?}");
+        }
+        let mut items: Vec<(u64, bool)> = free
+            .difference(&occ)
+            .map(|&c| (c, false))
+            .chain(occ.iter().map(|&c| (c, true)))
+            .collect();
+        items.sort_unstable();
+        for (c, occupied) in items {
+            reference_update(map, crate::map::key::from_morton(c), occupied);
+        }
+    }
+
+    /// Random scans with rays of every kind: beyond the max range, along the
+    /// axes, through voxel corners (points on the grid), repeated so that
+    /// voxels clamp and nodes prune.
+    fn random_scans(seed: u64, res: f32) -> Vec<([f32; 3], Vec<f32>)> {
+        let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(seed);
+        let mut scans = Vec::new();
+        for s in 0..6 {
+            let origin = if s % 2 == 0 {
+                [0, 1, 2].map(|_| rng.random_range(-8..8) as f32 * res)
+            } else {
+                [0, 1, 2].map(|_| rng.random_range(-1.0f32..1.0))
+            };
+            let mut pts = Vec::new();
+            for i in 0..3000 {
+                let p: [f32; 3] = match i % 4 {
+                    0 => [0, 1, 2].map(|_| rng.random_range(-40..40) as f32 * res),
+                    1 => {
+                        let mut p = origin;
+                        p[rng.random_range(0..3)] += rng.random_range(-6.0f32..6.0);
+                        p
+                    }
+                    _ => [0, 1, 2].map(|_| rng.random_range(-7.0f32..7.0)),
+                };
+                pts.extend_from_slice(&p);
+            }
+            scans.push((origin, pts));
+        }
+        // Near two faces of the tree: rays leaving it, a key box cut by it
+        // (rays traced key by key, voxels outside the bitset).
+        let edge = 32768.0 * res;
+        let origin = [edge - 2.0, 0.5, 3.0 - edge];
+        let pts: Vec<f32> = (0..6000)
+            .flat_map(|_| [0, 1, 2].map(|i| origin[i] + rng.random_range(-6.0f32..6.0)))
+            .collect();
+        scans.push((origin, pts));
+        // The same scans again: clamped voxels, pruned nodes, early aborts.
+        let again = scans.clone();
+        scans.extend(again);
+        scans
+    }
+
+    /// The max-range test without the root decides as the one with it, also
+    /// for points at the range to the last bit.
+    #[test]
+    fn max_range_test_without_root_equals_norm_test() {
+        let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(9);
+        for _ in 0..200_000 {
+            let m = [10.0, 0.3, 7.77, 1e3][rng.random_range(0..4)];
+            let dir = [0, 1, 2].map(|_| rng.random_range(-1.0f32..1.0));
+            let n = f32_norm(dir) as f32;
+            if n < 1e-3 {
+                continue;
+            }
+            let scale = m as f32 * (1.0 + rng.random_range(-4i32..=4) as f32 * f32::EPSILON);
+            let d = dir.map(|v| v / n * scale);
+            assert_eq!(beyond(d, m), f32_norm(d) > m, "{d:?} at {m}");
+        }
+        assert!(
+            !beyond([0.0; 3], 1.0)
+                && beyond([f32::MAX; 3], 1e300) == (f32_norm([f32::MAX; 3]) > 1e300)
+        );
+    }
+
+    /// The batched insertion (lanes, bricks, ordered batch update) builds
+    /// exactly the tree of OctoMap's per-key updates, sequential and parallel.
+    #[test]
+    fn batched_insertion_equals_per_key_reference() {
+        for (seed, res) in [(1u64, 0.1f32), (2, 0.25), (3, 0.05)] {
+            let params = MapParams {
+                max_range: Some(5.0),
+                ..MapParams::new(res as f64)
+            };
+            let mut reference = OccupancyMap::try_new(params).unwrap();
+            let mut seq = OccupancyMap::try_new(params).unwrap();
+            let mut par = OccupancyMap::try_new(params).unwrap();
+            for (origin, pts) in random_scans(seed, res) {
+                reference_scan(&mut reference, &pts, origin);
+                seq.insert_scan_sequential(&pts, origin).unwrap();
+                par.insert_scan(&pts, origin).unwrap();
+                assert_eq!(seq.num_nodes(), reference.num_nodes(), "seed {seed}");
+                assert!(seq.tree_bits() == reference.tree_bits(), "seed {seed}");
+                assert!(par.tree_bits() == reference.tree_bits(), "seed {seed}");
+            }
+            assert!(reference.num_nodes() > 1000);
+            // The scans reach the clamping bounds and prune (inner leaves).
+            let (mut clamped, mut pruned) = (0, 0);
+            reference.tree.for_each_leaf(|_, depth, v| {
+                clamped += usize::from(v == reference.lo.min);
+                pruned += usize::from(depth < TREE_DEPTH);
+            });
+            assert!(
+                clamped > 0 && pruned > 0,
+                "{clamped} clamped, {pruned} pruned"
+            );
+            seq.check_invariants().unwrap();
         }
     }
 }

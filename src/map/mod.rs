@@ -10,6 +10,7 @@
 //! All coordinates are metres in the map's frame (the world frame of the
 //! converted cloud); sensor origins are camera centres in that frame.
 
+mod dda;
 mod insert;
 mod io;
 pub mod key;

@@ -193,12 +193,38 @@ impl Tree {
             node.child = self.alloc_block(block);
         }
         let b = node.child as usize;
+        if depth == TREE_DEPTH - 1 {
+            // Children are voxels, one item each (items are unique): update in place.
+            for &it in items {
+                let c = ((it >> 1) & 7) as usize;
+                let mut child = self.blocks[b][c];
+                if !child.exists() {
+                    self.num_nodes += 1;
+                    child = Node {
+                        value: 0.0,
+                        child: LEAF,
+                    };
+                }
+                child.value = lo.apply(child.value, it & 1 == 1);
+                self.blocks[b][c] = child;
+            }
+            return self.finish_inner(node);
+        }
         let shift = 3 * (TREE_DEPTH - 1 - depth) + 1;
         let mut i = 0;
         while i < items.len() {
             let c = ((items[i] >> shift) & 7) as usize;
-            // Items share every bit above this level, so child indices ascend.
-            let j = i + items[i..].partition_point(|&it| ((it >> shift) & 7) as usize <= c);
+            // Items share every bit above this level, so child indices ascend:
+            // the end of child c's run by a galloping search from i (the runs
+            // are short next to the slice; this stays near i in memory).
+            let le = |it: u64| ((it >> shift) & 7) as usize <= c;
+            let mut bound = 1;
+            while i + bound < items.len() && le(items[i + bound]) {
+                bound *= 2;
+            }
+            let start = i + bound / 2;
+            let end = (i + bound).min(items.len());
+            let j = start + items[start..end].partition_point(|&it| le(it));
             let mut child = self.blocks[b][c];
             let created = !child.exists();
             if created {
