@@ -222,13 +222,49 @@ struct Prepared<'a> {
     t: [f64; 3],
     /// The keyframe pose's scale as `f32` (the viewer's `camToWorld.scale()`).
     pose_scale: f32,
+    /// `u · m[k][0]` for every column `x` (`u = (x − cx)/fx`), three values per column.
+    um: Vec<f64>,
 }
 
-/// Output of one work item (a block of rows of one keyframe).
-struct Block {
-    points: Vec<f32>,
-    colors: Vec<u8>,
-    id: i32,
+impl<'a> Prepared<'a> {
+    fn new(kf: &'a Keyframe, world_cam: Sim3) -> Self {
+        let (m, t) = world_cam.affine();
+        let cam = &kf.camera;
+        let um = (0..cam.width as usize)
+            .flat_map(|x| {
+                let u = (x as f64 - cam.cx) / cam.fx;
+                [u * m[0][0], u * m[1][0], u * m[2][0]]
+            })
+            .collect();
+        Prepared {
+            kf,
+            m,
+            t,
+            pose_scale: kf.pose.scale as f32,
+            um,
+        }
+    }
+}
+
+/// The kept pixels of one work item: rows `y0..y0 + rows` of one keyframe.
+struct Kept {
+    /// Index of the keyframe in the prepared list.
+    k: usize,
+    /// First row.
+    y0: usize,
+    /// Number of rows.
+    rows: usize,
+    /// Kept columns, row after row, each row left to right.
+    xs: Vec<u32>,
+    /// End of each row's columns in `xs`.
+    row_ends: [usize; ROWS_PER_TASK],
+}
+
+/// Per-thread buffers of the filter pass, one image row long.
+#[derive(Default)]
+struct Scratch {
+    mask: Vec<u8>,
+    cols: Vec<u32>,
 }
 
 /// Backprojects `keyframes` through `filter`. With `transform = Some(T_world_slam)`
@@ -243,7 +279,7 @@ pub fn backproject<K: Borrow<Keyframe> + Sync>(
     transform: Option<&Sim3>,
 ) -> Result<PointCloud> {
     let t = transform.copied().unwrap_or_else(Sim3::identity);
-    backproject_with(keyframes, filter, |_| t)
+    backproject_with(keyframes, filter, |_| t, Kernel::detect())
 }
 
 /// Like [`backproject`], with its own `T_world_slam` for each keyframe
@@ -260,13 +296,17 @@ pub fn backproject_per_keyframe<K: Borrow<Keyframe> + Sync>(
             got: format!("{}", transforms.len()),
         });
     }
-    backproject_with(keyframes, filter, |i| transforms[i])
+    backproject_with(keyframes, filter, |i| transforms[i], Kernel::detect())
 }
 
+/// Two parallel passes: the filter lists the kept columns of each block of rows,
+/// then, with every block's offset known, the points, colours and ids are written
+/// straight into the output buffers.
 fn backproject_with<K: Borrow<Keyframe> + Sync>(
     keyframes: &[K],
     filter: &PointFilter,
     world_slam: impl Fn(usize) -> Sim3,
+    kernel: Kernel,
 ) -> Result<PointCloud> {
     filter.validate()?;
     let with_color = !keyframes.is_empty() && keyframes.iter().all(|k| k.borrow().color.is_some());
@@ -277,13 +317,7 @@ fn backproject_with<K: Borrow<Keyframe> + Sync>(
         if filter.cuts(i) {
             continue;
         }
-        let (m, t) = (world_slam(i) * kf.pose).affine();
-        prepared.push(Prepared {
-            kf,
-            m,
-            t,
-            pose_scale: kf.pose.scale as f32,
-        });
+        prepared.push(Prepared::new(kf, world_slam(i) * kf.pose));
     }
     let tasks: Vec<(usize, usize)> = prepared
         .iter()
@@ -293,26 +327,35 @@ fn backproject_with<K: Borrow<Keyframe> + Sync>(
             (0..h.div_ceil(ROWS_PER_TASK)).map(move |b| (k, b * ROWS_PER_TASK))
         })
         .collect();
-    let blocks: Vec<Block> = tasks
+    let kept: Vec<Kept> = tasks
         .par_iter()
-        .map(|&(k, y0)| {
+        .map_init(Scratch::default, |scratch, &(k, y0)| {
             let p = &prepared[k];
             let y1 = (y0 + ROWS_PER_TASK).min(p.kf.camera.height as usize);
-            // Room for every pixel of the block: no regrowth; untouched pages cost nothing.
-            let pixels = (y1 - y0) * p.kf.camera.width as usize;
-            let mut b = Block {
-                points: Vec::with_capacity(3 * pixels),
-                colors: Vec::with_capacity(if with_color { 3 * pixels } else { 0 }),
-                id: p.kf.id,
+            let ctx = RowCtx {
+                p,
+                f: filter,
+                scaled_on: filter.scaled_depth_var.is_finite(),
+                abs_on: filter.abs_depth_var.is_finite(),
+                support_on: filter.min_near_support > 1,
+                kernel,
             };
-            let mut mask = Vec::new();
-            for y in y0..y1 {
-                backproject_row(p, filter, y, with_color, &mut b, &mut mask);
+            let mut xs = Vec::new();
+            let mut row_ends = [0; ROWS_PER_TASK];
+            for (y, end) in (y0..y1).zip(&mut row_ends) {
+                kept_row(&ctx, y, scratch, &mut xs);
+                *end = xs.len();
             }
-            b
+            Kept {
+                k,
+                y0,
+                rows: y1 - y0,
+                xs,
+                row_ends,
+            }
         })
         .collect();
-    Ok(concat(blocks, with_color))
+    Ok(write_points(&prepared, &kept, with_color))
 }
 
 /// Keyframe arrays must match the camera (a `Keyframe` built by `try_new` does).
@@ -336,6 +379,28 @@ fn within(value: f32, threshold: f32) -> bool {
     value <= threshold
 }
 
+/// The instruction set the per-pixel filter runs with, chosen at run time: the
+/// arithmetic (and so the result) is the same, only the vector width differs.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+enum Kernel {
+    /// The target's baseline instructions.
+    Portable,
+    /// AVX2 (eight `f32` lanes), when the CPU has it.
+    #[cfg(target_arch = "x86_64")]
+    Avx2,
+}
+
+impl Kernel {
+    /// The widest kernel this CPU runs.
+    fn detect() -> Self {
+        #[cfg(target_arch = "x86_64")]
+        if std::arch::is_x86_feature_detected!("avx2") {
+            return Kernel::Avx2;
+        }
+        Kernel::Portable
+    }
+}
+
 /// Loop-invariant parts of the filter, per keyframe.
 struct RowCtx<'a> {
     p: &'a Prepared<'a>,
@@ -343,21 +408,14 @@ struct RowCtx<'a> {
     scaled_on: bool,
     abs_on: bool,
     support_on: bool,
-    with_color: bool,
+    kernel: Kernel,
 }
 
-/// The filter and the backprojection for one image row, appended to `out`.
+/// The filter for one image row: appends the kept columns to `xs`, left to right.
 /// Interior pixels of interior rows of keyframes with a variance take the
 /// branch-free mask path ([`interior_mask`]); the others the scalar path.
-fn backproject_row(
-    p: &Prepared<'_>,
-    f: &PointFilter,
-    y: usize,
-    with_color: bool,
-    out: &mut Block,
-    mask: &mut Vec<bool>,
-) {
-    let kf = p.kf;
+fn kept_row(c: &RowCtx<'_>, y: usize, scratch: &mut Scratch, xs: &mut Vec<u32>) {
+    let (kf, f) = (c.p.kf, c.f);
     let (w, h) = (kf.camera.width as usize, kf.camera.height as usize);
     let (x0, x1) = if f.skip_border {
         if y == 0 || y + 1 >= h || w < 3 {
@@ -367,45 +425,67 @@ fn backproject_row(
     } else {
         (0, w)
     };
-    let ctx = RowCtx {
-        p,
-        f,
-        scaled_on: f.scaled_depth_var.is_finite(),
-        abs_on: f.abs_depth_var.is_finite(),
-        support_on: f.min_near_support > 1,
-        with_color,
-    };
     let Some(var) = kf.idepth_var.as_deref() else {
-        scalar_pixels(&ctx, y, x0..x1, out);
+        scalar_pixels(c, y, x0..x1, xs);
         return;
     };
     if y == 0 || y + 1 >= h || w < 3 {
-        scalar_pixels(&ctx, y, x0..x1, out);
+        scalar_pixels(c, y, x0..x1, xs);
         return;
     }
     if x0 == 0 {
-        scalar_pixels(&ctx, y, 0..1, out);
+        scalar_pixels(c, y, 0..1, xs);
     }
-    interior_mask(&ctx, var, y, mask);
+    let n = w - 2;
+    let mask = &mut scratch.mask;
+    mask.clear();
+    mask.resize(n, 0);
+    interior_mask(c, var, y, mask);
     if f.sparsify > 1 {
         for (j, m) in mask.iter_mut().enumerate() {
-            *m = *m && sparsify_keeps(f.seed, kf.id, j + 1 + y * w, f.sparsify);
+            *m &= sparsify_keeps(f.seed, kf.id, j + 1 + y * w, f.sparsify) as u8;
         }
     }
-    for (j, &keep) in mask.iter().enumerate() {
-        if keep {
-            emit(&ctx, j + 1, y, out);
+    // Branch-free compaction: every column is written, the count moves on when kept.
+    let cols = &mut scratch.cols;
+    cols.clear();
+    cols.resize(n, 0);
+    let mut kept = 0;
+    for (x, &m) in (1u32..).zip(mask.iter()) {
+        if let Some(slot) = cols.get_mut(kept) {
+            *slot = x;
         }
+        kept += m as usize;
     }
+    xs.extend_from_slice(&cols[..kept]);
     if x1 == w {
-        scalar_pixels(&ctx, y, w - 1..w, out);
+        scalar_pixels(c, y, w - 1..w, xs);
     }
 }
 
+/// [`interior_mask_portable`] with the kernel `c.kernel`.
+fn interior_mask(c: &RowCtx<'_>, var: &[f32], y: usize, mask: &mut [u8]) {
+    match c.kernel {
+        // SAFETY: `Kernel::Avx2` is only chosen by `Kernel::detect` on a CPU with AVX2.
+        #[cfg(target_arch = "x86_64")]
+        Kernel::Avx2 => unsafe { interior_mask_avx2(c, var, y, mask) },
+        Kernel::Portable => interior_mask_portable(c, var, y, mask),
+    }
+}
+
+/// [`interior_mask_portable`] compiled for AVX2.
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx2")]
+fn interior_mask_avx2(c: &RowCtx<'_>, var: &[f32], y: usize, mask: &mut [u8]) {
+    interior_mask_portable(c, var, y, mask)
+}
+
 /// The rules for pixels `1..w-1` of row `y` (which has a row above and below),
-/// without branches on the data so that the loop vectorises: `mask[j]` is the
-/// verdict for pixel `x = j + 1`. The arithmetic is that of [`scalar_pixels`].
-fn interior_mask(c: &RowCtx<'_>, var: &[f32], y: usize, mask: &mut Vec<bool>) {
+/// without branches on the data so that the loop vectorises: `mask[j]` (`w − 2`
+/// values) is `1` when pixel `x = j + 1` is kept, before the sparsify draw. The
+/// arithmetic is that of [`scalar_pixels`].
+#[inline(always)]
+fn interior_mask_portable(c: &RowCtx<'_>, var: &[f32], y: usize, mask: &mut [u8]) {
     let kf = c.p.kf;
     let w = kf.camera.width as usize;
     let n = w - 2;
@@ -415,6 +495,7 @@ fn interior_mask(c: &RowCtx<'_>, var: &[f32], y: usize, mask: &mut Vec<bool>) {
     let (b0, b1, b2) = (row(y, 0), row(y, 1), row(y, 2));
     let (c0, c1, c2) = (row(y + 1, 0), row(y + 1, 1), row(y + 1, 2));
     let vv = &var[y * w + 1..y * w + 1 + n];
+    let mask = &mut mask[..n];
     let (th_s, th_a, s) = (c.f.scaled_depth_var, c.f.abs_depth_var, c.p.pose_scale);
     let (scaled_off, abs_off) = (!c.scaled_on, !c.abs_on);
     let min_support = if c.support_on {
@@ -422,8 +503,6 @@ fn interior_mask(c: &RowCtx<'_>, var: &[f32], y: usize, mask: &mut Vec<bool>) {
     } else {
         0
     };
-    mask.clear();
-    mask.resize(n, false);
     for j in 0..n {
         let id = b1[j];
         let v = vv[j];
@@ -438,22 +517,23 @@ fn interior_mask(c: &RowCtx<'_>, var: &[f32], y: usize, mask: &mut Vec<bool>) {
             let diff = n - id;
             ((n > 0.0) & (diff * diff < two_var)) as u32
         };
+        // The centre agrees with itself when `0 < 2·var` (its own `> 0` is in `ok`).
         let support = agree(a0[j])
             + agree(a1[j])
             + agree(a2[j])
             + agree(b0[j])
-            + agree(b1[j])
+            + (0.0 < two_var) as u32
             + agree(b2[j])
             + agree(c0[j])
             + agree(c1[j])
             + agree(c2[j]);
-        mask[j] = ok & (support >= min_support);
+        mask[j] = (ok & (support >= min_support)) as u8;
     }
 }
 
 /// The viewer's rules, pixel by pixel, for pixels `xs` of row `y` (any position,
-/// with or without a variance).
-fn scalar_pixels(c: &RowCtx<'_>, y: usize, xs: std::ops::Range<usize>, out: &mut Block) {
+/// with or without a variance): appends the kept columns to `out`.
+fn scalar_pixels(c: &RowCtx<'_>, y: usize, xs: std::ops::Range<usize>, out: &mut Vec<u32>) {
     let (kf, f) = (c.p.kf, c.f);
     let (w, h) = (kf.camera.width as usize, kf.camera.height as usize);
     let idepth = &kf.idepth;
@@ -497,26 +577,9 @@ fn scalar_pixels(c: &RowCtx<'_>, y: usize, xs: std::ops::Range<usize>, out: &mut
                 }
             }
         }
-        emit(c, x, y, out);
-    }
-}
-
-/// Appends the point (and colour) of pixel `(x, y)`:
-/// `T_world_cam · ((x − cx)/fx · d, (y − cy)/fy · d, d)`, `d = 1/idepth`.
-#[inline(always)]
-fn emit(c: &RowCtx<'_>, x: usize, y: usize, out: &mut Block) {
-    let (p, kf) = (c.p, c.p.kf);
-    let cam = &kf.camera;
-    let i = x + y * cam.width as usize;
-    let d = 1.0 / kf.idepth[i] as f64;
-    let (u, v) = ((x as f64 - cam.cx) / cam.fx, (y as f64 - cam.cy) / cam.fy);
-    let m = &p.m;
-    let q = |k: usize| (d * (u * m[k][0] + v * m[k][1] + m[k][2]) + p.t[k]) as f32;
-    out.points.extend_from_slice(&[q(0), q(1), q(2)]);
-    if c.with_color {
-        if let Some(col) = &kf.color {
-            out.colors.extend_from_slice(&col[3 * i..3 * i + 3]);
-        }
+        // The column index of an image whose pixel count fits memory fits a `u32`
+        // (`Keyframe` widths are `u32`).
+        out.push(x as u32);
     }
 }
 
@@ -533,10 +596,12 @@ fn near_support(block: &[f32], id: f32, two_var: f32) -> u32 {
         .sum()
 }
 
-/// Concatenates the blocks in order, copying in parallel into buffers of the final size.
-fn concat(blocks: Vec<Block>, with_color: bool) -> PointCloud {
-    let total: usize = blocks.iter().map(|b| b.points.len() / 3).sum();
-    // Zeroed by calloc (fresh pages for large sizes): untouched until the copy below.
+/// Allocates the outputs at their final size and fills them in parallel, each
+/// block of rows at its offset: point `T_world_cam · ((x − cx)/fx · d, (y − cy)/fy · d, d)`,
+/// `d = 1/idepth`, computed in `f64` as `d · (u·m₀ + v·m₁ + m₂) + t`.
+fn write_points(prepared: &[Prepared<'_>], kept: &[Kept], with_color: bool) -> PointCloud {
+    let total: usize = kept.iter().map(|b| b.xs.len()).sum();
+    // Zeroed by calloc (fresh pages for large sizes): untouched until the fill below.
     let mut points = vec![0f32; 3 * total];
     advise_huge_pages(&mut points);
     let mut colors = if with_color {
@@ -548,28 +613,58 @@ fn concat(blocks: Vec<Block>, with_color: bool) -> PointCloud {
     let mut ids = vec![0i32; total];
     advise_huge_pages(&mut ids);
     {
-        let mut jobs = Vec::with_capacity(blocks.len());
+        let mut jobs = Vec::with_capacity(kept.len());
         let (mut pr, mut cr, mut ir) = (&mut points[..], &mut colors[..], &mut ids[..]);
-        for b in &blocks {
-            let n = b.points.len() / 3;
+        for b in kept {
+            let n = b.xs.len();
             let (p, p_rest) = pr.split_at_mut(3 * n);
             let (c, c_rest) = cr.split_at_mut(if with_color { 3 * n } else { 0 });
             let (i, i_rest) = ir.split_at_mut(n);
             jobs.push((b, p, c, i));
             (pr, cr, ir) = (p_rest, c_rest, i_rest);
         }
-        jobs.into_par_iter().for_each(|(b, p, c, i)| {
-            p.copy_from_slice(&b.points);
-            if with_color {
-                c.copy_from_slice(&b.colors);
-            }
-            i.fill(b.id);
+        jobs.into_par_iter().for_each(|(b, pts, cols, ids)| {
+            let p = &prepared[b.k];
+            fill_block(p, b, pts, cols);
+            ids.fill(p.kf.id);
         });
     }
     PointCloud {
         points,
         colors: with_color.then_some(colors),
         keyframe_ids: ids,
+    }
+}
+
+/// The points (and, when `cols` is not empty, colours) of one block's kept pixels.
+fn fill_block(p: &Prepared<'_>, b: &Kept, pts: &mut [f32], cols: &mut [u8]) {
+    let kf = p.kf;
+    let cam = &kf.camera;
+    let w = cam.width as usize;
+    let (m, t) = (&p.m, &p.t);
+    let mut start = 0;
+    for (r, &end) in b.row_ends[..b.rows].iter().enumerate() {
+        let y = b.y0 + r;
+        let xs = &b.xs[start..end];
+        let row = &kf.idepth[y * w..(y + 1) * w];
+        let v = (y as f64 - cam.cy) / cam.fy;
+        let vm = [v * m[0][1], v * m[1][1], v * m[2][1]];
+        for (&x, q) in xs.iter().zip(pts[3 * start..3 * end].chunks_exact_mut(3)) {
+            let x = x as usize;
+            let d = 1.0 / row[x] as f64;
+            let um = &p.um[3 * x..3 * x + 3];
+            q[0] = (d * (um[0] + vm[0] + m[0][2]) + t[0]) as f32;
+            q[1] = (d * (um[1] + vm[1] + m[1][2]) + t[1]) as f32;
+            q[2] = (d * (um[2] + vm[2] + m[2][2]) + t[2]) as f32;
+        }
+        if let (Some(col), false) = (&kf.color, cols.is_empty()) {
+            let src = &col[3 * y * w..3 * (y + 1) * w];
+            for (&x, c) in xs.iter().zip(cols[3 * start..3 * end].chunks_exact_mut(3)) {
+                let x = x as usize;
+                c.copy_from_slice(&src[3 * x..3 * x + 3]);
+            }
+        }
+        start = end;
     }
 }
 
