@@ -673,6 +673,8 @@ mod tests {
     use super::*;
     use crate::geometry::PinholeCamera;
     use nalgebra::Vector3;
+    use rand::{Rng, SeedableRng};
+    use rand_chacha::ChaCha8Rng;
 
     fn keyframe(id: i32, w: u32, h: u32, idepth: Vec<f32>, var: Option<Vec<f32>>) -> Keyframe {
         let cam =
@@ -695,6 +697,225 @@ mod tests {
         let p = kf.camera.backproject(1.0, 0.0, 2.0);
         for (got, want) in cloud.points.iter().zip(p) {
             assert!((*got as f64 - want).abs() < 1e-6);
+        }
+    }
+
+    /// The viewer's rules pixel by pixel, written from the documentation of
+    /// [`PointFilter`] with no shared code: the 3×3 block read cell by cell, the
+    /// point as `T_world_cam · ((x − cx)/fx · d, (y − cy)/fy · d, d)` in `f64`.
+    fn reference(kfs: &[Keyframe], f: &PointFilter, world_slam: &Sim3) -> PointCloud {
+        let with_color = !kfs.is_empty() && kfs.iter().all(|k| k.color.is_some());
+        let (mut points, mut colors, mut ids) = (Vec::new(), Vec::new(), Vec::new());
+        for (index, kf) in kfs.iter().enumerate() {
+            if f.cut_first_keyframes.is_some_and(|n| index <= n) {
+                continue;
+            }
+            let (m, t) = (*world_slam * kf.pose).affine();
+            let cam = &kf.camera;
+            let (w, h) = (cam.width as i64, cam.height as i64);
+            let b = f.skip_border as i64;
+            let s = kf.pose.scale as f32;
+            let at = |x: i64, y: i64| (x + y * w) as usize;
+            for y in b..h - b {
+                for x in b..w - b {
+                    let id = kf.idepth[at(x, y)];
+                    if !(id > 0.0 && id.is_finite()) {
+                        continue;
+                    }
+                    if f.sparsify > 1 && !sparsify_keeps(f.seed, kf.id, at(x, y), f.sparsify) {
+                        continue;
+                    }
+                    if let Some(var) = &kf.idepth_var {
+                        let v = var[at(x, y)];
+                        let depth = 1.0f32 / id;
+                        let d4 = (depth * depth) * (depth * depth);
+                        if f.scaled_depth_var.is_finite() && !(v * d4 <= f.scaled_depth_var) {
+                            continue;
+                        }
+                        if f.abs_depth_var.is_finite() && !(v * d4 * s * s <= f.abs_depth_var) {
+                            continue;
+                        }
+                        if f.min_near_support > 1 {
+                            let mut support = 0;
+                            for ny in y - 1..=y + 1 {
+                                for nx in x - 1..=x + 1 {
+                                    if nx < 0 || ny < 0 || nx >= w || ny >= h {
+                                        continue;
+                                    }
+                                    let n = kf.idepth[at(nx, ny)];
+                                    let diff = n - id;
+                                    if n > 0.0 && diff * diff < 2.0 * v {
+                                        support += 1;
+                                    }
+                                }
+                            }
+                            if support < f.min_near_support {
+                                continue;
+                            }
+                        }
+                    }
+                    let d = 1.0 / id as f64;
+                    let u = (x as f64 - cam.cx) / cam.fx;
+                    let v = (y as f64 - cam.cy) / cam.fy;
+                    for k in 0..3 {
+                        points.push((d * (u * m[k][0] + v * m[k][1] + m[k][2]) + t[k]) as f32);
+                    }
+                    if let (true, Some(c)) = (with_color, &kf.color) {
+                        colors.extend_from_slice(&c[3 * at(x, y)..3 * at(x, y) + 3]);
+                    }
+                    ids.push(kf.id);
+                }
+            }
+        }
+        PointCloud {
+            points,
+            colors: with_color.then_some(colors),
+            keyframe_ids: ids,
+        }
+    }
+
+    /// A keyframe of inverse depths near `1` (so that neighbours often agree),
+    /// sprinkled with the values the rules must reject or survive: NaN, ±∞,
+    /// negative, zero, tiny and huge inverse depths, and NaN, zero, infinite and
+    /// negative variances.
+    fn random_keyframe(
+        rng: &mut ChaCha8Rng,
+        id: i32,
+        w: u32,
+        h: u32,
+        var: bool,
+        color: bool,
+    ) -> Keyframe {
+        let n = (w * h) as usize;
+        let base = rng.random_range(0.3..3.0f32);
+        let idepth = (0..n)
+            .map(|_| match rng.random_range(0..100) {
+                0..4 => f32::NAN,
+                4..7 => f32::INFINITY,
+                7..9 => f32::NEG_INFINITY,
+                9..14 => -base,
+                14..22 => 0.0,
+                22 => 1e-30,
+                23 => 3e38,
+                24 => f32::MIN_POSITIVE,
+                _ => base * (1.0 + rng.random_range(-0.02..0.02f32)),
+            })
+            .collect();
+        let var = var.then(|| {
+            (0..n)
+                .map(|_| match rng.random_range(0..100) {
+                    0..3 => f32::NAN,
+                    3..5 => 0.0,
+                    5 => f32::INFINITY,
+                    6 => -1e-3,
+                    _ => 10f32.powf(rng.random_range(-5.0..-2.0)),
+                })
+                .collect()
+        });
+        let color = color.then(|| (0..3 * n).map(|_| rng.random()).collect());
+        let cam = PinholeCamera::try_new(
+            rng.random_range(50.0..500.0),
+            rng.random_range(50.0..500.0),
+            w as f64 * rng.random_range(0.3..0.7),
+            h as f64 * rng.random_range(0.3..0.7),
+            w,
+            h,
+        )
+        .unwrap();
+        let pose = Sim3::from_quaternion_xyzw(
+            [rng.random(), rng.random(), rng.random(), 1.0],
+            Vector3::new(rng.random(), rng.random(), rng.random()),
+            rng.random_range(0.2..5.0),
+        )
+        .unwrap();
+        Keyframe::try_new(id, id as f64, pose, cam, idepth, var, color).unwrap()
+    }
+
+    fn assert_same_cloud(got: &PointCloud, want: &PointCloud, what: &str) {
+        assert_eq!(got.len(), want.len(), "{what}: count");
+        let bits = |c: &PointCloud| c.points.iter().map(|v| v.to_bits()).collect::<Vec<_>>();
+        assert!(bits(got) == bits(want), "{what}: points differ");
+        assert_eq!(got.colors, want.colors, "{what}: colours");
+        assert_eq!(got.keyframe_ids, want.keyframe_ids, "{what}: ids");
+    }
+
+    #[test]
+    fn every_kernel_equals_the_pixel_by_pixel_reference() {
+        let mut rng = ChaCha8Rng::seed_from_u64(11);
+        // Sizes below, at and above the vector widths, one-pixel and two-pixel images.
+        let sizes = [
+            (1, 1),
+            (2, 2),
+            (3, 3),
+            (1, 7),
+            (7, 1),
+            (2, 9),
+            (4, 3),
+            (17, 5),
+        ];
+        let sizes = sizes.into_iter().chain([(37, 33), (64, 40), (71, 9)]);
+        let mut keyframes = Vec::new();
+        for (i, (w, h)) in sizes.enumerate() {
+            keyframes.push(random_keyframe(&mut rng, i as i32, w, h, true, true));
+        }
+        let sets = [
+            keyframes.clone(),
+            // Without variance, and a keyframe without colour (no colours at all).
+            vec![
+                random_keyframe(&mut rng, 20, 23, 19, false, true),
+                random_keyframe(&mut rng, 21, 33, 35, true, true),
+                random_keyframe(&mut rng, 22, 9, 40, true, false),
+            ],
+        ];
+        let filters = [
+            PointFilter::default(),
+            PointFilter::none(),
+            PointFilter {
+                cut_first_keyframes: None,
+                ..PointFilter::default()
+            },
+            PointFilter {
+                cut_first_keyframes: Some(0),
+                min_near_support: 3,
+                sparsify: 3,
+                seed: 5,
+                ..PointFilter::default()
+            },
+            PointFilter {
+                cut_first_keyframes: None,
+                skip_border: false,
+                min_near_support: 9,
+                scaled_depth_var: 1e-2,
+                abs_depth_var: 3e-3,
+                ..PointFilter::default()
+            },
+            PointFilter {
+                cut_first_keyframes: None,
+                skip_border: false,
+                min_near_support: 1,
+                scaled_depth_var: 0.0,
+                sparsify: 2,
+                ..PointFilter::default()
+            },
+        ];
+        let world =
+            Sim3::from_quaternion_xyzw([0.3, 0.1, -0.2, 1.0], Vector3::new(1.0, -2.0, 3.0), 2.5)
+                .unwrap();
+        let mut kernels = vec![Kernel::Portable, Kernel::detect()];
+        kernels.dedup();
+        for (si, set) in sets.iter().enumerate() {
+            for (fi, f) in filters.iter().enumerate() {
+                let want = reference(set, f, &world);
+                // The default cuts every keyframe of the three-keyframe set.
+                assert!(
+                    !want.is_empty() || (si, fi) == (1, 0),
+                    "set {si} filter {fi}"
+                );
+                for &kernel in &kernels {
+                    let got = backproject_with(set, f, |_| world, kernel).unwrap();
+                    assert_same_cloud(&got, &want, &format!("set {si} filter {fi} {kernel:?}"));
+                }
+            }
         }
     }
 
