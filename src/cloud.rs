@@ -729,10 +729,11 @@ mod tests {
                         let v = var[at(x, y)];
                         let depth = 1.0f32 / id;
                         let d4 = (depth * depth) * (depth * depth);
-                        if f.scaled_depth_var.is_finite() && !(v * d4 <= f.scaled_depth_var) {
-                            continue;
-                        }
-                        if f.abs_depth_var.is_finite() && !(v * d4 * s * s <= f.abs_depth_var) {
+                        // A threshold of +inf is off; a NaN value fails a finite one.
+                        let passes = |e: f32, th: f32| th == f32::INFINITY || e <= th;
+                        if !passes(v * d4, f.scaled_depth_var)
+                            || !passes(v * d4 * s * s, f.abs_depth_var)
+                        {
                             continue;
                         }
                         if f.min_near_support > 1 {
