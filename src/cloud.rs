@@ -13,10 +13,11 @@
 //! keyframes in the order given, pixels row-major within each keyframe.
 
 use std::borrow::Borrow;
+use std::mem::MaybeUninit;
 
 use rayon::prelude::*;
 
-use crate::buffer::{advise_huge_pages, copy_advised};
+use crate::buffer::{copy_advised, filled_advised};
 use crate::error::{Error, Result};
 use crate::geometry::Sim3;
 use crate::keyframe::Keyframe;
@@ -260,11 +261,54 @@ struct Kept {
     row_ends: [usize; ROWS_PER_TASK],
 }
 
-/// Per-thread buffers of the filter pass, one image row long.
+/// Per-thread buffers of the filter pass, one image row long each.
 #[derive(Default)]
 struct Scratch {
+    /// Verdict per interior pixel (`0`/`1`), padded with zeros to whole 64-pixel words.
     mask: Vec<u8>,
-    cols: Vec<u32>,
+    /// Rows of inverse depth not `> 0` made NaN, for the support test.
+    ring: PositiveRows,
+}
+
+/// Ring of three rows of inverse depth with every value that is not `> 0`
+/// replaced by NaN (see [`positive_or_nan`]): row `y` lives in slot `y % 3`, so
+/// that each row is converted once for the three rows whose blocks read it.
+#[derive(Default)]
+struct PositiveRows {
+    rows: [Vec<f32>; 3],
+    /// `(keyframe index, row)` held by each slot.
+    held: [Option<(usize, usize)>; 3],
+}
+
+impl PositiveRows {
+    /// Makes the ring hold rows `y − 1`, `y`, `y + 1` of keyframe `k` and returns them.
+    #[inline(always)]
+    fn around(&mut self, k: usize, idepth: &[f32], w: usize, y: usize) -> [&[f32]; 3] {
+        for r in y - 1..=y + 1 {
+            let slot = r % 3;
+            if self.held[slot] != Some((k, r)) {
+                positive_or_nan(&idepth[r * w..(r + 1) * w], &mut self.rows[slot]);
+                self.held[slot] = Some((k, r));
+            }
+        }
+        let [a, b, c] = &self.rows;
+        let slot = |r: usize| match r % 3 {
+            0 => a.as_slice(),
+            1 => b.as_slice(),
+            _ => c.as_slice(),
+        };
+        [slot(y - 1), slot(y), slot(y + 1)]
+    }
+}
+
+/// `row` with every value that is not `> 0` (zero, negative, NaN) replaced by NaN,
+/// into `out`. A neighbour `n` agrees with a centre when `n > 0` and
+/// `(n − id)² < 2·var`; with NaN in place of the others, `(q − id)² < 2·var` alone
+/// gives the same answer (NaN compares false), one test less per neighbour.
+#[inline(always)]
+fn positive_or_nan(row: &[f32], out: &mut Vec<f32>) {
+    out.clear();
+    out.extend(row.iter().map(|&n| if n > 0.0 { n } else { f32::NAN }));
 }
 
 /// Backprojects `keyframes` through `filter`. With `transform = Some(T_world_slam)`
@@ -334,6 +378,7 @@ fn backproject_with<K: Borrow<Keyframe> + Sync>(
             let y1 = (y0 + ROWS_PER_TASK).min(p.kf.camera.height as usize);
             let ctx = RowCtx {
                 p,
+                k,
                 f: filter,
                 scaled_on: filter.scaled_depth_var.is_finite(),
                 abs_on: filter.abs_depth_var.is_finite(),
@@ -404,6 +449,8 @@ impl Kernel {
 /// Loop-invariant parts of the filter, per keyframe.
 struct RowCtx<'a> {
     p: &'a Prepared<'a>,
+    /// Index of the keyframe in the prepared list.
+    k: usize,
     f: &'a PointFilter,
     scaled_on: bool,
     abs_on: bool,
@@ -437,64 +484,75 @@ fn kept_row(c: &RowCtx<'_>, y: usize, scratch: &mut Scratch, xs: &mut Vec<u32>) 
         scalar_pixels(c, y, 0..1, xs);
     }
     let n = w - 2;
+    interior_mask(c, var, y, scratch);
     let mask = &mut scratch.mask;
-    mask.clear();
-    mask.resize(n, 0);
-    interior_mask(c, var, y, mask);
     if f.sparsify > 1 {
-        for (j, m) in mask.iter_mut().enumerate() {
+        for (j, m) in mask[..n].iter_mut().enumerate() {
             *m &= sparsify_keeps(f.seed, kf.id, j + 1 + y * w, f.sparsify) as u8;
         }
     }
-    // Branch-free compaction: every column is written, the count moves on when kept.
-    let cols = &mut scratch.cols;
-    cols.clear();
-    cols.resize(n, 0);
-    let mut kept = 0;
-    for (x, &m) in (1u32..).zip(mask.iter()) {
-        if let Some(slot) = cols.get_mut(kept) {
-            *slot = x;
+    // The verdicts as bits, 64 pixels a word; only the set bits cost a step.
+    for (word, bytes) in mask.chunks_exact(64).enumerate() {
+        let mut bits = 0u64;
+        for (b, eight) in bytes.chunks_exact(8).enumerate() {
+            bits |= pack_bits(eight) << (8 * b);
         }
-        kept += m as usize;
+        // Column of bit `b`: `1 + 64·word + b` (a column of the image: fits a `u32`).
+        let base = 1 + 64 * word as u32;
+        while bits != 0 {
+            xs.push(base + bits.trailing_zeros());
+            bits &= bits - 1;
+        }
     }
-    xs.extend_from_slice(&cols[..kept]);
     if x1 == w {
         scalar_pixels(c, y, w - 1..w, xs);
     }
 }
 
+/// Eight `0`/`1` bytes as the low eight bits of a word (byte `i` to bit `i`): the
+/// product places each byte's bit at `56 + i` with no two partial products
+/// overlapping, so no carries.
+#[inline(always)]
+fn pack_bits(eight: &[u8]) -> u64 {
+    let mut b = [0u8; 8];
+    b.copy_from_slice(eight);
+    u64::from_le_bytes(b).wrapping_mul(0x0102_0408_1020_4080) >> 56
+}
+
 /// [`interior_mask_portable`] with the kernel `c.kernel`.
-fn interior_mask(c: &RowCtx<'_>, var: &[f32], y: usize, mask: &mut [u8]) {
+fn interior_mask(c: &RowCtx<'_>, var: &[f32], y: usize, scratch: &mut Scratch) {
     match c.kernel {
         // SAFETY: `Kernel::Avx2` is only chosen by `Kernel::detect` on a CPU with AVX2.
         #[cfg(target_arch = "x86_64")]
-        Kernel::Avx2 => unsafe { interior_mask_avx2(c, var, y, mask) },
-        Kernel::Portable => interior_mask_portable(c, var, y, mask),
+        Kernel::Avx2 => unsafe { interior_mask_avx2(c, var, y, scratch) },
+        Kernel::Portable => interior_mask_portable(c, var, y, scratch),
     }
 }
 
 /// [`interior_mask_portable`] compiled for AVX2.
 #[cfg(target_arch = "x86_64")]
 #[target_feature(enable = "avx2")]
-fn interior_mask_avx2(c: &RowCtx<'_>, var: &[f32], y: usize, mask: &mut [u8]) {
-    interior_mask_portable(c, var, y, mask)
+fn interior_mask_avx2(c: &RowCtx<'_>, var: &[f32], y: usize, scratch: &mut Scratch) {
+    interior_mask_portable(c, var, y, scratch)
 }
 
 /// The rules for pixels `1..w-1` of row `y` (which has a row above and below),
-/// without branches on the data so that the loop vectorises: `mask[j]` (`w − 2`
-/// values) is `1` when pixel `x = j + 1` is kept, before the sparsify draw. The
-/// arithmetic is that of [`scalar_pixels`].
+/// without branches on the data so that the loop vectorises: `scratch.mask[j]`
+/// is `1` when pixel `x = j + 1` is kept, before the sparsify draw (`0` from
+/// `w − 2` to the next multiple of 64). The arithmetic is that of [`scalar_pixels`].
 #[inline(always)]
-fn interior_mask_portable(c: &RowCtx<'_>, var: &[f32], y: usize, mask: &mut [u8]) {
+fn interior_mask_portable(c: &RowCtx<'_>, var: &[f32], y: usize, scratch: &mut Scratch) {
     let kf = c.p.kf;
     let w = kf.camera.width as usize;
     let n = w - 2;
-    let idepth = &kf.idepth;
-    let row = |r: usize, dx: usize| &idepth[r * w + dx..r * w + dx + n];
-    let (a0, a1, a2) = (row(y - 1, 0), row(y - 1, 1), row(y - 1, 2));
-    let (b0, b1, b2) = (row(y, 0), row(y, 1), row(y, 2));
-    let (c0, c1, c2) = (row(y + 1, 0), row(y + 1, 1), row(y + 1, 2));
+    let [above, centre, below] = scratch.ring.around(c.k, &kf.idepth, w, y);
+    let (a0, a1, a2) = (&above[..n], &above[1..n + 1], &above[2..n + 2]);
+    let (b0, b1, b2) = (&centre[..n], &centre[1..n + 1], &centre[2..n + 2]);
+    let (c0, c1, c2) = (&below[..n], &below[1..n + 1], &below[2..n + 2]);
     let vv = &var[y * w + 1..y * w + 1 + n];
+    let mask = &mut scratch.mask;
+    mask.clear();
+    mask.resize(n.next_multiple_of(64), 0);
     let mask = &mut mask[..n];
     let (th_s, th_a, s) = (c.f.scaled_depth_var, c.f.abs_depth_var, c.p.pose_scale);
     let (scaled_off, abs_off) = (!c.scaled_on, !c.abs_on);
@@ -504,18 +562,20 @@ fn interior_mask_portable(c: &RowCtx<'_>, var: &[f32], y: usize, mask: &mut [u8]
         0
     };
     for j in 0..n {
+        // The centre's inverse depth, NaN unless `> 0`: `≤ f32::MAX` is "finite and > 0".
         let id = b1[j];
         let v = vv[j];
         let depth = 1.0f32 / id;
         let d2 = depth * depth;
         let e = v * (d2 * d2);
-        let mut ok = (id > 0.0) & (id <= f32::MAX);
+        let mut ok = id <= f32::MAX;
         ok &= within(e, th_s) | scaled_off;
         ok &= within(e * s * s, th_a) | abs_off;
         let two_var = 2.0 * v;
+        // Neighbours not `> 0` are NaN here and never agree.
         let agree = |n: f32| {
             let diff = n - id;
-            ((n > 0.0) & (diff * diff < two_var)) as u32
+            (diff * diff < two_var) as u32
         };
         // The centre agrees with itself when `0 < 2·var` (its own `> 0` is in `ok`).
         let support = agree(a0[j])
@@ -601,43 +661,62 @@ fn near_support(block: &[f32], id: f32, two_var: f32) -> u32 {
 /// `d = 1/idepth`, computed in `f64` as `d · (u·m₀ + v·m₁ + m₂) + t`.
 fn write_points(prepared: &[Prepared<'_>], kept: &[Kept], with_color: bool) -> PointCloud {
     let total: usize = kept.iter().map(|b| b.xs.len()).sum();
-    // Zeroed by calloc (fresh pages for large sizes): untouched until the fill below.
-    let mut points = vec![0f32; 3 * total];
-    advise_huge_pages(&mut points);
-    let mut colors = if with_color {
-        vec![0u8; 3 * total]
-    } else {
-        Vec::new()
-    };
-    advise_huge_pages(&mut colors);
-    let mut ids = vec![0i32; total];
-    advise_huge_pages(&mut ids);
-    {
-        let mut jobs = Vec::with_capacity(kept.len());
-        let (mut pr, mut cr, mut ir) = (&mut points[..], &mut colors[..], &mut ids[..]);
-        for b in kept {
-            let n = b.xs.len();
-            let (p, p_rest) = pr.split_at_mut(3 * n);
-            let (c, c_rest) = cr.split_at_mut(if with_color { 3 * n } else { 0 });
-            let (i, i_rest) = ir.split_at_mut(n);
-            jobs.push((b, p, c, i));
-            (pr, cr, ir) = (p_rest, c_rest, i_rest);
-        }
-        jobs.into_par_iter().for_each(|(b, pts, cols, ids)| {
-            let p = &prepared[b.k];
-            fill_block(p, b, pts, cols);
-            ids.fill(p.kf.id);
+    // Every element is written once by `fill_all` (fresh buffers, no zero-fill pass).
+    let (mut colors, mut ids) = (None, None);
+    let points = filled_advised(3 * total, |pts| {
+        colors = filled_advised(if with_color { 3 * total } else { 0 }, |cols| {
+            ids = filled_advised(total, |ids| {
+                fill_all(prepared, kept, pts, cols, ids);
+                true
+            });
+            ids.is_some()
         });
-    }
+        colors.is_some()
+    });
     PointCloud {
-        points,
-        colors: with_color.then_some(colors),
-        keyframe_ids: ids,
+        points: points.unwrap_or_default(),
+        colors: colors.filter(|_| with_color),
+        keyframe_ids: ids.unwrap_or_default(),
     }
 }
 
+/// Splits the outputs at each block's offset and fills the blocks in parallel:
+/// every element of `pts` (`3·N`), `cols` (`3·N`, or empty without colour) and
+/// `ids` (`N`) is written.
+fn fill_all(
+    prepared: &[Prepared<'_>],
+    kept: &[Kept],
+    pts: &mut [MaybeUninit<f32>],
+    cols: &mut [MaybeUninit<u8>],
+    ids: &mut [MaybeUninit<i32>],
+) {
+    let with_color = !cols.is_empty();
+    let mut jobs = Vec::with_capacity(kept.len());
+    let (mut pr, mut cr, mut ir) = (pts, cols, ids);
+    for b in kept {
+        let n = b.xs.len();
+        let (p, p_rest) = pr.split_at_mut(3 * n);
+        let (c, c_rest) = cr.split_at_mut(if with_color { 3 * n } else { 0 });
+        let (i, i_rest) = ir.split_at_mut(n);
+        jobs.push((b, p, c, i));
+        (pr, cr, ir) = (p_rest, c_rest, i_rest);
+    }
+    jobs.into_par_iter().for_each(|(b, pts, cols, ids)| {
+        let p = &prepared[b.k];
+        fill_block(p, b, pts, cols);
+        for i in ids {
+            i.write(p.kf.id);
+        }
+    });
+}
+
 /// The points (and, when `cols` is not empty, colours) of one block's kept pixels.
-fn fill_block(p: &Prepared<'_>, b: &Kept, pts: &mut [f32], cols: &mut [u8]) {
+fn fill_block(
+    p: &Prepared<'_>,
+    b: &Kept,
+    pts: &mut [MaybeUninit<f32>],
+    cols: &mut [MaybeUninit<u8>],
+) {
     let kf = p.kf;
     let cam = &kf.camera;
     let w = cam.width as usize;
@@ -653,15 +732,17 @@ fn fill_block(p: &Prepared<'_>, b: &Kept, pts: &mut [f32], cols: &mut [u8]) {
             let x = x as usize;
             let d = 1.0 / row[x] as f64;
             let um = &p.um[3 * x..3 * x + 3];
-            q[0] = (d * (um[0] + vm[0] + m[0][2]) + t[0]) as f32;
-            q[1] = (d * (um[1] + vm[1] + m[1][2]) + t[1]) as f32;
-            q[2] = (d * (um[2] + vm[2] + m[2][2]) + t[2]) as f32;
+            q[0].write((d * (um[0] + vm[0] + m[0][2]) + t[0]) as f32);
+            q[1].write((d * (um[1] + vm[1] + m[1][2]) + t[1]) as f32);
+            q[2].write((d * (um[2] + vm[2] + m[2][2]) + t[2]) as f32);
         }
         if let (Some(col), false) = (&kf.color, cols.is_empty()) {
             let src = &col[3 * y * w..3 * (y + 1) * w];
             for (&x, c) in xs.iter().zip(cols[3 * start..3 * end].chunks_exact_mut(3)) {
                 let x = x as usize;
-                c.copy_from_slice(&src[3 * x..3 * x + 3]);
+                for (c, &s) in c.iter_mut().zip(&src[3 * x..3 * x + 3]) {
+                    c.write(s);
+                }
             }
         }
         start = end;
