@@ -223,8 +223,8 @@ struct Prepared<'a> {
     t: [f64; 3],
     /// The keyframe pose's scale as `f32` (the viewer's `camToWorld.scale()`).
     pose_scale: f32,
-    /// `u · m[k][0]` for every column `x` (`u = (x − cx)/fx`), three values per column.
-    um: Vec<f64>,
+    /// `u · m[k][0]` (`k` = 0, 1, 2) for every column `x`, `u = (x − cx)/fx`.
+    um: Vec<[f64; 3]>,
 }
 
 impl<'a> Prepared<'a> {
@@ -232,7 +232,7 @@ impl<'a> Prepared<'a> {
         let (m, t) = world_cam.affine();
         let cam = &kf.camera;
         let um = (0..cam.width as usize)
-            .flat_map(|x| {
+            .map(|x| {
                 let u = (x as f64 - cam.cx) / cam.fx;
                 [u * m[0][0], u * m[1][0], u * m[2][0]]
             })
@@ -721,6 +721,12 @@ fn fill_block(
     let cam = &kf.camera;
     let w = cam.width as usize;
     let (m, t) = (&p.m, &p.t);
+    // The point of column `x` of a row with `vm = v·m[k][1]`, `v = (y − cy)/fy`.
+    let point = |row: &[f32], vm: &[f64; 3], x: usize| {
+        let d = 1.0 / row[x] as f64;
+        let um = &p.um[x];
+        [0, 1, 2].map(|k| MaybeUninit::new((d * (um[k] + vm[k] + m[k][2]) + t[k]) as f32))
+    };
     let mut start = 0;
     for (r, &end) in b.row_ends[..b.rows].iter().enumerate() {
         let y = b.y0 + r;
@@ -728,20 +734,21 @@ fn fill_block(
         let row = &kf.idepth[y * w..(y + 1) * w];
         let v = (y as f64 - cam.cy) / cam.fy;
         let vm = [v * m[0][1], v * m[1][1], v * m[2][1]];
-        for (&x, q) in xs.iter().zip(pts[3 * start..3 * end].chunks_exact_mut(3)) {
-            let x = x as usize;
-            let d = 1.0 / row[x] as f64;
-            let um = &p.um[3 * x..3 * x + 3];
-            q[0].write((d * (um[0] + vm[0] + m[0][2]) + t[0]) as f32);
-            q[1].write((d * (um[1] + vm[1] + m[1][2]) + t[1]) as f32);
-            q[2].write((d * (um[2] + vm[2] + m[2][2]) + t[2]) as f32);
-        }
-        if let (Some(col), false) = (&kf.color, cols.is_empty()) {
-            let src = &col[3 * y * w..3 * (y + 1) * w];
-            for (&x, c) in xs.iter().zip(cols[3 * start..3 * end].chunks_exact_mut(3)) {
-                let x = x as usize;
-                for (c, &s) in c.iter_mut().zip(&src[3 * x..3 * x + 3]) {
-                    c.write(s);
+        let out = pts[3 * start..3 * end].chunks_exact_mut(3);
+        match (&kf.color, cols.is_empty()) {
+            (Some(col), false) => {
+                let src = &col[3 * y * w..3 * (y + 1) * w];
+                let out_c = cols[3 * start..3 * end].chunks_exact_mut(3);
+                for ((&x, q), c) in xs.iter().zip(out).zip(out_c) {
+                    let x = x as usize;
+                    q.copy_from_slice(&point(row, &vm, x));
+                    let rgb = &src[3 * x..3 * x + 3];
+                    c.copy_from_slice(&[rgb[0], rgb[1], rgb[2]].map(MaybeUninit::new));
+                }
+            }
+            _ => {
+                for (&x, q) in xs.iter().zip(out) {
+                    q.copy_from_slice(&point(row, &vm, x as usize));
                 }
             }
         }
