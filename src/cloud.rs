@@ -268,6 +268,9 @@ struct Scratch {
     mask: Vec<u8>,
     /// Rows of inverse depth not `> 0` made NaN, for the support test.
     ring: PositiveRows,
+    /// The kept columns of the block being filtered; its capacity carries over to
+    /// the next block, and each block keeps an exact-size copy.
+    cols: Vec<u32>,
 }
 
 /// Ring of three rows of inverse depth with every value that is not `> 0`
@@ -385,19 +388,22 @@ fn backproject_with<K: Borrow<Keyframe> + Sync>(
                 support_on: filter.min_near_support > 1,
                 kernel,
             };
-            let mut xs = Vec::new();
+            let mut xs = std::mem::take(&mut scratch.cols);
+            xs.clear();
             let mut row_ends = [0; ROWS_PER_TASK];
             for (y, end) in (y0..y1).zip(&mut row_ends) {
                 kept_row(&ctx, y, scratch, &mut xs);
                 *end = xs.len();
             }
-            Kept {
+            let kept = Kept {
                 k,
                 y0,
                 rows: y1 - y0,
-                xs,
+                xs: xs.clone(),
                 row_ends,
-            }
+            };
+            scratch.cols = xs;
+            kept
         })
         .collect();
     Ok(write_points(&prepared, &kept, with_color))
