@@ -23,8 +23,9 @@ use crate::geometry::Sim3;
 use crate::keyframe::Keyframe;
 
 /// Image rows per parallel work item: small enough to balance a few keyframes
-/// over many cores, large enough that a task's buffers amortise their growth.
-const ROWS_PER_TASK: usize = 32;
+/// over many cores, large enough that the two rows a block converts beyond its
+/// own (for the 3×3 test) and the per-block bookkeeping stay small.
+const ROWS_PER_TASK: usize = 64;
 
 /// Which pixels of a keyframe become points: the LSD-SLAM viewer's rules.
 ///
