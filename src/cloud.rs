@@ -938,7 +938,8 @@ mod tests {
     #[test]
     fn every_kernel_equals_the_pixel_by_pixel_reference() {
         let mut rng = ChaCha8Rng::seed_from_u64(11);
-        // Sizes below, at and above the vector widths, one-pixel and two-pixel images.
+        // Sizes below, at and above the vector widths, one-pixel and two-pixel
+        // images, and images of several blocks of rows (`ROWS_PER_TASK`).
         let sizes = [
             (1, 1),
             (2, 2),
@@ -949,7 +950,9 @@ mod tests {
             (4, 3),
             (17, 5),
         ];
-        let sizes = sizes.into_iter().chain([(37, 33), (64, 40), (71, 9)]);
+        let sizes = sizes
+            .into_iter()
+            .chain([(37, 33), (64, 40), (71, 9), (13, 150)]);
         let mut keyframes = Vec::new();
         for (i, (w, h)) in sizes.enumerate() {
             keyframes.push(random_keyframe(&mut rng, i as i32, w, h, true, true));
@@ -958,10 +961,14 @@ mod tests {
             keyframes.clone(),
             // Without variance, and a keyframe without colour (no colours at all).
             vec![
-                random_keyframe(&mut rng, 20, 23, 19, false, true),
+                random_keyframe(&mut rng, 20, 23, 140, false, true),
                 random_keyframe(&mut rng, 21, 33, 35, true, true),
                 random_keyframe(&mut rng, 22, 9, 40, true, false),
             ],
+            // Keyframes of one size one after the other (per-thread buffers reused).
+            (30..38)
+                .map(|id| random_keyframe(&mut rng, id, 19, 70, true, true))
+                .collect(),
         ];
         let filters = [
             PointFilter::default(),
@@ -1010,6 +1017,30 @@ mod tests {
                 for &kernel in &kernels {
                     let got = backproject_with(set, f, |_| world, kernel).unwrap();
                     assert_same_cloud(&got, &want, &format!("set {si} filter {fi} {kernel:?}"));
+                }
+            }
+        }
+    }
+
+    #[test]
+    fn positive_rows_follow_the_keyframe_and_the_row() {
+        let w = 4;
+        let a: Vec<f32> = (0..20).map(|i| i as f32 - 5.0).collect();
+        let b: Vec<f32> = a.iter().map(|v| 2.0 * v + 1.0).collect();
+        let mut ring = PositiveRows::default();
+        // The same rows of another keyframe, rows out of order, and back.
+        for (k, img) in [(0, &a), (1, &b), (0, &a)] {
+            for y in [1, 3, 2, 1] {
+                let got = ring.around(k, img, w, y);
+                for (r, got) in (y - 1..=y + 1).zip(got) {
+                    let want =
+                        img[r * w..(r + 1) * w]
+                            .iter()
+                            .map(|&n| if n > 0.0 { n } else { f32::NAN });
+                    assert!(got
+                        .iter()
+                        .zip(want)
+                        .all(|(g, w)| g.to_bits() == w.to_bits()));
                 }
             }
         }
