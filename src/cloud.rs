@@ -265,13 +265,15 @@ struct Kept {
 /// Per-thread buffers of the filter pass, one image row long each.
 #[derive(Default)]
 struct Scratch {
-    /// Verdict per interior pixel (`0`/`1`), padded with zeros to whole 64-pixel words.
+    /// Verdict per interior pixel (`0`/`1`), padded with zeros to whole groups of eight.
     mask: Vec<u8>,
     /// Rows of inverse depth not `> 0` made NaN, for the support test.
     ring: PositiveRows,
     /// The kept columns of the block being filtered; its capacity carries over to
     /// the next block, and each block keeps an exact-size copy.
     cols: Vec<u32>,
+    /// The kept columns of one row's interior, with room for a whole group of eight past them.
+    row_cols: Vec<u32>,
 }
 
 /// Ring of three rows of inverse depth with every value that is not `> 0`
@@ -498,23 +500,58 @@ fn kept_row(c: &RowCtx<'_>, y: usize, scratch: &mut Scratch, xs: &mut Vec<u32>) 
             *m &= sparsify_keeps(f.seed, kf.id, j + 1 + y * w, f.sparsify) as u8;
         }
     }
-    // The verdicts as bits, 64 pixels a word; only the set bits cost a step.
-    for (word, bytes) in mask.chunks_exact(64).enumerate() {
-        let mut bits = 0u64;
-        for (b, eight) in bytes.chunks_exact(8).enumerate() {
-            bits |= pack_bits(eight) << (8 * b);
+    // Compaction eight pixels at a time without branches: the kept columns of each
+    // group come from a table indexed by its verdict bits, written whole; the
+    // next group's start moves on by their count.
+    let cols = &mut scratch.row_cols;
+    cols.resize(mask.len() + 8, 0);
+    let mut kept = 0;
+    for (g, eight) in mask.chunks_exact(8).enumerate() {
+        let bits = pack_bits(eight) as usize;
+        // Column of bit `b`: `1 + 8·g + b` (a column of the image: fits a `u32`).
+        let base = 1 + 8 * g as u32;
+        if let Some(dst) = cols.get_mut(kept..kept + 8) {
+            for (d, &b) in dst.iter_mut().zip(&SET_BITS[bits]) {
+                *d = base + b as u32;
+            }
         }
-        // Column of bit `b`: `1 + 64·word + b` (a column of the image: fits a `u32`).
-        let base = 1 + 64 * word as u32;
-        while bits != 0 {
-            xs.push(base + bits.trailing_zeros());
-            bits &= bits - 1;
-        }
+        kept += SET_BIT_COUNT[bits] as usize;
     }
+    xs.extend_from_slice(&cols[..kept]);
     if x1 == w {
         scalar_pixels(c, y, w - 1..w, xs);
     }
 }
+
+/// For each byte value, the positions of its set bits in increasing order (the
+/// remaining entries `0`).
+static SET_BITS: [[u8; 8]; 256] = {
+    let mut t = [[0u8; 8]; 256];
+    let mut v = 0;
+    while v < 256 {
+        let (mut b, mut k) = (0, 0);
+        while b < 8 {
+            if (v >> b) & 1 == 1 {
+                t[v][k] = b as u8;
+                k += 1;
+            }
+            b += 1;
+        }
+        v += 1;
+    }
+    t
+};
+
+/// For each byte value, its number of set bits.
+static SET_BIT_COUNT: [u8; 256] = {
+    let mut t = [0u8; 256];
+    let mut v = 0;
+    while v < 256 {
+        t[v] = (v as u32).count_ones() as u8;
+        v += 1;
+    }
+    t
+};
 
 /// Eight `0`/`1` bytes as the low eight bits of a word (byte `i` to bit `i`): the
 /// product places each byte's bit at `56 + i` with no two partial products
@@ -546,7 +583,7 @@ fn interior_mask_avx2(c: &RowCtx<'_>, var: &[f32], y: usize, scratch: &mut Scrat
 /// The rules for pixels `1..w-1` of row `y` (which has a row above and below),
 /// without branches on the data so that the loop vectorises: `scratch.mask[j]`
 /// is `1` when pixel `x = j + 1` is kept, before the sparsify draw (`0` from
-/// `w − 2` to the next multiple of 64). The arithmetic is that of [`scalar_pixels`].
+/// `w − 2` to the next multiple of 8). The arithmetic is that of [`scalar_pixels`].
 #[inline(always)]
 fn interior_mask_portable(c: &RowCtx<'_>, var: &[f32], y: usize, scratch: &mut Scratch) {
     let kf = c.p.kf;
@@ -559,7 +596,7 @@ fn interior_mask_portable(c: &RowCtx<'_>, var: &[f32], y: usize, scratch: &mut S
     let vv = &var[y * w + 1..y * w + 1 + n];
     let mask = &mut scratch.mask;
     mask.clear();
-    mask.resize(n.next_multiple_of(64), 0);
+    mask.resize(n.next_multiple_of(8), 0);
     let mask = &mut mask[..n];
     let (th_s, th_a, s) = (c.f.scaled_depth_var, c.f.abs_depth_var, c.p.pose_scale);
     let (scaled_off, abs_off) = (!c.scaled_on, !c.abs_on);
