@@ -262,7 +262,7 @@ struct Kept {
     row_ends: [usize; ROWS_PER_TASK],
 }
 
-/// Per-thread buffers of the filter pass, one image row long each.
+/// Per-thread buffers of the filter pass, reused from row to row and block to block.
 #[derive(Default)]
 struct Scratch {
     /// Verdict per interior pixel (`0`/`1`), padded with zeros to whole groups of eight.
