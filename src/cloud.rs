@@ -13,17 +13,19 @@
 //! keyframes in the order given, pixels row-major within each keyframe.
 
 use std::borrow::Borrow;
+use std::mem::MaybeUninit;
 
 use rayon::prelude::*;
 
-use crate::buffer::{advise_huge_pages, copy_advised};
+use crate::buffer::{copy_advised, filled_advised};
 use crate::error::{Error, Result};
 use crate::geometry::Sim3;
 use crate::keyframe::Keyframe;
 
 /// Image rows per parallel work item: small enough to balance a few keyframes
-/// over many cores, large enough that a task's buffers amortise their growth.
-const ROWS_PER_TASK: usize = 32;
+/// over many cores, large enough that the two rows a block converts beyond its
+/// own (for the 3×3 test) and the per-block bookkeeping stay small.
+const ROWS_PER_TASK: usize = 64;
 
 /// Which pixels of a keyframe become points: the LSD-SLAM viewer's rules.
 ///
@@ -222,13 +224,97 @@ struct Prepared<'a> {
     t: [f64; 3],
     /// The keyframe pose's scale as `f32` (the viewer's `camToWorld.scale()`).
     pose_scale: f32,
+    /// `u · m[k][0]` (`k` = 0, 1, 2) for every column `x`, `u = (x − cx)/fx`.
+    um: Vec<[f64; 3]>,
 }
 
-/// Output of one work item (a block of rows of one keyframe).
-struct Block {
-    points: Vec<f32>,
-    colors: Vec<u8>,
-    id: i32,
+impl<'a> Prepared<'a> {
+    fn new(kf: &'a Keyframe, world_cam: Sim3) -> Self {
+        let (m, t) = world_cam.affine();
+        let cam = &kf.camera;
+        let um = (0..cam.width as usize)
+            .map(|x| {
+                let u = (x as f64 - cam.cx) / cam.fx;
+                [u * m[0][0], u * m[1][0], u * m[2][0]]
+            })
+            .collect();
+        Prepared {
+            kf,
+            m,
+            t,
+            pose_scale: kf.pose.scale as f32,
+            um,
+        }
+    }
+}
+
+/// The kept pixels of one work item: rows `y0..y0 + rows` of one keyframe.
+struct Kept {
+    /// Index of the keyframe in the prepared list.
+    k: usize,
+    /// First row.
+    y0: usize,
+    /// Number of rows.
+    rows: usize,
+    /// Kept columns, row after row, each row left to right.
+    xs: Vec<u32>,
+    /// End of each row's columns in `xs`.
+    row_ends: [usize; ROWS_PER_TASK],
+}
+
+/// Per-thread buffers of the filter pass, reused from row to row and block to block.
+#[derive(Default)]
+struct Scratch {
+    /// Verdict per interior pixel (`0`/`1`), padded with zeros to whole groups of eight.
+    mask: Vec<u8>,
+    /// Rows of inverse depth not `> 0` made NaN, for the support test.
+    ring: PositiveRows,
+    /// The kept columns of the block being filtered; its capacity carries over to
+    /// the next block, and each block keeps an exact-size copy.
+    cols: Vec<u32>,
+    /// The kept columns of one row's interior, with room for a whole group of eight past them.
+    row_cols: Vec<u32>,
+}
+
+/// Ring of three rows of inverse depth with every value that is not `> 0`
+/// replaced by NaN (see [`positive_or_nan`]): row `y` lives in slot `y % 3`, so
+/// that each row is converted once for the three rows whose blocks read it.
+#[derive(Default)]
+struct PositiveRows {
+    rows: [Vec<f32>; 3],
+    /// `(keyframe index, row)` held by each slot.
+    held: [Option<(usize, usize)>; 3],
+}
+
+impl PositiveRows {
+    /// Makes the ring hold rows `y − 1`, `y`, `y + 1` of keyframe `k` and returns them.
+    #[inline(always)]
+    fn around(&mut self, k: usize, idepth: &[f32], w: usize, y: usize) -> [&[f32]; 3] {
+        for r in y - 1..=y + 1 {
+            let slot = r % 3;
+            if self.held[slot] != Some((k, r)) {
+                positive_or_nan(&idepth[r * w..(r + 1) * w], &mut self.rows[slot]);
+                self.held[slot] = Some((k, r));
+            }
+        }
+        let [a, b, c] = &self.rows;
+        let slot = |r: usize| match r % 3 {
+            0 => a.as_slice(),
+            1 => b.as_slice(),
+            _ => c.as_slice(),
+        };
+        [slot(y - 1), slot(y), slot(y + 1)]
+    }
+}
+
+/// `row` with every value that is not `> 0` (zero, negative, NaN) replaced by NaN,
+/// into `out`. A neighbour `n` agrees with a centre when `n > 0` and
+/// `(n − id)² < 2·var`; with NaN in place of the others, `(q − id)² < 2·var` alone
+/// gives the same answer (NaN compares false), one test less per neighbour.
+#[inline(always)]
+fn positive_or_nan(row: &[f32], out: &mut Vec<f32>) {
+    out.clear();
+    out.extend(row.iter().map(|&n| if n > 0.0 { n } else { f32::NAN }));
 }
 
 /// Backprojects `keyframes` through `filter`. With `transform = Some(T_world_slam)`
@@ -243,7 +329,7 @@ pub fn backproject<K: Borrow<Keyframe> + Sync>(
     transform: Option<&Sim3>,
 ) -> Result<PointCloud> {
     let t = transform.copied().unwrap_or_else(Sim3::identity);
-    backproject_with(keyframes, filter, |_| t)
+    backproject_with(keyframes, filter, |_| t, Kernel::detect())
 }
 
 /// Like [`backproject`], with its own `T_world_slam` for each keyframe
@@ -260,13 +346,17 @@ pub fn backproject_per_keyframe<K: Borrow<Keyframe> + Sync>(
             got: format!("{}", transforms.len()),
         });
     }
-    backproject_with(keyframes, filter, |i| transforms[i])
+    backproject_with(keyframes, filter, |i| transforms[i], Kernel::detect())
 }
 
+/// Two parallel passes: the filter lists the kept columns of each block of rows,
+/// then, with every block's offset known, the points, colours and ids are written
+/// straight into the output buffers.
 fn backproject_with<K: Borrow<Keyframe> + Sync>(
     keyframes: &[K],
     filter: &PointFilter,
     world_slam: impl Fn(usize) -> Sim3,
+    kernel: Kernel,
 ) -> Result<PointCloud> {
     filter.validate()?;
     let with_color = !keyframes.is_empty() && keyframes.iter().all(|k| k.borrow().color.is_some());
@@ -277,13 +367,7 @@ fn backproject_with<K: Borrow<Keyframe> + Sync>(
         if filter.cuts(i) {
             continue;
         }
-        let (m, t) = (world_slam(i) * kf.pose).affine();
-        prepared.push(Prepared {
-            kf,
-            m,
-            t,
-            pose_scale: kf.pose.scale as f32,
-        });
+        prepared.push(Prepared::new(kf, world_slam(i) * kf.pose));
     }
     let tasks: Vec<(usize, usize)> = prepared
         .iter()
@@ -293,26 +377,39 @@ fn backproject_with<K: Borrow<Keyframe> + Sync>(
             (0..h.div_ceil(ROWS_PER_TASK)).map(move |b| (k, b * ROWS_PER_TASK))
         })
         .collect();
-    let blocks: Vec<Block> = tasks
+    let kept: Vec<Kept> = tasks
         .par_iter()
-        .map(|&(k, y0)| {
+        .map_init(Scratch::default, |scratch, &(k, y0)| {
             let p = &prepared[k];
             let y1 = (y0 + ROWS_PER_TASK).min(p.kf.camera.height as usize);
-            // Room for every pixel of the block: no regrowth; untouched pages cost nothing.
-            let pixels = (y1 - y0) * p.kf.camera.width as usize;
-            let mut b = Block {
-                points: Vec::with_capacity(3 * pixels),
-                colors: Vec::with_capacity(if with_color { 3 * pixels } else { 0 }),
-                id: p.kf.id,
+            let ctx = RowCtx {
+                p,
+                k,
+                f: filter,
+                scaled_on: filter.scaled_depth_var.is_finite(),
+                abs_on: filter.abs_depth_var.is_finite(),
+                support_on: filter.min_near_support > 1,
+                kernel,
             };
-            let mut mask = Vec::new();
-            for y in y0..y1 {
-                backproject_row(p, filter, y, with_color, &mut b, &mut mask);
+            let mut xs = std::mem::take(&mut scratch.cols);
+            xs.clear();
+            let mut row_ends = [0; ROWS_PER_TASK];
+            for (y, end) in (y0..y1).zip(&mut row_ends) {
+                kept_row(&ctx, y, scratch, &mut xs);
+                *end = xs.len();
             }
-            b
+            let kept = Kept {
+                k,
+                y0,
+                rows: y1 - y0,
+                xs: xs.clone(),
+                row_ends,
+            };
+            scratch.cols = xs;
+            kept
         })
         .collect();
-    Ok(concat(blocks, with_color))
+    Ok(write_points(&prepared, &kept, with_color))
 }
 
 /// Keyframe arrays must match the camera (a `Keyframe` built by `try_new` does).
@@ -336,28 +433,45 @@ fn within(value: f32, threshold: f32) -> bool {
     value <= threshold
 }
 
+/// The instruction set the per-pixel filter runs with, chosen at run time: the
+/// arithmetic (and so the result) is the same, only the vector width differs.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+enum Kernel {
+    /// The target's baseline instructions.
+    Portable,
+    /// AVX2 (eight `f32` lanes), when the CPU has it.
+    #[cfg(target_arch = "x86_64")]
+    Avx2,
+}
+
+impl Kernel {
+    /// The widest kernel this CPU runs.
+    fn detect() -> Self {
+        #[cfg(target_arch = "x86_64")]
+        if std::arch::is_x86_feature_detected!("avx2") {
+            return Kernel::Avx2;
+        }
+        Kernel::Portable
+    }
+}
+
 /// Loop-invariant parts of the filter, per keyframe.
 struct RowCtx<'a> {
     p: &'a Prepared<'a>,
+    /// Index of the keyframe in the prepared list.
+    k: usize,
     f: &'a PointFilter,
     scaled_on: bool,
     abs_on: bool,
     support_on: bool,
-    with_color: bool,
+    kernel: Kernel,
 }
 
-/// The filter and the backprojection for one image row, appended to `out`.
+/// The filter for one image row: appends the kept columns to `xs`, left to right.
 /// Interior pixels of interior rows of keyframes with a variance take the
 /// branch-free mask path ([`interior_mask`]); the others the scalar path.
-fn backproject_row(
-    p: &Prepared<'_>,
-    f: &PointFilter,
-    y: usize,
-    with_color: bool,
-    out: &mut Block,
-    mask: &mut Vec<bool>,
-) {
-    let kf = p.kf;
+fn kept_row(c: &RowCtx<'_>, y: usize, scratch: &mut Scratch, xs: &mut Vec<u32>) {
+    let (kf, f) = (c.p.kf, c.f);
     let (w, h) = (kf.camera.width as usize, kf.camera.height as usize);
     let (x0, x1) = if f.skip_border {
         if y == 0 || y + 1 >= h || w < 3 {
@@ -367,54 +481,123 @@ fn backproject_row(
     } else {
         (0, w)
     };
-    let ctx = RowCtx {
-        p,
-        f,
-        scaled_on: f.scaled_depth_var.is_finite(),
-        abs_on: f.abs_depth_var.is_finite(),
-        support_on: f.min_near_support > 1,
-        with_color,
-    };
     let Some(var) = kf.idepth_var.as_deref() else {
-        scalar_pixels(&ctx, y, x0..x1, out);
+        scalar_pixels(c, y, x0..x1, xs);
         return;
     };
     if y == 0 || y + 1 >= h || w < 3 {
-        scalar_pixels(&ctx, y, x0..x1, out);
+        scalar_pixels(c, y, x0..x1, xs);
         return;
     }
     if x0 == 0 {
-        scalar_pixels(&ctx, y, 0..1, out);
+        scalar_pixels(c, y, 0..1, xs);
     }
-    interior_mask(&ctx, var, y, mask);
+    let n = w - 2;
+    interior_mask(c, var, y, scratch);
+    let mask = &mut scratch.mask;
     if f.sparsify > 1 {
-        for (j, m) in mask.iter_mut().enumerate() {
-            *m = *m && sparsify_keeps(f.seed, kf.id, j + 1 + y * w, f.sparsify);
+        for (j, m) in mask[..n].iter_mut().enumerate() {
+            *m &= sparsify_keeps(f.seed, kf.id, j + 1 + y * w, f.sparsify) as u8;
         }
     }
-    for (j, &keep) in mask.iter().enumerate() {
-        if keep {
-            emit(&ctx, j + 1, y, out);
+    // Compaction eight pixels at a time without branches: the kept columns of each
+    // group come from a table indexed by its verdict bits, written whole; the
+    // next group's start moves on by their count.
+    let cols = &mut scratch.row_cols;
+    cols.resize(mask.len() + 8, 0);
+    let mut kept = 0;
+    for (g, eight) in mask.chunks_exact(8).enumerate() {
+        let bits = pack_bits(eight) as usize;
+        // Column of bit `b`: `1 + 8·g + b` (a column of the image: fits a `u32`).
+        let base = 1 + 8 * g as u32;
+        if let Some(dst) = cols.get_mut(kept..kept + 8) {
+            for (d, &b) in dst.iter_mut().zip(&SET_BITS[bits]) {
+                *d = base + b as u32;
+            }
         }
+        kept += SET_BIT_COUNT[bits] as usize;
     }
+    xs.extend_from_slice(&cols[..kept]);
     if x1 == w {
-        scalar_pixels(&ctx, y, w - 1..w, out);
+        scalar_pixels(c, y, w - 1..w, xs);
     }
 }
 
+/// For each byte value, the positions of its set bits in increasing order (the
+/// remaining entries `0`).
+static SET_BITS: [[u8; 8]; 256] = {
+    let mut t = [[0u8; 8]; 256];
+    let mut v = 0;
+    while v < 256 {
+        let (mut b, mut k) = (0, 0);
+        while b < 8 {
+            if (v >> b) & 1 == 1 {
+                t[v][k] = b as u8;
+                k += 1;
+            }
+            b += 1;
+        }
+        v += 1;
+    }
+    t
+};
+
+/// For each byte value, its number of set bits.
+static SET_BIT_COUNT: [u8; 256] = {
+    let mut t = [0u8; 256];
+    let mut v = 0;
+    while v < 256 {
+        t[v] = (v as u32).count_ones() as u8;
+        v += 1;
+    }
+    t
+};
+
+/// Eight `0`/`1` bytes as the low eight bits of a word (byte `i` to bit `i`): the
+/// product places each byte's bit at `56 + i` with no two partial products
+/// overlapping, so no carries.
+#[inline(always)]
+fn pack_bits(eight: &[u8]) -> u64 {
+    let mut b = [0u8; 8];
+    b.copy_from_slice(eight);
+    u64::from_le_bytes(b).wrapping_mul(0x0102_0408_1020_4080) >> 56
+}
+
+/// [`interior_mask_portable`] with the kernel `c.kernel`.
+fn interior_mask(c: &RowCtx<'_>, var: &[f32], y: usize, scratch: &mut Scratch) {
+    match c.kernel {
+        // SAFETY: `Kernel::Avx2` is only chosen by `Kernel::detect` on a CPU with AVX2.
+        #[cfg(target_arch = "x86_64")]
+        Kernel::Avx2 => unsafe { interior_mask_avx2(c, var, y, scratch) },
+        Kernel::Portable => interior_mask_portable(c, var, y, scratch),
+    }
+}
+
+/// [`interior_mask_portable`] compiled for AVX2.
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx2")]
+fn interior_mask_avx2(c: &RowCtx<'_>, var: &[f32], y: usize, scratch: &mut Scratch) {
+    interior_mask_portable(c, var, y, scratch)
+}
+
 /// The rules for pixels `1..w-1` of row `y` (which has a row above and below),
-/// without branches on the data so that the loop vectorises: `mask[j]` is the
-/// verdict for pixel `x = j + 1`. The arithmetic is that of [`scalar_pixels`].
-fn interior_mask(c: &RowCtx<'_>, var: &[f32], y: usize, mask: &mut Vec<bool>) {
+/// without branches on the data so that the loop vectorises: `scratch.mask[j]`
+/// is `1` when pixel `x = j + 1` is kept, before the sparsify draw (`0` from
+/// `w − 2` to the next multiple of 8). The arithmetic is that of [`scalar_pixels`].
+#[inline(always)]
+fn interior_mask_portable(c: &RowCtx<'_>, var: &[f32], y: usize, scratch: &mut Scratch) {
     let kf = c.p.kf;
     let w = kf.camera.width as usize;
     let n = w - 2;
-    let idepth = &kf.idepth;
-    let row = |r: usize, dx: usize| &idepth[r * w + dx..r * w + dx + n];
-    let (a0, a1, a2) = (row(y - 1, 0), row(y - 1, 1), row(y - 1, 2));
-    let (b0, b1, b2) = (row(y, 0), row(y, 1), row(y, 2));
-    let (c0, c1, c2) = (row(y + 1, 0), row(y + 1, 1), row(y + 1, 2));
+    let [above, centre, below] = scratch.ring.around(c.k, &kf.idepth, w, y);
+    let (a0, a1, a2) = (&above[..n], &above[1..n + 1], &above[2..n + 2]);
+    let (b0, b1, b2) = (&centre[..n], &centre[1..n + 1], &centre[2..n + 2]);
+    let (c0, c1, c2) = (&below[..n], &below[1..n + 1], &below[2..n + 2]);
     let vv = &var[y * w + 1..y * w + 1 + n];
+    let mask = &mut scratch.mask;
+    mask.clear();
+    mask.resize(n.next_multiple_of(8), 0);
+    let mask = &mut mask[..n];
     let (th_s, th_a, s) = (c.f.scaled_depth_var, c.f.abs_depth_var, c.p.pose_scale);
     let (scaled_off, abs_off) = (!c.scaled_on, !c.abs_on);
     let min_support = if c.support_on {
@@ -422,38 +605,39 @@ fn interior_mask(c: &RowCtx<'_>, var: &[f32], y: usize, mask: &mut Vec<bool>) {
     } else {
         0
     };
-    mask.clear();
-    mask.resize(n, false);
     for j in 0..n {
+        // The centre's inverse depth, NaN unless `> 0`: `≤ f32::MAX` is "finite and > 0".
         let id = b1[j];
         let v = vv[j];
         let depth = 1.0f32 / id;
         let d2 = depth * depth;
         let e = v * (d2 * d2);
-        let mut ok = (id > 0.0) & (id <= f32::MAX);
+        let mut ok = id <= f32::MAX;
         ok &= within(e, th_s) | scaled_off;
         ok &= within(e * s * s, th_a) | abs_off;
         let two_var = 2.0 * v;
+        // Neighbours not `> 0` are NaN here and never agree.
         let agree = |n: f32| {
             let diff = n - id;
-            ((n > 0.0) & (diff * diff < two_var)) as u32
+            (diff * diff < two_var) as u32
         };
+        // The centre agrees with itself when `0 < 2·var` (its own `> 0` is in `ok`).
         let support = agree(a0[j])
             + agree(a1[j])
             + agree(a2[j])
             + agree(b0[j])
-            + agree(b1[j])
+            + (0.0 < two_var) as u32
             + agree(b2[j])
             + agree(c0[j])
             + agree(c1[j])
             + agree(c2[j]);
-        mask[j] = ok & (support >= min_support);
+        mask[j] = (ok & (support >= min_support)) as u8;
     }
 }
 
 /// The viewer's rules, pixel by pixel, for pixels `xs` of row `y` (any position,
-/// with or without a variance).
-fn scalar_pixels(c: &RowCtx<'_>, y: usize, xs: std::ops::Range<usize>, out: &mut Block) {
+/// with or without a variance): appends the kept columns to `out`.
+fn scalar_pixels(c: &RowCtx<'_>, y: usize, xs: std::ops::Range<usize>, out: &mut Vec<u32>) {
     let (kf, f) = (c.p.kf, c.f);
     let (w, h) = (kf.camera.width as usize, kf.camera.height as usize);
     let idepth = &kf.idepth;
@@ -497,26 +681,9 @@ fn scalar_pixels(c: &RowCtx<'_>, y: usize, xs: std::ops::Range<usize>, out: &mut
                 }
             }
         }
-        emit(c, x, y, out);
-    }
-}
-
-/// Appends the point (and colour) of pixel `(x, y)`:
-/// `T_world_cam · ((x − cx)/fx · d, (y − cy)/fy · d, d)`, `d = 1/idepth`.
-#[inline(always)]
-fn emit(c: &RowCtx<'_>, x: usize, y: usize, out: &mut Block) {
-    let (p, kf) = (c.p, c.p.kf);
-    let cam = &kf.camera;
-    let i = x + y * cam.width as usize;
-    let d = 1.0 / kf.idepth[i] as f64;
-    let (u, v) = ((x as f64 - cam.cx) / cam.fx, (y as f64 - cam.cy) / cam.fy);
-    let m = &p.m;
-    let q = |k: usize| (d * (u * m[k][0] + v * m[k][1] + m[k][2]) + p.t[k]) as f32;
-    out.points.extend_from_slice(&[q(0), q(1), q(2)]);
-    if c.with_color {
-        if let Some(col) = &kf.color {
-            out.colors.extend_from_slice(&col[3 * i..3 * i + 3]);
-        }
+        // The column index of an image whose pixel count fits memory fits a `u32`
+        // (`Keyframe` widths are `u32`).
+        out.push(x as u32);
     }
 }
 
@@ -533,43 +700,103 @@ fn near_support(block: &[f32], id: f32, two_var: f32) -> u32 {
         .sum()
 }
 
-/// Concatenates the blocks in order, copying in parallel into buffers of the final size.
-fn concat(blocks: Vec<Block>, with_color: bool) -> PointCloud {
-    let total: usize = blocks.iter().map(|b| b.points.len() / 3).sum();
-    // Zeroed by calloc (fresh pages for large sizes): untouched until the copy below.
-    let mut points = vec![0f32; 3 * total];
-    advise_huge_pages(&mut points);
-    let mut colors = if with_color {
-        vec![0u8; 3 * total]
-    } else {
-        Vec::new()
-    };
-    advise_huge_pages(&mut colors);
-    let mut ids = vec![0i32; total];
-    advise_huge_pages(&mut ids);
-    {
-        let mut jobs = Vec::with_capacity(blocks.len());
-        let (mut pr, mut cr, mut ir) = (&mut points[..], &mut colors[..], &mut ids[..]);
-        for b in &blocks {
-            let n = b.points.len() / 3;
-            let (p, p_rest) = pr.split_at_mut(3 * n);
-            let (c, c_rest) = cr.split_at_mut(if with_color { 3 * n } else { 0 });
-            let (i, i_rest) = ir.split_at_mut(n);
-            jobs.push((b, p, c, i));
-            (pr, cr, ir) = (p_rest, c_rest, i_rest);
-        }
-        jobs.into_par_iter().for_each(|(b, p, c, i)| {
-            p.copy_from_slice(&b.points);
-            if with_color {
-                c.copy_from_slice(&b.colors);
-            }
-            i.fill(b.id);
+/// Allocates the outputs at their final size and fills them in parallel, each
+/// block of rows at its offset: point `T_world_cam · ((x − cx)/fx · d, (y − cy)/fy · d, d)`,
+/// `d = 1/idepth`, computed in `f64` as `d · (u·m₀ + v·m₁ + m₂) + t`.
+fn write_points(prepared: &[Prepared<'_>], kept: &[Kept], with_color: bool) -> PointCloud {
+    let total: usize = kept.iter().map(|b| b.xs.len()).sum();
+    // Every element is written once by `fill_all` (fresh buffers, no zero-fill pass).
+    let (mut colors, mut ids) = (None, None);
+    let points = filled_advised(3 * total, |pts| {
+        colors = filled_advised(if with_color { 3 * total } else { 0 }, |cols| {
+            ids = filled_advised(total, |ids| {
+                fill_all(prepared, kept, pts, cols, ids);
+                true
+            });
+            ids.is_some()
         });
-    }
+        colors.is_some()
+    });
     PointCloud {
-        points,
-        colors: with_color.then_some(colors),
-        keyframe_ids: ids,
+        points: points.unwrap_or_default(),
+        colors: colors.filter(|_| with_color),
+        keyframe_ids: ids.unwrap_or_default(),
+    }
+}
+
+/// Splits the outputs at each block's offset and fills the blocks in parallel:
+/// every element of `pts` (`3·N`), `cols` (`3·N`, or empty without colour) and
+/// `ids` (`N`) is written.
+fn fill_all(
+    prepared: &[Prepared<'_>],
+    kept: &[Kept],
+    pts: &mut [MaybeUninit<f32>],
+    cols: &mut [MaybeUninit<u8>],
+    ids: &mut [MaybeUninit<i32>],
+) {
+    let with_color = !cols.is_empty();
+    let mut jobs = Vec::with_capacity(kept.len());
+    let (mut pr, mut cr, mut ir) = (pts, cols, ids);
+    for b in kept {
+        let n = b.xs.len();
+        let (p, p_rest) = pr.split_at_mut(3 * n);
+        let (c, c_rest) = cr.split_at_mut(if with_color { 3 * n } else { 0 });
+        let (i, i_rest) = ir.split_at_mut(n);
+        jobs.push((b, p, c, i));
+        (pr, cr, ir) = (p_rest, c_rest, i_rest);
+    }
+    jobs.into_par_iter().for_each(|(b, pts, cols, ids)| {
+        let p = &prepared[b.k];
+        fill_block(p, b, pts, cols);
+        for i in ids {
+            i.write(p.kf.id);
+        }
+    });
+}
+
+/// The points (and, when `cols` is not empty, colours) of one block's kept pixels.
+fn fill_block(
+    p: &Prepared<'_>,
+    b: &Kept,
+    pts: &mut [MaybeUninit<f32>],
+    cols: &mut [MaybeUninit<u8>],
+) {
+    let kf = p.kf;
+    let cam = &kf.camera;
+    let w = cam.width as usize;
+    let (m, t) = (&p.m, &p.t);
+    // The point of column `x` of a row with `vm = v·m[k][1]`, `v = (y − cy)/fy`.
+    let point = |row: &[f32], vm: &[f64; 3], x: usize| {
+        let d = 1.0 / row[x] as f64;
+        let um = &p.um[x];
+        [0, 1, 2].map(|k| MaybeUninit::new((d * (um[k] + vm[k] + m[k][2]) + t[k]) as f32))
+    };
+    let mut start = 0;
+    for (r, &end) in b.row_ends[..b.rows].iter().enumerate() {
+        let y = b.y0 + r;
+        let xs = &b.xs[start..end];
+        let row = &kf.idepth[y * w..(y + 1) * w];
+        let v = (y as f64 - cam.cy) / cam.fy;
+        let vm = [v * m[0][1], v * m[1][1], v * m[2][1]];
+        let out = pts[3 * start..3 * end].chunks_exact_mut(3);
+        match (&kf.color, cols.is_empty()) {
+            (Some(col), false) => {
+                let src = &col[3 * y * w..3 * (y + 1) * w];
+                let out_c = cols[3 * start..3 * end].chunks_exact_mut(3);
+                for ((&x, q), c) in xs.iter().zip(out).zip(out_c) {
+                    let x = x as usize;
+                    q.copy_from_slice(&point(row, &vm, x));
+                    let rgb = &src[3 * x..3 * x + 3];
+                    c.copy_from_slice(&[rgb[0], rgb[1], rgb[2]].map(MaybeUninit::new));
+                }
+            }
+            _ => {
+                for (&x, q) in xs.iter().zip(out) {
+                    q.copy_from_slice(&point(row, &vm, x as usize));
+                }
+            }
+        }
+        start = end;
     }
 }
 
@@ -578,6 +805,8 @@ mod tests {
     use super::*;
     use crate::geometry::PinholeCamera;
     use nalgebra::Vector3;
+    use rand::{Rng, SeedableRng};
+    use rand_chacha::ChaCha8Rng;
 
     fn keyframe(id: i32, w: u32, h: u32, idepth: Vec<f32>, var: Option<Vec<f32>>) -> Keyframe {
         let cam =
@@ -600,6 +829,257 @@ mod tests {
         let p = kf.camera.backproject(1.0, 0.0, 2.0);
         for (got, want) in cloud.points.iter().zip(p) {
             assert!((*got as f64 - want).abs() < 1e-6);
+        }
+    }
+
+    /// The viewer's rules pixel by pixel, written from the documentation of
+    /// [`PointFilter`] with no shared code: the 3×3 block read cell by cell, the
+    /// point as `T_world_cam · ((x − cx)/fx · d, (y − cy)/fy · d, d)` in `f64`.
+    fn reference(kfs: &[Keyframe], f: &PointFilter, world_slam: &Sim3) -> PointCloud {
+        let with_color = !kfs.is_empty() && kfs.iter().all(|k| k.color.is_some());
+        let (mut points, mut colors, mut ids) = (Vec::new(), Vec::new(), Vec::new());
+        for (index, kf) in kfs.iter().enumerate() {
+            if f.cut_first_keyframes.is_some_and(|n| index <= n) {
+                continue;
+            }
+            let (m, t) = (*world_slam * kf.pose).affine();
+            let cam = &kf.camera;
+            let (w, h) = (cam.width as i64, cam.height as i64);
+            let b = f.skip_border as i64;
+            let s = kf.pose.scale as f32;
+            let at = |x: i64, y: i64| (x + y * w) as usize;
+            for y in b..h - b {
+                for x in b..w - b {
+                    let id = kf.idepth[at(x, y)];
+                    if !(id > 0.0 && id.is_finite()) {
+                        continue;
+                    }
+                    if f.sparsify > 1 && !sparsify_keeps(f.seed, kf.id, at(x, y), f.sparsify) {
+                        continue;
+                    }
+                    if let Some(var) = &kf.idepth_var {
+                        let v = var[at(x, y)];
+                        let depth = 1.0f32 / id;
+                        let d4 = (depth * depth) * (depth * depth);
+                        // A threshold of +inf is off; a NaN value fails a finite one.
+                        let passes = |e: f32, th: f32| th == f32::INFINITY || e <= th;
+                        if !passes(v * d4, f.scaled_depth_var)
+                            || !passes(v * d4 * s * s, f.abs_depth_var)
+                        {
+                            continue;
+                        }
+                        if f.min_near_support > 1 {
+                            let mut support = 0;
+                            for ny in y - 1..=y + 1 {
+                                for nx in x - 1..=x + 1 {
+                                    if nx < 0 || ny < 0 || nx >= w || ny >= h {
+                                        continue;
+                                    }
+                                    let n = kf.idepth[at(nx, ny)];
+                                    let diff = n - id;
+                                    if n > 0.0 && diff * diff < 2.0 * v {
+                                        support += 1;
+                                    }
+                                }
+                            }
+                            if support < f.min_near_support {
+                                continue;
+                            }
+                        }
+                    }
+                    let d = 1.0 / id as f64;
+                    let u = (x as f64 - cam.cx) / cam.fx;
+                    let v = (y as f64 - cam.cy) / cam.fy;
+                    for k in 0..3 {
+                        points.push((d * (u * m[k][0] + v * m[k][1] + m[k][2]) + t[k]) as f32);
+                    }
+                    if let (true, Some(c)) = (with_color, &kf.color) {
+                        colors.extend_from_slice(&c[3 * at(x, y)..3 * at(x, y) + 3]);
+                    }
+                    ids.push(kf.id);
+                }
+            }
+        }
+        PointCloud {
+            points,
+            colors: with_color.then_some(colors),
+            keyframe_ids: ids,
+        }
+    }
+
+    /// A keyframe of inverse depths near `1` (so that neighbours often agree),
+    /// sprinkled with the values the rules must reject or survive: NaN, ±∞,
+    /// negative, zero, tiny and huge inverse depths, and NaN, zero, infinite and
+    /// negative variances.
+    fn random_keyframe(
+        rng: &mut ChaCha8Rng,
+        id: i32,
+        w: u32,
+        h: u32,
+        var: bool,
+        color: bool,
+    ) -> Keyframe {
+        let n = (w * h) as usize;
+        let base = rng.random_range(0.3..3.0f32);
+        let idepth = (0..n)
+            .map(|_| match rng.random_range(0..100) {
+                0..4 => f32::NAN,
+                4..7 => f32::INFINITY,
+                7..9 => f32::NEG_INFINITY,
+                9..14 => -base,
+                14..22 => 0.0,
+                22 => 1e-30,
+                23 => 3e38,
+                24 => f32::MIN_POSITIVE,
+                _ => base * (1.0 + rng.random_range(-0.02..0.02f32)),
+            })
+            .collect();
+        let var = var.then(|| {
+            (0..n)
+                .map(|_| match rng.random_range(0..100) {
+                    0..3 => f32::NAN,
+                    3..5 => 0.0,
+                    5 => f32::INFINITY,
+                    6 => -1e-3,
+                    _ => 10f32.powf(rng.random_range(-5.0..-2.0)),
+                })
+                .collect()
+        });
+        let color = color.then(|| (0..3 * n).map(|_| rng.random()).collect());
+        let cam = PinholeCamera::try_new(
+            rng.random_range(50.0..500.0),
+            rng.random_range(50.0..500.0),
+            w as f64 * rng.random_range(0.3..0.7),
+            h as f64 * rng.random_range(0.3..0.7),
+            w,
+            h,
+        )
+        .unwrap();
+        let pose = Sim3::from_quaternion_xyzw(
+            [rng.random(), rng.random(), rng.random(), 1.0],
+            Vector3::new(rng.random(), rng.random(), rng.random()),
+            rng.random_range(0.2..5.0),
+        )
+        .unwrap();
+        Keyframe::try_new(id, id as f64, pose, cam, idepth, var, color).unwrap()
+    }
+
+    fn assert_same_cloud(got: &PointCloud, want: &PointCloud, what: &str) {
+        assert_eq!(got.len(), want.len(), "{what}: count");
+        let bits = |c: &PointCloud| c.points.iter().map(|v| v.to_bits()).collect::<Vec<_>>();
+        assert!(bits(got) == bits(want), "{what}: points differ");
+        assert_eq!(got.colors, want.colors, "{what}: colours");
+        assert_eq!(got.keyframe_ids, want.keyframe_ids, "{what}: ids");
+    }
+
+    #[test]
+    fn every_kernel_equals_the_pixel_by_pixel_reference() {
+        let mut rng = ChaCha8Rng::seed_from_u64(11);
+        // Sizes below, at and above the vector widths, one-pixel and two-pixel
+        // images, and images of several blocks of rows (`ROWS_PER_TASK`).
+        let sizes = [
+            (1, 1),
+            (2, 2),
+            (3, 3),
+            (1, 7),
+            (7, 1),
+            (2, 9),
+            (4, 3),
+            (17, 5),
+        ];
+        let sizes = sizes
+            .into_iter()
+            .chain([(37, 33), (64, 40), (71, 9), (13, 150)]);
+        let mut keyframes = Vec::new();
+        for (i, (w, h)) in sizes.enumerate() {
+            keyframes.push(random_keyframe(&mut rng, i as i32, w, h, true, true));
+        }
+        let sets = [
+            keyframes.clone(),
+            // Without variance, and a keyframe without colour (no colours at all).
+            vec![
+                random_keyframe(&mut rng, 20, 23, 140, false, true),
+                random_keyframe(&mut rng, 21, 33, 35, true, true),
+                random_keyframe(&mut rng, 22, 9, 40, true, false),
+            ],
+            // Keyframes of one size one after the other (per-thread buffers reused).
+            (30..38)
+                .map(|id| random_keyframe(&mut rng, id, 19, 70, true, true))
+                .collect(),
+        ];
+        let filters = [
+            PointFilter::default(),
+            PointFilter::none(),
+            PointFilter {
+                cut_first_keyframes: None,
+                ..PointFilter::default()
+            },
+            PointFilter {
+                cut_first_keyframes: Some(0),
+                min_near_support: 3,
+                sparsify: 3,
+                seed: 5,
+                ..PointFilter::default()
+            },
+            PointFilter {
+                cut_first_keyframes: None,
+                skip_border: false,
+                min_near_support: 9,
+                scaled_depth_var: 1e-2,
+                abs_depth_var: 3e-3,
+                ..PointFilter::default()
+            },
+            PointFilter {
+                cut_first_keyframes: None,
+                skip_border: false,
+                min_near_support: 1,
+                scaled_depth_var: 0.0,
+                sparsify: 2,
+                ..PointFilter::default()
+            },
+        ];
+        let world =
+            Sim3::from_quaternion_xyzw([0.3, 0.1, -0.2, 1.0], Vector3::new(1.0, -2.0, 3.0), 2.5)
+                .unwrap();
+        let mut kernels = vec![Kernel::Portable, Kernel::detect()];
+        kernels.dedup();
+        for (si, set) in sets.iter().enumerate() {
+            for (fi, f) in filters.iter().enumerate() {
+                let want = reference(set, f, &world);
+                // The default cuts every keyframe of the three-keyframe set.
+                assert!(
+                    !want.is_empty() || (si, fi) == (1, 0),
+                    "set {si} filter {fi}"
+                );
+                for &kernel in &kernels {
+                    let got = backproject_with(set, f, |_| world, kernel).unwrap();
+                    assert_same_cloud(&got, &want, &format!("set {si} filter {fi} {kernel:?}"));
+                }
+            }
+        }
+    }
+
+    #[test]
+    fn positive_rows_follow_the_keyframe_and_the_row() {
+        let w = 4;
+        let a: Vec<f32> = (0..20).map(|i| i as f32 - 5.0).collect();
+        let b: Vec<f32> = a.iter().map(|v| 2.0 * v + 1.0).collect();
+        let mut ring = PositiveRows::default();
+        // The same rows of another keyframe, rows out of order, and back.
+        for (k, img) in [(0, &a), (1, &b), (0, &a)] {
+            for y in [1, 3, 2, 1] {
+                let got = ring.around(k, img, w, y);
+                for (r, got) in (y - 1..=y + 1).zip(got) {
+                    let want =
+                        img[r * w..(r + 1) * w]
+                            .iter()
+                            .map(|&n| if n > 0.0 { n } else { f32::NAN });
+                    assert!(got
+                        .iter()
+                        .zip(want)
+                        .all(|(g, w)| g.to_bits() == w.to_bits()));
+                }
+            }
         }
     }
 
