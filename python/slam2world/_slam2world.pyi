@@ -490,8 +490,6 @@ def run_cli(argv: list[str]) -> int: ...
 
 # ---------------------------------------------------------------- mcap
 
-_Series = tuple[npt.NDArray[np.float64], npt.NDArray[np.float64], npt.NDArray[np.float64]]
-
 @final
 class Log:
     @property
@@ -501,7 +499,7 @@ class Log:
     @property
     def reference(self) -> Trajectory | None: ...
     @property
-    def imu(self) -> _Series | None: ...
+    def imu(self) -> ImuSamples | None: ...
     @property
     def keyframe_topic(self) -> str | None: ...
     @property

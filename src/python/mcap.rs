@@ -2,27 +2,20 @@
 
 use std::path::PathBuf;
 
-use numpy::ndarray::Array1;
-use numpy::{IntoPyArray, PyArray1, PyArray2, PyUntypedArrayMethods};
+use numpy::PyUntypedArrayMethods;
 use pyo3::prelude::*;
 use pyo3::sync::PyOnceLock;
 
 use super::beyond::window_arg;
 use super::cloud::{PyKeyframe, PyPointCloud, PyPointFilter};
-use super::convert::to_array2;
 use super::core::{extended_options, PyTrajectory, PyTrajectoryAlignment};
 use super::geometry::PySim3;
+use super::imu::PyImuSamples;
 use super::map::PyOccupancyMap;
 use crate::geometry::Sim3;
 use crate::io::mcap::{self as io_mcap, ReadOptions, WorldFlavor, WorldScene};
 use crate::pipeline::{self, ConvertOptions};
 use crate::trajectory::TrajectoryAlignOptions;
-
-type Series<'py> = (
-    Bound<'py, PyArray1<f64>>,
-    Bound<'py, PyArray2<f64>>,
-    Bound<'py, PyArray2<f64>>,
-);
 
 /// A log read by `read_mcap`.
 #[pyclass(name = "Log", module = "slam2world._slam2world", frozen)]
@@ -59,16 +52,11 @@ impl PyLog {
             .as_ref()
             .map(|r| PyTrajectory { inner: r.clone() })
     }
-    /// Raw IMU as `(timestamps (N,), gyro (N, 3) rad/s, accel (N, 3) m/s²)`, or None.
+    /// Raw IMU samples (timestamps s, gyro rad/s, accel m/s², IMU frame), or None;
+    /// ready for `imu_initialize`.
     #[getter]
-    fn imu<'py>(&self, py: Python<'py>) -> PyResult<Option<Series<'py>>> {
-        let Some(s) = &self.log.imu else {
-            return Ok(None);
-        };
-        let t = Array1::from_vec(s.timestamps.clone()).into_pyarray(py);
-        let g: Vec<f64> = s.gyro.iter().flat_map(|v| [v.x, v.y, v.z]).collect();
-        let a: Vec<f64> = s.accel.iter().flat_map(|v| [v.x, v.y, v.z]).collect();
-        Ok(Some((t, to_array2(py, g, 3)?, to_array2(py, a, 3)?)))
+    fn imu(&self) -> Option<PyImuSamples> {
+        self.log.imu.clone().map(|inner| PyImuSamples { inner })
     }
     /// Topic of the keyframes, or None.
     #[getter]

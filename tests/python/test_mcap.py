@@ -217,9 +217,10 @@ def test_lsd_slam_log_written_by_python_decodes(tmp_path: Path) -> None:
     np.testing.assert_array_equal(ref.orientations, np.tile([0.0, 0.0, 0.0, 1.0], (len(ts), 1)))
     imu = log.imu
     assert imu is not None
-    np.testing.assert_allclose(imu[0], exp["imu"][0], atol=1e-9)
-    np.testing.assert_array_equal(imu[1], exp["imu"][1])
-    np.testing.assert_array_equal(imu[2], exp["imu"][2])
+    assert isinstance(imu, s2w.ImuSamples) and len(imu) == len(exp["imu"][0])
+    np.testing.assert_allclose(imu.timestamps, exp["imu"][0], atol=1e-9)
+    np.testing.assert_array_equal(imu.gyro, exp["imu"][1])
+    np.testing.assert_array_equal(imu.accel, exp["imu"][2])
 
 
 def test_nav2_sim_odometry() -> None:
