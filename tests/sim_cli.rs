@@ -64,8 +64,8 @@ fn demo_then_evaluate() {
         "world.mcap",
         "demo.json",
         "sim.truth.json",
-        "points.f32",
-        "scale_factors.f64",
+        "plot_data/points.f32",
+        "plot_data/scale_factors.f64",
     ] {
         let m = std::fs::metadata(out.join(f)).unwrap();
         assert!(m.len() > 100, "{f} is too small");

@@ -6,7 +6,7 @@
 - :func:`plot_error_histogram`: distances of the converted points to the true surfaces.
 
 ``python -m slam2world.plot DIR`` draws all four from the files that ``slam2world demo``
-writes into ``DIR`` (``demo.json`` and raw little-endian arrays).
+writes into ``DIR`` (``demo.json`` and raw little-endian arrays in ``DIR/plot_data``).
 Every file is written to a temporary name in its folder and renamed.
 """
 

@@ -400,40 +400,43 @@ pub fn run_demo(args: &DemoArgs) -> Result<()> {
     let files = [
         (
             "points",
-            "points.f32",
+            "plot_data/points.f32",
             raw_f32(cloud.points.iter().copied()),
         ),
         (
             "distances",
-            "distances.f32",
+            "plot_data/distances.f32",
             raw_f32(d.iter().map(|&v| v as f32)),
         ),
         (
             "distances_true_transform",
-            "distances_true.f32",
+            "plot_data/distances_true.f32",
             raw_f32(d_true.iter().map(|&v| v as f32)),
         ),
         (
             "true_path",
-            "true_path.f64",
+            "plot_data/true_path.f64",
             raw_f64(vec3s(&sim.truth.camera.positions)),
         ),
         (
             "slam_path",
-            "slam_path.f64",
+            "plot_data/slam_path.f64",
             raw_f64(vec3s(&sim.slam_frames.positions)),
         ),
         (
             "aligned_keyframes",
-            "aligned_keyframes.f64",
+            "plot_data/aligned_keyframes.f64",
             raw_f64(vec3s(&aligned.positions)),
         ),
         (
             "scale_factors",
-            "scale_factors.f64",
+            "plot_data/scale_factors.f64",
             raw_f64(p_k.iter().copied()),
         ),
     ];
+    // The figures' arrays, out of the way of the outputs a user opens.
+    std::fs::create_dir_all(dir.join("plot_data"))
+        .map_err(|e| Error::io(dir.join("plot_data"), e))?;
     let mut names = serde_json::Map::new();
     for (key, name, bytes) in &files {
         write_bytes_atomic(&dir.join(name), bytes)?;
