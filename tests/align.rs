@@ -384,3 +384,68 @@ fn sim3_algebra_agrees_with_4x4_matrices() {
         assert!((back.scale / s - 1.0).abs() < 1e-12);
     }
 }
+
+#[test]
+fn one_pass_rmse_property_over_random_problems() {
+    // Random sizes (3 … 5000: the prior's sample is all of the pairs or a
+    // part), scales 1e-3 … 1e3, noise from none to larger than the spread,
+    // centres far from the origin, weights with zeros: the rms residual of the
+    // one-pass fit equals that of the explicit residuals, to the rounding of
+    // the residuals themselves.
+    let mut rng = ChaCha8Rng::seed_from_u64(23);
+    let flat = |v: &[Vector3<f64>]| v.iter().flat_map(|p| [p.x, p.y, p.z]).collect::<Vec<_>>();
+    for case in 0..200 {
+        let n = if case % 4 == 0 {
+            rng.random_range(3..40)
+        } else {
+            rng.random_range(40..5000)
+        };
+        let scale = 10f64.powf(rng.random_range(-3.0..3.0));
+        let t = random_sim3(&mut rng, scale);
+        let centre = [0.0, 1.0, 1e3][case % 3];
+        let a = random_cloud(&mut rng, n, 1.0, centre);
+        let sigma = [0.0, 1e-9, 1e-4, 1e-1, 3.0][case % 5] * scale;
+        let b: Vec<Vector3<f64>> = a
+            .iter()
+            .map(|p| {
+                let e: [f64; 3] = [
+                    StandardNormal.sample(&mut rng),
+                    StandardNormal.sample(&mut rng),
+                    StandardNormal.sample(&mut rng),
+                ];
+                t.transform_point(p) + Vector3::from(e) * sigma
+            })
+            .collect();
+        let weights = (case % 2 == 1).then(|| {
+            (0..n)
+                .map(|i| {
+                    if i % 5 == 0 {
+                        0.0
+                    } else {
+                        rng.random_range(0.1..2.0)
+                    }
+                })
+                .collect::<Vec<f64>>()
+        });
+        let opts = AlignOptions {
+            weights,
+            ..Default::default()
+        };
+        let (fa, fb) = (flat(&a), flat(&b));
+        let eager = match align_flat(&fa, &fb, &opts) {
+            Ok(r) => r,
+            // Tiny weighted problems may leave fewer than three pairs.
+            Err(Error::TooFew { .. }) => continue,
+            Err(e) => panic!("case {case}: {e}"),
+        };
+        let fit = fit_flat(&fa, &fb, &opts).unwrap();
+        assert_eq!(fit.transform, eager.transform, "case {case}");
+        let tol = 1e-9 * eager.rmse + 16.0 * f64::EPSILON * max_abs(&b);
+        assert!(
+            (fit.rmse - eager.rmse).abs() <= tol,
+            "case {case} (n {n}, σ {sigma:e}): {} vs {}",
+            fit.rmse,
+            eager.rmse
+        );
+    }
+}
