@@ -14,6 +14,7 @@ use nalgebra::{Matrix3, Matrix4, SMatrix, SVector, UnitQuaternion, Vector3, Vect
 use super::{align, horn, umeyama, AlignDiagnostics, AlignOptions, Alignment};
 use crate::error::{Error, Result};
 use crate::geometry::Sim3;
+use crate::trajectory::{associate, Trajectory};
 
 /// Iterations of the alternating schemes (they stop earlier once converged).
 const MAX_ITERATIONS: usize = 50;
@@ -341,6 +342,32 @@ pub fn estimate_body_from_cam(
         alignment: fit,
         rotation_rmse,
     })
+}
+
+/// [`estimate_body_from_cam`] on two trajectories with orientations: SLAM
+/// keyframes `T_slam_cam` and reference body poses `T_world_body`, paired as
+/// [`associate`] does (`offset` seconds added to the SLAM stamps). Also
+/// returns the number of pairs.
+pub fn estimate_body_from_cam_trajectories(
+    slam: &Trajectory,
+    reference: &Trajectory,
+    max_diff: f64,
+    offset: f64,
+) -> Result<(HandEye, usize)> {
+    slam.check_lengths()?;
+    reference.check_lengths()?;
+    let (Some(qs), Some(qr)) = (&slam.orientations, &reference.orientations) else {
+        return Err(Error::invalid(
+            "orientations",
+            "the extrinsic needs the orientations of both trajectories",
+        ));
+    };
+    let pairs = associate(reference, slam, max_diff, offset);
+    let a: Vec<Vector3<f64>> = pairs.iter().map(|&(_, i)| slam.positions[i]).collect();
+    let ra: Vec<_> = pairs.iter().map(|&(_, i)| qs[i]).collect();
+    let b: Vec<Vector3<f64>> = pairs.iter().map(|&(j, _)| reference.positions[j]).collect();
+    let rb: Vec<_> = pairs.iter().map(|&(j, _)| qr[j]).collect();
+    Ok((estimate_body_from_cam(&a, &ra, &b, &rb)?, pairs.len()))
 }
 
 #[cfg(test)]

@@ -8,6 +8,7 @@ use std::path::{Path, PathBuf};
 use clap::{Args, ValueEnum};
 
 use crate::align::extended::align_trajectories_extended;
+use crate::align::handeye::{estimate_body_from_cam_trajectories, HandEye};
 use crate::align::AlignMethod;
 use crate::error::{Error, Result};
 use crate::trajectory::{Trajectory, TrajectoryAlignOptions};
@@ -63,6 +64,11 @@ pub struct AlignArgs {
     /// Print one JSON object instead of text.
     #[arg(long)]
     json: bool,
+    /// Also estimate the camera–body extrinsic T_body_cam (hand-eye calibration
+    /// with scale): both files need orientations, and the motion rotations about
+    /// two axes at least.
+    #[arg(long, conflicts_with_all = ["no_scale", "body_from_cam"])]
+    estimate_body_from_cam: bool,
     #[command(flatten)]
     beyond: super::beyond::BeyondArgs,
 }
@@ -106,6 +112,17 @@ pub fn run(args: AlignArgs) -> Result<()> {
         },
     };
     let ext = align_trajectories_extended(&est, &reference, &opts, &args.beyond.options())?;
+    // The extrinsic at the offset the fit used (given plus estimated).
+    let hand_eye = if args.estimate_body_from_cam {
+        Some(estimate_body_from_cam_trajectories(
+            &est,
+            &reference,
+            args.max_diff,
+            ext.offset,
+        )?)
+    } else {
+        None
+    };
     let r = &ext.trajectory;
     let t = r.alignment.transform;
     let q = t.quaternion_xyzw();
@@ -137,6 +154,9 @@ pub fn run(args: AlignArgs) -> Result<()> {
         });
         let mut v = v;
         v["beyond"] = super::beyond::report_json(&ext, args.beyond.confidence);
+        if let Some((he, n)) = &hand_eye {
+            v["body_from_cam_estimate"] = hand_eye_json(he, *n);
+        }
         format!("{v}\n")
     } else {
         let mut s = String::new();
@@ -176,10 +196,51 @@ pub fn run(args: AlignArgs) -> Result<()> {
             ape.n_pairs, ape.rmse, ape.mean, ape.median, ape.std, ape.min, ape.max
         );
         s += &super::beyond::report_text(&ext, args.beyond.confidence);
+        if let Some((he, n)) = &hand_eye {
+            s += &hand_eye_text(he, *n);
+        }
         s
     };
     let mut out = std::io::stdout().lock();
     out.write_all(text.as_bytes())
         .and_then(|_| out.flush())
         .map_err(|e| Error::io("<stdout>", e))
+}
+
+/// The estimated extrinsic as JSON: `T_body_cam` and how well it fits.
+fn hand_eye_json(he: &HandEye, n_pairs: usize) -> serde_json::Value {
+    let b = &he.body_from_cam;
+    let w = &he.alignment.transform;
+    serde_json::json!({
+        "translation": [b.translation.x, b.translation.y, b.translation.z],
+        "quaternion_xyzw": b.quaternion_xyzw(),
+        "scale": w.scale,
+        "world_from_slam_translation": [w.translation.x, w.translation.y, w.translation.z],
+        "world_from_slam_quaternion_xyzw": w.quaternion_xyzw(),
+        "position_rmse": he.alignment.rmse,
+        "rotation_rmse_deg": he.rotation_rmse.to_degrees(),
+        "n_pairs": n_pairs,
+    })
+}
+
+/// The estimated extrinsic as text lines.
+fn hand_eye_text(he: &HandEye, n_pairs: usize) -> String {
+    let b = &he.body_from_cam;
+    let q = b.quaternion_xyzw();
+    format!(
+        "T_body_cam (estimated with T_ref_est over {n_pairs} pairs; scale {:.9}):\n  \
+         translation  [{:.6}, {:.6}, {:.6}]\n  \
+         quaternion   [{:.9}, {:.9}, {:.9}, {:.9}]  (x, y, z, w)\n  \
+         fit: position rmse {:.6} m, rotation rmse {:.4} deg\n",
+        he.alignment.transform.scale,
+        b.translation.x,
+        b.translation.y,
+        b.translation.z,
+        q[0],
+        q[1],
+        q[2],
+        q[3],
+        he.alignment.rmse,
+        he.rotation_rmse.to_degrees()
+    )
 }

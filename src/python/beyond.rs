@@ -1,19 +1,17 @@
 //! Beyond one fit, for Python: `detect_stages`, `Stages`, `estimate_time_offset`,
 //! `align_windowed`, `WindowedAlignment`, `estimate_body_from_cam`.
 
-use nalgebra::Vector3;
 use numpy::{IntoPyArray, PyArray1};
 use pyo3::prelude::*;
 
 use super::convert::vec_f64;
 use super::core::{PyAlignment, PyTrajectory};
 use super::geometry::PySim3;
-use crate::align::handeye::estimate_body_from_cam;
+use crate::align::handeye::estimate_body_from_cam_trajectories;
 use crate::align::stages::{detect_stages, Stages};
 use crate::align::time_offset::{estimate_time_offset, TimeOffsetOptions};
 use crate::align::windowed::{align_windowed, Window, WindowedAlignment, WindowedOptions};
 use crate::error::Error;
-use crate::trajectory::associate;
 
 /// The start-up stages of a run, indices into the scale factors `p_k`.
 #[pyclass(
@@ -224,22 +222,7 @@ fn estimate_body_from_cam_py(
     offset: f64,
 ) -> PyResult<(PySim3, PyAlignment, f64)> {
     let (s, r) = (&slam.inner, &reference.inner);
-    let he = py.detach(|| -> crate::error::Result<_> {
-        s.check_lengths()?;
-        r.check_lengths()?;
-        let (Some(qs), Some(qr)) = (&s.orientations, &r.orientations) else {
-            return Err(Error::invalid(
-                "orientations",
-                "both trajectories need orientations",
-            ));
-        };
-        let pairs = associate(r, s, max_diff, offset);
-        let a: Vec<Vector3<f64>> = pairs.iter().map(|&(_, i)| s.positions[i]).collect();
-        let ra: Vec<_> = pairs.iter().map(|&(_, i)| qs[i]).collect();
-        let b: Vec<Vector3<f64>> = pairs.iter().map(|&(j, _)| r.positions[j]).collect();
-        let rb: Vec<_> = pairs.iter().map(|&(j, _)| qr[j]).collect();
-        estimate_body_from_cam(&a, &ra, &b, &rb)
-    })?;
+    let (he, _) = py.detach(|| estimate_body_from_cam_trajectories(s, r, max_diff, offset))?;
     Ok((
         he.body_from_cam.into(),
         PyAlignment::new(py, he.alignment),

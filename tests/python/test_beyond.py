@@ -168,3 +168,5 @@ def test_body_from_cam_is_estimated_on_synthetic_poses() -> None:
     assert fit.rmse < 1e-8
     assert rot_rmse < 1e-6
     np.testing.assert_allclose(est.matrix(), body_from_cam.matrix(), atol=1e-8)
+    with pytest.raises(s2w.InvalidInputError, match="orientations"):
+        s2w.estimate_body_from_cam(s2w.Trajectory(f, p), ref)
