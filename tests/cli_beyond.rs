@@ -10,6 +10,18 @@ fn bin(args: &[&str]) -> Output {
         .expect("the slam2world binary runs")
 }
 
+/// Runs the binary, which must succeed, and parses its JSON output.
+fn run_json(args: &[&str]) -> serde_json::Value {
+    let o = bin(args);
+    assert_eq!(
+        o.status.code(),
+        Some(0),
+        "{}",
+        String::from_utf8_lossy(&o.stderr)
+    );
+    serde_json::from_slice(&o.stdout).unwrap()
+}
+
 fn data(file: &str) -> Option<PathBuf> {
     let p = Path::new(env!("CARGO_MANIFEST_DIR"))
         .join("../shared/data/euroc_mh01_orbslam3_mono")
@@ -38,6 +50,17 @@ fn seconds_copy(src: &Path, dst: &Path) {
     std::fs::write(dst, out).unwrap();
 }
 
+/// MH01: the ORB-SLAM3 trajectory in seconds (in a temporary folder, kept
+/// while the first value lives) and the ground truth; `None` without the data.
+fn mh01() -> Option<(tempfile::TempDir, String, String)> {
+    let (est, gt) = (data("f_dataset-MH01_mono.txt")?, data("MH_01_easy.txt")?);
+    let dir = tempfile::tempdir().unwrap();
+    let e = dir.path().join("est.txt");
+    seconds_copy(&est, &e);
+    let e = e.to_str().unwrap().to_string();
+    Some((dir, e, gt.to_str().unwrap().to_string()))
+}
+
 const T_BS: &str = "0.0148655429818, -0.999880929698, 0.00414029679422, -0.0216401454975, \
                     0.999557249008, 0.0149672133247, 0.025715529948, -0.064676986768, \
                     -0.0257744366974, 0.00375618835797, 0.999660727178, 0.00981073058949, \
@@ -45,14 +68,11 @@ const T_BS: &str = "0.0148655429818, -0.999880929698, 0.00414029679422, -0.02164
 
 #[test]
 fn align_reports_cut_offset_inliers_and_intervals() {
-    let (Some(est), Some(gt)) = (data("f_dataset-MH01_mono.txt"), data("MH_01_easy.txt")) else {
+    let Some((_dir, e, r)) = mh01() else {
         return;
     };
-    let dir = tempfile::tempdir().unwrap();
-    let e = dir.path().join("est.txt");
-    seconds_copy(&est, &e);
-    let (e, r) = (e.to_str().unwrap(), gt.to_str().unwrap());
-    let o = bin(&[
+    let (e, r) = (e.as_str(), r.as_str());
+    let v = run_json(&[
         "align",
         e,
         r,
@@ -63,13 +83,6 @@ fn align_reports_cut_offset_inliers_and_intervals() {
         T_BS,
         "--json",
     ]);
-    assert_eq!(
-        o.status.code(),
-        Some(0),
-        "{}",
-        String::from_utf8_lossy(&o.stderr)
-    );
-    let v: serde_json::Value = serde_json::from_slice(&o.stdout).unwrap();
     let b = &v["beyond"];
     let start = b["fit_start"].as_u64().unwrap();
     assert!(start > 0 && start as usize == b["stages"]["stable_start"].as_u64().unwrap() as usize);
@@ -123,6 +136,30 @@ fn tum(stamps: &[f64], poses: &[slam2world::Sim3]) -> String {
         .collect()
 }
 
+/// `slam2world align EST REF --estimate-body-from-cam --json`: the report and
+/// the estimated `T_body_cam`.
+fn estimate_extrinsic(est: &str, reference: &str) -> (serde_json::Value, slam2world::Sim3) {
+    let v = run_json(&[
+        "align",
+        est,
+        reference,
+        "--estimate-body-from-cam",
+        "--json",
+    ]);
+    let f = |k: &str| -> Vec<f64> {
+        let a = v["body_from_cam_estimate"][k].as_array().unwrap();
+        a.iter().map(|x| x.as_f64().unwrap()).collect()
+    };
+    let (t, q) = (f("translation"), f("quaternion_xyzw"));
+    let t = slam2world::Sim3::from_quaternion_xyzw(
+        [q[0], q[1], q[2], q[3]],
+        nalgebra::Vector3::new(t[0], t[1], t[2]),
+        1.0,
+    )
+    .unwrap();
+    (v, t)
+}
+
 #[test]
 fn align_estimates_the_camera_body_extrinsic() {
     use nalgebra::{UnitQuaternion, Vector3};
@@ -170,29 +207,13 @@ fn align_estimates_the_camera_body_extrinsic() {
     std::fs::write(&e, tum(&stamps, &slam)).unwrap();
     std::fs::write(&r, tum(&stamps, &body)).unwrap();
     let (e, r) = (e.to_str().unwrap(), r.to_str().unwrap());
-    let o = bin(&["align", e, r, "--estimate-body-from-cam", "--json"]);
-    assert_eq!(
-        o.status.code(),
-        Some(0),
-        "{}",
-        String::from_utf8_lossy(&o.stderr)
-    );
-    let v: serde_json::Value = serde_json::from_slice(&o.stdout).unwrap();
+    let (v, est) = estimate_extrinsic(e, r);
     let h = &v["body_from_cam_estimate"];
-    let f = |k: &str| -> Vec<f64> {
-        h[k].as_array()
-            .unwrap()
-            .iter()
-            .map(|x| x.as_f64().unwrap())
-            .collect()
-    };
-    let (t, q) = (f("translation"), f("quaternion_xyzw"));
     assert!(
-        (Vector3::new(t[0], t[1], t[2]) - body_from_cam.translation).norm() < 1e-6,
-        "{t:?}"
+        (est.translation - body_from_cam.translation).norm() < 1e-6,
+        "{est:?}"
     );
-    let q = UnitQuaternion::from_quaternion(nalgebra::Quaternion::new(q[3], q[0], q[1], q[2]));
-    assert!(q.angle_to(&body_from_cam.rotation) < 1e-6);
+    assert!(est.rotation.angle_to(&body_from_cam.rotation) < 1e-6);
     assert!((h["scale"].as_f64().unwrap() - 5.0).abs() < 1e-6);
     assert!(h["position_rmse"].as_f64().unwrap() < 1e-6);
     assert_eq!(h["n_pairs"].as_u64(), Some(300));
@@ -233,37 +254,16 @@ fn estimated_extrinsic_on_euroc_mh01_is_near_the_calibration() {
     // the estimate must land near EuRoC's cam0 calibration T_BS (rotation
     // within 2°, lever arm within 4 cm, where a zero lever arm is 6.9 cm off)
     // and lower the position error of the fit.
-    let (Some(est), Some(gt)) = (data("f_dataset-MH01_mono.txt"), data("MH_01_easy.txt")) else {
+    let Some((_dir, e, r)) = mh01() else {
         return;
     };
-    let dir = tempfile::tempdir().unwrap();
-    let e = dir.path().join("est.txt");
-    seconds_copy(&est, &e);
-    let (e, r) = (e.to_str().unwrap(), gt.to_str().unwrap());
-    let o = bin(&["align", e, r, "--estimate-body-from-cam", "--json"]);
-    assert_eq!(
-        o.status.code(),
-        Some(0),
-        "{}",
-        String::from_utf8_lossy(&o.stderr)
-    );
-    let v: serde_json::Value = serde_json::from_slice(&o.stdout).unwrap();
+    let (e, r) = (e.as_str(), r.as_str());
+    let (v, est) = estimate_extrinsic(e, r);
     let h = &v["body_from_cam_estimate"];
-    let f = |k: &str| -> Vec<f64> {
-        h[k].as_array()
-            .unwrap()
-            .iter()
-            .map(|x| x.as_f64().unwrap())
-            .collect()
-    };
     let m: Vec<f64> = T_BS.split(',').map(|x| x.trim().parse().unwrap()).collect();
     let calib = slam2world::Sim3::from_matrix(&nalgebra::Matrix4::from_row_slice(&m)).unwrap();
-    let (t, q) = (f("translation"), f("quaternion_xyzw"));
-    let q = nalgebra::UnitQuaternion::from_quaternion(nalgebra::Quaternion::new(
-        q[3], q[0], q[1], q[2],
-    ));
-    let angle = q.angle_to(&calib.rotation).to_degrees();
-    let lever = (nalgebra::Vector3::new(t[0], t[1], t[2]) - calib.translation).norm();
+    let angle = est.rotation.angle_to(&calib.rotation).to_degrees();
+    let lever = (est.translation - calib.translation).norm();
     eprintln!("T_body_cam estimate: rotation {angle:.3} deg, lever arm {lever:.4} m from T_BS");
     assert!(angle < 2.0 && lever < 0.04, "{angle} deg, {lever} m");
     assert!(h["position_rmse"].as_f64().unwrap() < v["ape"]["rmse"].as_f64().unwrap());
