@@ -22,7 +22,7 @@ use serde::Serialize;
 
 use crate::align::extended::{align_trajectories_extended, ExtendedAlignment, ExtendedOptions};
 use crate::align::windowed::{align_windowed, Window, WindowedOptions};
-use crate::cloud::{backproject, PointCloud, PointFilter};
+use crate::cloud::{backproject, backproject_per_keyframe, PointCloud, PointFilter};
 use crate::error::{Error, Result};
 use crate::geometry::Sim3;
 use crate::io::mcap::{
@@ -44,8 +44,13 @@ pub struct ConvertOptions {
     /// Start-up cut, robust fit, orientations, time offset, extrinsic.
     pub beyond: ExtendedOptions,
     /// Also fit a windowed (drift-aware) alignment and compare it with the
-    /// single Sim(3) in the report (the cloud still uses the single Sim(3)).
+    /// single Sim(3) in the report.
     pub compare_windowed: Option<Window>,
+    /// Carry each keyframe (its points, camera centre and world pose) with the
+    /// windowed alignment at its time instead of the single Sim(3); needs
+    /// `compare_windowed` (the window). The report's `t_world_slam` stays the
+    /// single fit.
+    pub windowed_cloud: bool,
     /// Inertial initialisation, used when the log has raw IMU samples: for
     /// `T_world_slam` without reference poses, as a consistency check with them.
     pub imu: crate::imu::ImuInitOptions,
@@ -61,6 +66,12 @@ impl ConvertOptions {
     /// The octree's parameters (OctoMap's sensor model defaults), `None` when
     /// no octree is asked for; checks the resolution and the max range.
     pub fn octree_params(&self) -> Result<Option<MapParams>> {
+        if self.windowed_cloud && self.compare_windowed.is_none() {
+            return Err(Error::invalid(
+                "windowed_cloud",
+                "needs the window of the windowed alignment (compare_windowed)",
+            ));
+        }
         let Some(resolution) = self.octree_resolution else {
             return Ok(None);
         };
@@ -306,6 +317,8 @@ pub fn convert(log: &Log, opts: &ConvertOptions) -> Result<Conversion> {
     let inliers = ext.inliers.clone();
     let offset = ext.offset;
     let ta = &ext.trajectory;
+    // With `windowed_cloud`: T_world_slam per keyframe, in the log's order.
+    let mut per_keyframe: Option<Vec<Sim3>> = None;
     let windowed = match opts.compare_windowed {
         Some(window) => {
             let w = align_windowed(
@@ -320,7 +333,16 @@ pub fn convert(log: &Log, opts: &ConvertOptions) -> Result<Conversion> {
             )?;
             let scales = w.transforms.iter().map(|t| t.scale);
             let (lo, hi) = scales.fold((f64::INFINITY, 0.0f64), |(a, b), s| (a.min(s), b.max(s)));
+            if opts.windowed_cloud {
+                per_keyframe = Some(
+                    log.keyframes
+                        .iter()
+                        .map(|k| w.transform_at(k.timestamp))
+                        .collect(),
+                );
+            }
             Some(serde_json::json!({
+                "cloud": if opts.windowed_cloud { "windowed" } else { "single" },
                 "window": format!("{window:?}"),
                 "windowed_rmse": w.rmse,
                 "single_rmse": w.global.rmse,
@@ -334,12 +356,23 @@ pub fn convert(log: &Log, opts: &ConvertOptions) -> Result<Conversion> {
     let t = ta.alignment.transform;
 
     let t1 = Instant::now();
-    let cloud = backproject(&log.keyframes, &opts.filter, Some(&t))?;
+    let cloud = match &per_keyframe {
+        Some(ts) => backproject_per_keyframe(&log.keyframes, &opts.filter, ts)?,
+        None => backproject(&log.keyframes, &opts.filter, Some(&t))?,
+    };
     let backproject_s = secs(t1);
+    // T_world_slam of keyframe `i` of the log.
+    let t_of = |i: usize| per_keyframe.as_ref().map_or(t, |ts| ts[i]);
 
     let (octree, octree_report) = match octree_params {
         Some(params) => {
-            let (map, report) = build_octree(log, &t, &cloud, params)?;
+            let origins = log
+                .keyframes
+                .iter()
+                .enumerate()
+                .map(|(i, kf)| (kf.id, camera_center(kf, &t_of(i))))
+                .collect();
+            let (map, report) = build_octree(&origins, &cloud, params)?;
             (Some(map), Some(report))
         }
         None => (None, None),
@@ -349,11 +382,15 @@ pub fn convert(log: &Log, opts: &ConvertOptions) -> Result<Conversion> {
         slam.timestamps.clone(),
         slam.positions
             .iter()
-            .map(|p| t.transform_point(p))
+            .zip(&order)
+            .map(|(p, &i)| t_of(i).transform_point(p))
             .collect(),
-        slam.orientations
-            .as_ref()
-            .map(|o| o.iter().map(|q| t.rotation * q).collect()),
+        slam.orientations.as_ref().map(|o| {
+            o.iter()
+                .zip(&order)
+                .map(|(q, &i)| t_of(i).rotation * q)
+                .collect()
+        }),
     )?;
 
     let n_fit = opts
@@ -450,24 +487,25 @@ pub fn convert(log: &Log, opts: &ConvertOptions) -> Result<Conversion> {
 pub fn camera_centers(log: &Log, t_world_slam: &Sim3) -> BTreeMap<i32, [f32; 3]> {
     log.keyframes
         .iter()
-        .map(|kf| {
-            let c = t_world_slam.transform_point(&kf.pose.translation);
-            (kf.id, [c.x as f32, c.y as f32, c.z as f32])
-        })
+        .map(|kf| (kf.id, camera_center(kf, t_world_slam)))
         .collect()
+}
+
+/// A keyframe's camera centre in the world frame (OctoMap's `f32`).
+fn camera_center(kf: &crate::keyframe::Keyframe, t_world_slam: &Sim3) -> [f32; 3] {
+    let c = t_world_slam.transform_point(&kf.pose.translation);
+    [c.x as f32, c.y as f32, c.z as f32]
 }
 
 /// Inserts the world cloud keyframe by keyframe, each from its camera centre.
 pub(crate) fn build_octree(
-    log: &Log,
-    t_world_slam: &Sim3,
+    origins: &BTreeMap<i32, [f32; 3]>,
     cloud: &PointCloud,
     params: MapParams,
 ) -> Result<(OccupancyMap, OctreeReport)> {
     let t = Instant::now();
     let mut map = OccupancyMap::try_new(params)?;
-    let origins = camera_centers(log, t_world_slam);
-    map.insert_keyframes(&cloud.points, &cloud.keyframe_ids, &origins)?;
+    map.insert_keyframes(&cloud.points, &cloud.keyframe_ids, origins)?;
     let time_s = secs(t);
     let mut scans: Vec<i32> = cloud.keyframe_ids.clone();
     scans.sort_unstable();

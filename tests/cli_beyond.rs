@@ -113,6 +113,7 @@ fn bad_beyond_options_are_usage_errors() {
         vec!["align", "a", "b", "--body-from-cam", "1,2,3"],
         vec!["align", "a", "b", "--inlier-threshold", "0.1"],
         vec!["align", "a", "b", "--confidence", "2"],
+        vec!["convert", "a.mcap", "-o", "out", "--windowed-cloud"],
     ] {
         let o = bin(&args);
         assert_eq!(o.status.code(), Some(2), "{args:?}");

@@ -642,4 +642,5 @@ def convert(
     max_offset: float = 0.5,
     body_from_cam: Sim3 | None = None,
     compare_windowed: int | float | None = None,
+    windowed_cloud: bool = False,
 ) -> Conversion: ...

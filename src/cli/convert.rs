@@ -82,6 +82,10 @@ pub struct ConvertArgs {
     /// the single Sim(3) in the report.
     #[arg(long, value_name = "N")]
     pub compare_windowed: Option<usize>,
+    /// Carry each keyframe with the windowed Sim(3) at its time (cloud, map,
+    /// world poses) instead of the single one: for SLAM whose scale drifts.
+    #[arg(long, requires = "compare_windowed")]
+    pub windowed_cloud: bool,
     #[command(flatten)]
     pub beyond: super::beyond::BeyondArgs,
 }
@@ -132,6 +136,7 @@ pub fn run(args: &ConvertArgs) -> Result<()> {
         compare_windowed: args
             .compare_windowed
             .map(crate::align::windowed::Window::Poses),
+        windowed_cloud: args.windowed_cloud,
     };
     // Bad octree parameters fail before the log is read.
     opts.octree_params()?;

@@ -11,11 +11,11 @@ use serde::Serialize;
 use super::{imu_initialize, ImuAlignment, ImuInitOptions, ImuSamples};
 use crate::align::{AlignDiagnostics, Alignment};
 use crate::cloud::backproject;
-use crate::error::Result;
+use crate::error::{Error, Result};
 use crate::io::mcap::Log;
 use crate::pipeline::{
-    build_octree, keyframe_trajectory, ApeReport, Conversion, ConvertOptions, PairReport, Report,
-    Timing, TransformReport,
+    build_octree, camera_centers, keyframe_trajectory, ApeReport, Conversion, ConvertOptions,
+    PairReport, Report, Timing, TransformReport,
 };
 use crate::trajectory::{ApeStats, Trajectory, TrajectoryAlignment};
 
@@ -162,6 +162,12 @@ fn transform_report(t: &crate::geometry::Sim3) -> TransformReport {
 /// listed as dropped.
 pub fn convert_imu(log: &Log, imu: &ImuSamples, opts: &ConvertOptions) -> Result<Conversion> {
     let octree_params = opts.octree_params()?;
+    if opts.windowed_cloud {
+        return Err(Error::invalid(
+            "windowed_cloud",
+            "needs reference poses (the raw IMU gives one T_world_slam)",
+        ));
+    }
     let t0 = Instant::now();
     let (slam, order) = keyframe_trajectory(log)?;
     let a = imu_initialize(&slam, imu, &opts.imu)?;
@@ -172,7 +178,7 @@ pub fn convert_imu(log: &Log, imu: &ImuSamples, opts: &ConvertOptions) -> Result
     let backproject_s = t1.elapsed().as_secs_f64();
     let (octree, octree_report) = match octree_params {
         Some(params) => {
-            let (map, report) = build_octree(log, &t, &cloud, params)?;
+            let (map, report) = build_octree(&camera_centers(log, &t), &cloud, params)?;
             (Some(map), Some(report))
         }
         None => (None, None),

@@ -296,10 +296,12 @@ impl PyConversion {
 /// The options beyond one fit are those of `align_trajectories` (start-up cut,
 /// robust fit, orientations, time offset, extrinsic `T_body_cam`);
 /// `compare_windowed` (an int: matched poses, a float: metres of path) adds a
-/// windowed fit to the report. `Conversion.alignment` carries the inliers,
+/// windowed fit to the report, and `windowed_cloud=True` carries each keyframe
+/// (points, camera centre, world pose) with it instead of the single Sim(3).
+/// `Conversion.alignment` carries the inliers,
 /// stages, offset and covariance.
 #[pyfunction(name = "convert")]
-#[pyo3(signature = (log_or_path, *, keyframe_topic=None, graph_topic=None, pose_topic=None, tf_parent=None, tf_child=None, max_diff=0.01, offset=0.0, n_to_align=None, scale=true, filter=None, octree_resolution=None, octree_max_range=None, skip_init=None, robust=None, inlier_threshold=None, loss="huber", use_orientations=false, estimate_offset=false, max_offset=0.5, body_from_cam=None, compare_windowed=None, imu_topic=None, imu_from_cam=None))]
+#[pyo3(signature = (log_or_path, *, keyframe_topic=None, graph_topic=None, pose_topic=None, tf_parent=None, tf_child=None, max_diff=0.01, offset=0.0, n_to_align=None, scale=true, filter=None, octree_resolution=None, octree_max_range=None, skip_init=None, robust=None, inlier_threshold=None, loss="huber", use_orientations=false, estimate_offset=false, max_offset=0.5, body_from_cam=None, compare_windowed=None, windowed_cloud=false, imu_topic=None, imu_from_cam=None))]
 #[allow(clippy::too_many_arguments)]
 fn convert_py(
     py: Python<'_>,
@@ -325,6 +327,7 @@ fn convert_py(
     max_offset: f64,
     body_from_cam: Option<PyRef<'_, PySim3>>,
     compare_windowed: Option<&Bound<'_, PyAny>>,
+    windowed_cloud: bool,
     imu_topic: Option<String>,
     imu_from_cam: Option<PyRef<'_, super::geometry::PySim3>>,
 ) -> PyResult<PyConversion> {
@@ -360,6 +363,7 @@ fn convert_py(
         filter: filter.map(|f| f.inner).unwrap_or_default(),
         beyond,
         compare_windowed,
+        windowed_cloud,
         imu: crate::imu::ImuInitOptions {
             imu_from_cam: imu_from_cam.map_or_else(crate::geometry::Sim3::identity, |t| t.inner),
             ..crate::imu::ImuInitOptions::default()

@@ -644,6 +644,15 @@ def test_convert_beyond_one_fit(tmp_path: Path) -> None:
     conv = s2w.convert(log, filter=none, skip_init=2, compare_windowed=4)
     assert conv.alignment.fit_start == 2
     assert conv.report["windowed"]["windowed_rmse"] >= 0.0
+    assert conv.report["windowed"]["cloud"] == "single"
+    # The cloud carried keyframe by keyframe with the windowed fit: as many
+    # points, the single fit still reported.
+    conv_w = s2w.convert(log, filter=none, skip_init=2, compare_windowed=4, windowed_cloud=True)
+    assert conv_w.report["windowed"]["cloud"] == "windowed"
+    assert len(conv_w.cloud) == len(conv.cloud)
+    assert conv_w.transform.scale == pytest.approx(conv.transform.scale, rel=1e-12)
+    with pytest.raises(s2w.InvalidInputError, match="windowed_cloud"):
+        s2w.convert(log, windowed_cloud=True)
 
     with pytest.raises(s2w.InvalidInputError, match="robust"):
         s2w.convert(path, robust="lmeds")
