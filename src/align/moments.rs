@@ -430,17 +430,13 @@ fn dots<const K: usize, const FMA: bool>(
     }
     let mut acc = [[0.0; LANES]; K];
     let mut sx = [0.0; LANES];
-    for c in 0..SOA_ROWS / LANES {
-        let r = c * LANES..(c + 1) * LANES;
-        let xv: &[f64; LANES] = x[r.clone()].try_into().expect("LANES values");
+    for base in (0..SOA_ROWS).step_by(LANES) {
         for l in 0..LANES {
-            sx[l] += xv[l];
+            sx[l] += x[base + l];
         }
-        for j in 0..K {
-            let yv: &[f64; LANES] = ys[j][r.clone()].try_into().expect("LANES values");
-            let a = &mut acc[j];
+        for (a, y) in acc.iter_mut().zip(&ys) {
             for l in 0..LANES {
-                a[l] = madd::<FMA>(xv[l], yv[l], a[l]);
+                a[l] = madd::<FMA>(x[base + l], y[base + l], a[l]);
             }
         }
     }
