@@ -422,13 +422,6 @@ pub fn convert(log: &Log, opts: &ConvertOptions) -> Result<Conversion> {
         .filter(|&s| !used[s])
         .map(|s| log.keyframes[order[s]].id)
         .collect();
-    let m = t.matrix();
-    let mut matrix = [[0.0; 4]; 4];
-    for (r, row) in matrix.iter_mut().enumerate() {
-        for (c, v) in row.iter_mut().enumerate() {
-            *v = m[(r, c)];
-        }
-    }
     let imu = log.imu.as_ref().map(|imu| {
         crate::imu::convert::consistency_report(&slam, imu, log.imu_topic.clone(), &opts.imu, &t)
     });
@@ -444,12 +437,7 @@ pub fn convert(log: &Log, opts: &ConvertOptions) -> Result<Conversion> {
         pairs_fitted: n_fit,
         max_diff: opts.align.max_diff,
         offset,
-        t_world_slam: TransformReport {
-            quaternion_xyzw: t.quaternion_xyzw(),
-            translation: [t.translation.x, t.translation.y, t.translation.z],
-            scale: t.scale,
-            matrix,
-        },
+        t_world_slam: transform_report(&t),
         fit_rmse: ta.alignment.rmse,
         ape: ApeReport {
             rmse: ta.ape.rmse,
@@ -495,6 +483,17 @@ pub fn camera_centers(log: &Log, t_world_slam: &Sim3) -> BTreeMap<i32, [f32; 3]>
 fn camera_center(kf: &crate::keyframe::Keyframe, t_world_slam: &Sim3) -> [f32; 3] {
     let c = t_world_slam.transform_point(&kf.pose.translation);
     [c.x as f32, c.y as f32, c.z as f32]
+}
+
+/// A transform as the report writes it (quaternion, translation, scale, 4×4).
+pub(crate) fn transform_report(t: &Sim3) -> TransformReport {
+    let m = t.matrix();
+    TransformReport {
+        quaternion_xyzw: t.quaternion_xyzw(),
+        translation: [t.translation.x, t.translation.y, t.translation.z],
+        scale: t.scale,
+        matrix: std::array::from_fn(|r| std::array::from_fn(|c| m[(r, c)])),
+    }
 }
 
 /// Inserts the world cloud keyframe by keyframe, each from its camera centre.

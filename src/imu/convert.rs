@@ -14,8 +14,8 @@ use crate::cloud::backproject;
 use crate::error::{Error, Result};
 use crate::io::mcap::Log;
 use crate::pipeline::{
-    build_octree, camera_centers, keyframe_trajectory, ApeReport, Conversion, ConvertOptions,
-    PairReport, Report, Timing, TransformReport,
+    build_octree, camera_centers, keyframe_trajectory, transform_report, ApeReport, Conversion,
+    ConvertOptions, PairReport, Report, Timing,
 };
 use crate::trajectory::{ApeStats, Trajectory, TrajectoryAlignment};
 
@@ -136,22 +136,6 @@ pub fn consistency_report(
             ImuReport::new(topic, false, &a, Some(check))
         }
         Err(e) => ImuReport::failed(topic, e.to_string()),
-    }
-}
-
-fn transform_report(t: &crate::geometry::Sim3) -> TransformReport {
-    let m = t.matrix();
-    let mut matrix = [[0.0; 4]; 4];
-    for (r, row) in matrix.iter_mut().enumerate() {
-        for (c, v) in row.iter_mut().enumerate() {
-            *v = m[(r, c)];
-        }
-    }
-    TransformReport {
-        quaternion_xyzw: t.quaternion_xyzw(),
-        translation: v3(&t.translation),
-        scale: t.scale,
-        matrix,
     }
 }
 
