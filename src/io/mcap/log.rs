@@ -647,30 +647,11 @@ fn trajectory_of(
     let mut positions = Vec::with_capacity(n);
     let mut orientations = Vec::with_capacity(n);
     for (i, time, position, orientation) in samples {
-        let finite = time.is_finite()
-            && position
-                .iter()
-                .chain(orientation.iter())
-                .all(|v| v.is_finite());
-        let [x, y, z, w] = orientation;
-        let norm = (x * x + y * y + z * z + w * w).sqrt();
-        if !finite || norm < 1e-9 {
-            return Err(mcap_err(
-                path,
-                format!(
-                    "topic {topic}: message {i}: {} pose (time {time}, position {position:?}, orientation {orientation:?})",
-                    if finite { "zero-quaternion" } else { "non-finite" },
-                ),
-            ));
-        }
+        let (time, position, [x, y, z, w]) = checked_sample((time, position, orientation))
+            .map_err(|e| mcap_err(path, format!("topic {topic}: message {i}: {e}")))?;
         times.push(time);
         positions.push(Vector3::from(position));
-        orientations.push(UnitQuaternion::new_unchecked(Quaternion::new(
-            w / norm,
-            x / norm,
-            y / norm,
-            z / norm,
-        )));
+        orientations.push(UnitQuaternion::new_unchecked(Quaternion::new(w, x, y, z)));
     }
     Trajectory::try_new(times, positions, Some(orientations))
         .map_err(|e| mcap_err(path, format!("topic {topic}: {e}")))
