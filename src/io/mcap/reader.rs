@@ -501,83 +501,36 @@ impl McapFile {
         data: &[u8],
     ) -> Result<Expanded> {
         let at = |what: String| self.err(format!("chunk at offset {offset}: {what}"));
-        let size = usize::try_from(header.uncompressed_size)
-            .ok()
-            .filter(|&n| n <= MAX_CHUNK)
-            .ok_or_else(|| {
-                at(format!(
-                    "uncompressed size {} is beyond the {MAX_CHUNK}-byte limit",
-                    header.uncompressed_size
-                ))
-            })?;
-        let buf = decompress(&header.compression, data, size).map_err(at)?;
-        if header.uncompressed_crc != 0 {
-            let crc = crc32fast::hash(&buf);
-            if crc != header.uncompressed_crc {
-                return Err(at(format!(
-                    "CRC mismatch: the chunk says {:#010x}, its data hashes to {crc:#010x}",
-                    header.uncompressed_crc
-                )));
-            }
-        }
+        let mut buf = Vec::new();
+        expand_chunk(header, data, &mut buf).map_err(at)?;
         let mut defs = Vec::new();
         let mut out = Vec::with_capacity(header.uncompressed_size as usize / 64);
-        let mut pos = 0;
-        while pos < buf.len() {
-            let Some((opcode, body, next)) = frame(&buf[pos..]) else {
-                return Err(at(format!(
-                    "record at chunk offset {pos} runs past the chunk's end"
-                )));
-            };
-            if opcode == op::MESSAGE {
-                if body.len() < 22 {
-                    return Err(at(format!(
-                        "message record of {} bytes at chunk offset {pos}",
-                        body.len()
-                    )));
-                }
-                let u16_at = |i: usize| u16::from_le_bytes([body[i], body[i + 1]]);
-                let u32_at =
-                    |i: usize| u32::from_le_bytes([body[i], body[i + 1], body[i + 2], body[i + 3]]);
-                let u64_at = |i: usize| {
-                    let mut a = [0u8; 8];
-                    a.copy_from_slice(&body[i..i + 8]);
-                    u64::from_le_bytes(a)
-                };
-                out.push(Entry {
-                    channel_id: u16_at(0),
-                    sequence: u32_at(2),
-                    log_time: u64_at(6),
-                    publish_time: u64_at(14),
+        walk_chunk(&buf, |item| {
+            match item {
+                ChunkItem::Message(start, m) => out.push(Entry {
+                    channel_id: m.channel_id,
+                    sequence: m.sequence,
+                    log_time: m.log_time,
+                    publish_time: m.publish_time,
                     buffer: 0,
-                    start: pos + 9 + 22,
-                    end: pos + next,
-                });
-            } else {
-                match mcap::parse_record(opcode, body) {
-                    Ok(Record::Schema { header, data }) => {
-                        defs.push(Def::Schema(header, data.into_owned()))
-                    }
-                    Ok(Record::Channel(c)) => defs.push(Def::Channel(c)),
-                    Ok(_) => {}
-                    Err(e) => return Err(at(format!("record at chunk offset {pos}: {e}"))),
+                    start,
+                    end: start + m.data.len(),
+                }),
+                ChunkItem::Other(Record::Schema { header, data }) => {
+                    defs.push(Def::Schema(header, data.into_owned()))
                 }
+                ChunkItem::Other(Record::Channel(c)) => defs.push(Def::Channel(c)),
+                ChunkItem::Other(_) => {}
             }
-            pos += next;
-        }
+            Ok(())
+        })
+        .map_err(at)?;
         Ok((Some(buf), defs, out))
     }
 }
 
 /// The largest decompressed chunk accepted (guards allocations against damaged headers).
 pub(super) const MAX_CHUNK: usize = 1 << 32;
-
-/// Decompresses a chunk's records to exactly `size` bytes.
-fn decompress(compression: &str, data: &[u8], size: usize) -> std::result::Result<Vec<u8>, String> {
-    let mut out = Vec::new();
-    decompress_into(compression, data, size, &mut out)?;
-    Ok(out)
-}
 
 /// Decompresses a chunk's records into `out` (cleared first, its allocation reused).
 pub(super) fn decompress_into(
@@ -610,6 +563,90 @@ pub(super) fn decompress_into(
             "decompressed to {} bytes, the chunk header says {size}",
             out.len()
         ));
+    }
+    Ok(())
+}
+
+/// Bytes of a message record before its data: channel id, sequence, log
+/// time and publish time.
+const MESSAGE_HEAD: usize = 22;
+
+/// One record of a decompressed chunk.
+pub(super) enum ChunkItem<'a> {
+    /// A message and the offset of its data in the chunk.
+    Message(usize, RawMessage<'a>),
+    /// Any other record (schemas and channels are the ones that matter).
+    Other(Record<'a>),
+}
+
+/// Decompresses a chunk into `buf` (cleared first): its size bounded by
+/// [`MAX_CHUNK`], its CRC checked when set.
+pub(super) fn expand_chunk(
+    header: &records::ChunkHeader,
+    data: &[u8],
+    buf: &mut Vec<u8>,
+) -> std::result::Result<(), String> {
+    let size = usize::try_from(header.uncompressed_size)
+        .ok()
+        .filter(|&n| n <= MAX_CHUNK)
+        .ok_or_else(|| {
+            format!(
+                "uncompressed size {} is beyond the {MAX_CHUNK}-byte limit",
+                header.uncompressed_size
+            )
+        })?;
+    decompress_into(&header.compression, data, size, buf)?;
+    if header.uncompressed_crc != 0 {
+        let crc = crc32fast::hash(buf);
+        if crc != header.uncompressed_crc {
+            return Err(format!(
+                "CRC mismatch: the chunk says {:#010x}, its data hashes to {crc:#010x}",
+                header.uncompressed_crc
+            ));
+        }
+    }
+    Ok(())
+}
+
+/// Calls `f` on every record of a decompressed chunk, in order; errors name
+/// the offset in the chunk.
+pub(super) fn walk_chunk<'a>(
+    buf: &'a [u8],
+    mut f: impl FnMut(ChunkItem<'a>) -> std::result::Result<(), String>,
+) -> std::result::Result<(), String> {
+    let mut pos = 0;
+    while pos < buf.len() {
+        let Some((opcode, body, next)) = frame(&buf[pos..]) else {
+            return Err(format!(
+                "record at chunk offset {pos} runs past the chunk's end"
+            ));
+        };
+        if opcode == op::MESSAGE {
+            if body.len() < MESSAGE_HEAD {
+                return Err(format!(
+                    "message record of {} bytes at chunk offset {pos}",
+                    body.len()
+                ));
+            }
+            let u64_at = |i: usize| {
+                let mut a = [0u8; 8];
+                a.copy_from_slice(&body[i..i + 8]);
+                u64::from_le_bytes(a)
+            };
+            let m = RawMessage {
+                channel_id: u16::from_le_bytes([body[0], body[1]]),
+                sequence: u32::from_le_bytes([body[2], body[3], body[4], body[5]]),
+                log_time: u64_at(6),
+                publish_time: u64_at(14),
+                data: &body[MESSAGE_HEAD..],
+            };
+            f(ChunkItem::Message(pos + next - m.data.len(), m))?;
+        } else {
+            let r = mcap::parse_record(opcode, body)
+                .map_err(|e| format!("record at chunk offset {pos}: {e}"))?;
+            f(ChunkItem::Other(r))?;
+        }
+        pos += next;
     }
     Ok(())
 }

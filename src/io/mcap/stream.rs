@@ -4,12 +4,12 @@
 
 use std::collections::BTreeMap;
 
-use mcap::records::{self, op, Record};
+use mcap::records::{self, Record};
 use rayon::prelude::*;
 
 use super::reader::{
-    channel_info, decompress_into, frame, ChannelInfo, Def, Item, McapFile, RawMessage, ReadMode,
-    MAX_CHUNK,
+    channel_info, expand_chunk, walk_chunk, ChannelInfo, ChunkItem, Def, Item, McapFile,
+    RawMessage, ReadMode,
 };
 use crate::error::Result;
 
@@ -280,72 +280,25 @@ impl McapFile {
                 data,
             } => {
                 let at = |what: String| self.err(format!("chunk at offset {offset}: {what}"));
-                let size = usize::try_from(header.uncompressed_size)
-                    .ok()
-                    .filter(|&n| n <= MAX_CHUNK)
-                    .ok_or_else(|| {
-                        at(format!(
-                            "uncompressed size {} is beyond the {MAX_CHUNK}-byte limit",
-                            header.uncompressed_size
-                        ))
-                    })?;
-                decompress_into(&header.compression, data, size, buf).map_err(at)?;
-                if header.uncompressed_crc != 0 {
-                    let crc = crc32fast::hash(buf);
-                    if crc != header.uncompressed_crc {
-                        return Err(at(format!(
-                            "CRC mismatch: the chunk says {:#010x}, its data hashes to {crc:#010x}",
-                            header.uncompressed_crc
-                        )));
-                    }
-                }
-                let mut pos = 0;
-                while pos < buf.len() {
-                    let Some((opcode, body, next)) = frame(&buf[pos..]) else {
-                        return Err(at(format!(
-                            "record at chunk offset {pos} runs past the chunk's end"
-                        )));
-                    };
-                    if opcode == op::MESSAGE {
-                        if body.len() < 22 {
-                            return Err(at(format!(
-                                "message record of {} bytes at chunk offset {pos}",
-                                body.len()
-                            )));
+                expand_chunk(&header, data, buf).map_err(at)?;
+                walk_chunk(buf, |item| {
+                    match item {
+                        ChunkItem::Message(_, raw) => push(raw, &local),
+                        ChunkItem::Other(Record::Schema { header, data }) => {
+                            local_schemas.insert(header.id, (header.clone(), data.to_vec()));
+                            defs.push(Def::Schema(header, data.into_owned()));
                         }
-                        let mut h = [0u8; 22];
-                        h.copy_from_slice(&body[..22]);
-                        let u64_at = |i: usize| {
-                            let mut a = [0u8; 8];
-                            a.copy_from_slice(&h[i..i + 8]);
-                            u64::from_le_bytes(a)
-                        };
-                        let raw = RawMessage {
-                            channel_id: u16::from_le_bytes([h[0], h[1]]),
-                            sequence: u32::from_le_bytes([h[2], h[3], h[4], h[5]]),
-                            log_time: u64_at(6),
-                            publish_time: u64_at(14),
-                            data: &body[22..],
-                        };
-                        push(raw, &local);
-                    } else {
-                        match mcap::parse_record(opcode, body) {
-                            Ok(Record::Schema { header, data }) => {
-                                local_schemas.insert(header.id, (header.clone(), data.to_vec()));
-                                defs.push(Def::Schema(header, data.into_owned()));
+                        ChunkItem::Other(Record::Channel(c)) => {
+                            if let Ok(info) = channel_info(&c, &local_schemas) {
+                                local.entry(c.id).or_insert(info);
                             }
-                            Ok(Record::Channel(c)) => {
-                                if let Ok(info) = channel_info(&c, &local_schemas) {
-                                    local.entry(c.id).or_insert(info);
-                                }
-                                defs.push(Def::Channel(c));
-                            }
-                            Ok(_) => {}
-                            Err(e) => return Err(at(format!("record at chunk offset {pos}: {e}"))),
+                            defs.push(Def::Channel(c));
                         }
+                        ChunkItem::Other(_) => {}
                     }
-                    pos += next;
-                }
+                    Ok(())
+                })
+                .map_err(at)?;
             }
         }
         Ok((defs, msgs, raw_of))
