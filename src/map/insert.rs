@@ -550,16 +550,7 @@ mod tests {
             }
         }
         let t = &mut map.tree;
-        let created = !t.root.exists();
-        let root = if created {
-            t.num_nodes += 1;
-            Node {
-                value: 0.0,
-                child: LEAF,
-            }
-        } else {
-            t.root
-        };
+        let (root, created) = t.root_or_new();
         t.root = reference_rec(t, root, created, key, 0, occupied, &lo);
     }
 

@@ -23,6 +23,17 @@ pub enum VoxelState {
     Occupied = 1,
 }
 
+impl VoxelState {
+    /// The state of an observed voxel with log-odds `l`.
+    fn of_logodds(l: f32) -> Self {
+        if l >= OCCUPIED_LOGODDS {
+            VoxelState::Occupied
+        } else {
+            VoxelState::Free
+        }
+    }
+}
+
 fn check_finite(what: &str, v: &[f64]) -> Result<()> {
     match v.iter().position(|x| !x.is_finite()) {
         Some(i) => Err(Error::NonFinite {
@@ -60,11 +71,8 @@ impl OccupancyMap {
 
     /// State at a point (metres, map frame).
     pub fn state(&self, p: [f64; 3]) -> VoxelState {
-        match self.logodds_at(p) {
-            None => VoxelState::Unknown,
-            Some(l) if l >= OCCUPIED_LOGODDS => VoxelState::Occupied,
-            Some(_) => VoxelState::Free,
-        }
+        self.logodds_at(p)
+            .map_or(VoxelState::Unknown, VoxelState::of_logodds)
     }
 
     /// Occupancy probability at a point, `None` where unknown.
@@ -78,12 +86,7 @@ impl OccupancyMap {
         let mut out = Vec::new();
         let r = self.params.resolution;
         self.tree.for_each_leaf(|base, depth, v| {
-            let s = if v >= OCCUPIED_LOGODDS {
-                VoxelState::Occupied
-            } else {
-                VoxelState::Free
-            };
-            if s == state {
+            if VoxelState::of_logodds(v) == state {
                 let size = r * f64::from(1u32 << (TREE_DEPTH - depth));
                 let c = base.map(|k| (k as i32 - TREE_MAX_VAL) as f64 * r + 0.5 * size);
                 out.push((c, size));
@@ -98,12 +101,7 @@ impl OccupancyMap {
         let mut out = Vec::new();
         let r = self.params.resolution;
         self.tree.for_each_leaf(|base, depth, v| {
-            let s = if v >= OCCUPIED_LOGODDS {
-                VoxelState::Occupied
-            } else {
-                VoxelState::Free
-            };
-            if s != state {
+            if VoxelState::of_logodds(v) != state {
                 return;
             }
             let n = 1u32 << (TREE_DEPTH - depth);

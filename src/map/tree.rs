@@ -134,17 +134,24 @@ impl Tree {
         if items.is_empty() {
             return;
         }
-        let created = !self.root.exists();
-        let root = if created {
-            self.num_nodes += 1;
+        let (root, created) = self.root_or_new();
+        self.root = self.update_rec(root, created, 0, items, lo);
+    }
+
+    /// The root to update, and whether it is new (an empty tree gets a leaf
+    /// of log-odds 0, counted).
+    pub(crate) fn root_or_new(&mut self) -> (Node, bool) {
+        if self.root.exists() {
+            return (self.root, false);
+        }
+        self.num_nodes += 1;
+        (
             Node {
                 value: 0.0,
                 child: LEAF,
-            }
-        } else {
-            self.root
-        };
-        self.root = self.update_rec(root, created, 0, items, lo);
+            },
+            true,
+        )
     }
 
     /// OctoMap's `updateNodeRecurs` for a batch of keys below `node`, with its
