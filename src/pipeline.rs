@@ -29,7 +29,7 @@ use crate::io::mcap::{
     read_mcap, write_world_mcap_with_octomap, Log, ReadOptions, WorldFlavor, WorldScene,
 };
 use crate::map::{MapParams, OccupancyMap, VoxelState};
-use crate::trajectory::{Trajectory, TrajectoryAlignOptions};
+use crate::trajectory::{ApeStats, Trajectory, TrajectoryAlignOptions};
 
 /// Everything `convert` can be told.
 #[derive(Clone, Debug, Default)]
@@ -213,6 +213,19 @@ pub struct ApeReport {
     pub min: f64,
     /// Largest.
     pub max: f64,
+}
+
+impl From<&ApeStats> for ApeReport {
+    fn from(a: &ApeStats) -> Self {
+        ApeReport {
+            rmse: a.rmse,
+            mean: a.mean,
+            median: a.median,
+            std: a.std,
+            min: a.min,
+            max: a.max,
+        }
+    }
 }
 
 /// The result of [`convert`].
@@ -439,14 +452,7 @@ pub fn convert(log: &Log, opts: &ConvertOptions) -> Result<Conversion> {
         offset,
         t_world_slam: transform_report(&t),
         fit_rmse: ta.alignment.rmse,
-        ape: ApeReport {
-            rmse: ta.ape.rmse,
-            mean: ta.ape.mean,
-            median: ta.ape.median,
-            std: ta.ape.std,
-            min: ta.ape.min,
-            max: ta.ape.max,
-        },
+        ape: ApeReport::from(&ta.ape),
         pairs,
         beyond,
         windowed,

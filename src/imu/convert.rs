@@ -220,14 +220,7 @@ pub fn convert_imu(log: &Log, imu: &ImuSamples, opts: &ConvertOptions) -> Result
         offset: opts.align.offset,
         t_world_slam: transform_report(&t),
         fit_rmse: nan,
-        ape: ApeReport {
-            rmse: nan,
-            mean: nan,
-            median: nan,
-            std: nan,
-            min: nan,
-            max: nan,
-        },
+        ape: ApeReport::from(&alignment.ape),
         pairs,
         // The options beyond one fit act on pose pairs; the IMU path has none.
         beyond: serde_json::Value::Null,
