@@ -63,15 +63,21 @@ pub struct ConvertOptions {
 }
 
 impl ConvertOptions {
-    /// The octree's parameters (OctoMap's sensor model defaults), `None` when
-    /// no octree is asked for; checks the resolution and the max range.
-    pub fn octree_params(&self) -> Result<Option<MapParams>> {
+    /// Checks the options that do not depend on the log (the octree's
+    /// parameters; `windowed_cloud` needs `compare_windowed`).
+    pub fn check(&self) -> Result<()> {
         if self.windowed_cloud && self.compare_windowed.is_none() {
             return Err(Error::invalid(
                 "windowed_cloud",
                 "needs the window of the windowed alignment (compare_windowed)",
             ));
         }
+        self.octree_params().map(|_| ())
+    }
+
+    /// The octree's parameters (OctoMap's sensor model defaults), `None` when
+    /// no octree is asked for; checks the resolution and the max range.
+    pub fn octree_params(&self) -> Result<Option<MapParams>> {
         let Some(resolution) = self.octree_resolution else {
             return Ok(None);
         };
@@ -287,6 +293,7 @@ fn mcap_err(path: &Path, reason: String) -> Error {
 /// `max_diff` of a reference pose (naming the file and topics), and the fit's
 /// own errors (fewer than 3 pairs, degenerate motion).
 pub fn convert(log: &Log, opts: &ConvertOptions) -> Result<Conversion> {
+    opts.check()?;
     let octree_params = opts.octree_params()?;
     let kf_topic = log.keyframe_topic.clone().unwrap_or_default();
     if log.keyframes.is_empty() {
@@ -531,7 +538,7 @@ pub(crate) fn build_octree(
 
 /// Reads `path` and converts it; the report's `read_s` is filled in.
 pub fn convert_file(path: impl AsRef<Path>, opts: &ConvertOptions) -> Result<Conversion> {
-    opts.octree_params()?;
+    opts.check()?;
     let t = Instant::now();
     let log = read_mcap(path, &opts.read)?;
     let read_s = secs(t);

@@ -139,7 +139,7 @@ pub fn run(args: &ConvertArgs) -> Result<()> {
         windowed_cloud: args.windowed_cloud,
     };
     // Bad octree parameters fail before the log is read.
-    opts.octree_params()?;
+    opts.check()?;
     bar.set_message("reading the log");
     let t = Instant::now();
     let log = read_mcap(&args.log, &opts.read)?;
