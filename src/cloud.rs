@@ -21,6 +21,7 @@ use crate::buffer::{copy_advised, filled_advised};
 use crate::error::{Error, Result};
 use crate::geometry::Sim3;
 use crate::keyframe::Keyframe;
+use crate::simd::Isa;
 
 /// Image rows per parallel work item: small enough to balance a few keyframes
 /// over many cores, large enough that the two rows a block converts beyond its
@@ -69,12 +70,13 @@ impl Default for PointFilter {
     /// `absDepthVarTH = 1e-1`, `minNearSupport = 7`, `sparsifyFactor = 1`,
     /// `cutFirstNKf = 5`, border skipped.
     fn default() -> Self {
+        use crate::defaults as d;
         PointFilter {
-            scaled_depth_var: 1e-3,
-            abs_depth_var: 1e-1,
-            min_near_support: 7,
-            sparsify: 1,
-            cut_first_keyframes: Some(5),
+            scaled_depth_var: d::SCALED_DEPTH_VAR as f32,
+            abs_depth_var: d::ABS_DEPTH_VAR as f32,
+            min_near_support: d::MIN_NEAR_SUPPORT,
+            sparsify: d::SPARSIFY,
+            cut_first_keyframes: Some(d::CUT_FIRST_KEYFRAMES),
             skip_border: true,
             seed: 0,
         }
@@ -216,7 +218,7 @@ pub fn sparsify_keeps(seed: u64, id: i32, pixel: usize, factor: u32) -> bool {
 
 /// One keyframe prepared for the pixel loop: its image and `T_world_cam`
 /// (`T_world_slam · T_slam_cam`) as an affine map.
-struct Prepared<'a> {
+struct PreparedKeyframe<'a> {
     kf: &'a Keyframe,
     /// `s·R` of `T_world_cam`, row-major.
     m: [[f64; 3]; 3],
@@ -228,7 +230,7 @@ struct Prepared<'a> {
     um: Vec<[f64; 3]>,
 }
 
-impl<'a> Prepared<'a> {
+impl<'a> PreparedKeyframe<'a> {
     fn new(kf: &'a Keyframe, world_cam: Sim3) -> Self {
         let (m, t) = world_cam.affine();
         let cam = &kf.camera;
@@ -238,7 +240,7 @@ impl<'a> Prepared<'a> {
                 [u * m[0][0], u * m[1][0], u * m[2][0]]
             })
             .collect();
-        Prepared {
+        PreparedKeyframe {
             kf,
             m,
             t,
@@ -329,7 +331,7 @@ pub fn backproject<K: Borrow<Keyframe> + Sync>(
     transform: Option<&Sim3>,
 ) -> Result<PointCloud> {
     let t = transform.copied().unwrap_or_else(Sim3::identity);
-    backproject_with(keyframes, filter, |_| t, Kernel::detect())
+    backproject_with(keyframes, filter, |_| t, Isa::detect())
 }
 
 /// Like [`backproject`], with its own `T_world_slam` for each keyframe
@@ -346,7 +348,7 @@ pub fn backproject_per_keyframe<K: Borrow<Keyframe> + Sync>(
             got: format!("{}", transforms.len()),
         });
     }
-    backproject_with(keyframes, filter, |i| transforms[i], Kernel::detect())
+    backproject_with(keyframes, filter, |i| transforms[i], Isa::detect())
 }
 
 /// Two parallel passes: the filter lists the kept columns of each block of rows,
@@ -356,7 +358,7 @@ fn backproject_with<K: Borrow<Keyframe> + Sync>(
     keyframes: &[K],
     filter: &PointFilter,
     world_slam: impl Fn(usize) -> Sim3,
-    kernel: Kernel,
+    kernel: Isa,
 ) -> Result<PointCloud> {
     filter.validate()?;
     let with_color = !keyframes.is_empty() && keyframes.iter().all(|k| k.borrow().color.is_some());
@@ -367,7 +369,7 @@ fn backproject_with<K: Borrow<Keyframe> + Sync>(
         if filter.cuts(i) {
             continue;
         }
-        prepared.push(Prepared::new(kf, world_slam(i) * kf.pose));
+        prepared.push(PreparedKeyframe::new(kf, world_slam(i) * kf.pose));
     }
     let tasks: Vec<(usize, usize)> = prepared
         .iter()
@@ -433,38 +435,16 @@ fn within(value: f32, threshold: f32) -> bool {
     value <= threshold
 }
 
-/// The instruction set the per-pixel filter runs with, chosen at run time: the
-/// arithmetic (and so the result) is the same, only the vector width differs.
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
-enum Kernel {
-    /// The target's baseline instructions.
-    Portable,
-    /// AVX2 (eight `f32` lanes), when the CPU has it.
-    #[cfg(target_arch = "x86_64")]
-    Avx2,
-}
-
-impl Kernel {
-    /// The widest kernel this CPU runs.
-    fn detect() -> Self {
-        #[cfg(target_arch = "x86_64")]
-        if std::arch::is_x86_feature_detected!("avx2") {
-            return Kernel::Avx2;
-        }
-        Kernel::Portable
-    }
-}
-
 /// Loop-invariant parts of the filter, per keyframe.
 struct RowCtx<'a> {
-    p: &'a Prepared<'a>,
+    p: &'a PreparedKeyframe<'a>,
     /// Index of the keyframe in the prepared list.
     k: usize,
     f: &'a PointFilter,
     scaled_on: bool,
     abs_on: bool,
     support_on: bool,
-    kernel: Kernel,
+    kernel: Isa,
 }
 
 /// The filter for one image row: appends the kept columns to `xs`, left to right.
@@ -566,10 +546,10 @@ fn pack_bits(eight: &[u8]) -> u64 {
 /// [`interior_mask_portable`] with the kernel `c.kernel`.
 fn interior_mask(c: &RowCtx<'_>, var: &[f32], y: usize, scratch: &mut Scratch) {
     match c.kernel {
-        // SAFETY: `Kernel::Avx2` is only chosen by `Kernel::detect` on a CPU with AVX2.
+        // SAFETY: `Isa::Avx2Fma` is only detected on a CPU with AVX2 (and FMA).
         #[cfg(target_arch = "x86_64")]
-        Kernel::Avx2 => unsafe { interior_mask_avx2(c, var, y, scratch) },
-        Kernel::Portable => interior_mask_portable(c, var, y, scratch),
+        Isa::Avx2Fma => unsafe { interior_mask_avx2(c, var, y, scratch) },
+        _ => interior_mask_portable(c, var, y, scratch),
     }
 }
 
@@ -703,24 +683,23 @@ fn near_support(block: &[f32], id: f32, two_var: f32) -> u32 {
 /// Allocates the outputs at their final size and fills them in parallel, each
 /// block of rows at its offset: point `T_world_cam · ((x − cx)/fx · d, (y − cy)/fy · d, d)`,
 /// `d = 1/idepth`, computed in `f64` as `d · (u·m₀ + v·m₁ + m₂) + t`.
-fn write_points(prepared: &[Prepared<'_>], kept: &[Kept], with_color: bool) -> PointCloud {
+fn write_points(prepared: &[PreparedKeyframe<'_>], kept: &[Kept], with_color: bool) -> PointCloud {
     let total: usize = kept.iter().map(|b| b.xs.len()).sum();
     // Every element is written once by `fill_all` (fresh buffers, no zero-fill pass).
-    let (mut colors, mut ids) = (None, None);
-    let points = filled_advised(3 * total, |pts| {
-        colors = filled_advised(if with_color { 3 * total } else { 0 }, |cols| {
-            ids = filled_advised(total, |ids| {
-                fill_all(prepared, kept, pts, cols, ids);
-                true
+    let (mut colors, mut ids) = (Vec::new(), Vec::new());
+    // SAFETY: `fill_all` writes every element of the three buffers (`3·N`
+    // points, `3·N` colours or none, `N` ids), see its doc.
+    let points = unsafe {
+        filled_advised(3 * total, |pts| {
+            colors = filled_advised(if with_color { 3 * total } else { 0 }, |cols| {
+                ids = filled_advised(total, |ids| fill_all(prepared, kept, pts, cols, ids));
             });
-            ids.is_some()
-        });
-        colors.is_some()
-    });
+        })
+    };
     PointCloud {
-        points: points.unwrap_or_default(),
-        colors: colors.filter(|_| with_color),
-        keyframe_ids: ids.unwrap_or_default(),
+        points,
+        colors: with_color.then_some(colors),
+        keyframe_ids: ids,
     }
 }
 
@@ -728,7 +707,7 @@ fn write_points(prepared: &[Prepared<'_>], kept: &[Kept], with_color: bool) -> P
 /// every element of `pts` (`3·N`), `cols` (`3·N`, or empty without colour) and
 /// `ids` (`N`) is written.
 fn fill_all(
-    prepared: &[Prepared<'_>],
+    prepared: &[PreparedKeyframe<'_>],
     kept: &[Kept],
     pts: &mut [MaybeUninit<f32>],
     cols: &mut [MaybeUninit<u8>],
@@ -756,7 +735,7 @@ fn fill_all(
 
 /// The points (and, when `cols` is not empty, colours) of one block's kept pixels.
 fn fill_block(
-    p: &Prepared<'_>,
+    p: &PreparedKeyframe<'_>,
     b: &Kept,
     pts: &mut [MaybeUninit<f32>],
     cols: &mut [MaybeUninit<u8>],
@@ -1041,8 +1020,7 @@ mod tests {
         let world =
             Sim3::from_quaternion_xyzw([0.3, 0.1, -0.2, 1.0], Vector3::new(1.0, -2.0, 3.0), 2.5)
                 .unwrap();
-        let mut kernels = vec![Kernel::Portable, Kernel::detect()];
-        kernels.dedup();
+        let kernels = Isa::available();
         for (si, set) in sets.iter().enumerate() {
             for (fi, f) in filters.iter().enumerate() {
                 let want = reference(set, f, &world);

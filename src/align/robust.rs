@@ -64,7 +64,7 @@ impl Default for RobustOptions {
     fn default() -> Self {
         RobustOptions {
             inlier_threshold: None,
-            iterations: 500,
+            iterations: crate::defaults::ROBUST_ITERATIONS,
             loss: RobustLoss::Huber,
             seed: 0,
         }

@@ -26,8 +26,8 @@ pub struct TimeOffsetOptions {
 impl Default for TimeOffsetOptions {
     fn default() -> Self {
         TimeOffsetOptions {
-            max_offset: 0.5,
-            max_gap: 0.1,
+            max_offset: crate::defaults::MAX_OFFSET,
+            max_gap: crate::defaults::MAX_GAP,
             scale: true,
             tolerance: 1e-5,
         }

@@ -85,16 +85,16 @@ impl Default for ImuInitOptions {
         ImuInitOptions {
             imu_from_cam: Sim3::identity(),
             time_offset: 0.0,
-            gravity: 9.81,
+            gravity: crate::defaults::GRAVITY,
             estimate_accel_bias: true,
             accel_bias_prior: 0.2,
             gyro_noise_density: 1.6968e-4,
             accel_noise_density: 2.0e-3,
             accel_random_walk: 3.0e-3,
-            keyframe_position_sigma: 0.01,
-            keyframe_rotation_sigma: 2e-3,
-            min_interval: 0.5,
-            max_gap: 0.05,
+            keyframe_position_sigma: crate::defaults::KEYFRAME_POSITION_SIGMA,
+            keyframe_rotation_sigma: crate::defaults::KEYFRAME_ROTATION_SIGMA,
+            min_interval: crate::defaults::MIN_INTERVAL,
+            max_gap: crate::defaults::IMU_MAX_GAP,
             min_duration: 2.0,
             min_excitation: 0.05,
             max_relative_scale_sigma: 0.05,
@@ -104,7 +104,9 @@ impl Default for ImuInitOptions {
 }
 
 impl ImuInitOptions {
-    fn validate(&self) -> Result<()> {
+    /// Checks the options (what [`imu_initialize`] checks before it reads the
+    /// data): gravity and the noise levels finite and positive or non-negative.
+    pub fn validate(&self) -> Result<()> {
         let positive = [
             ("gravity", self.gravity),
             ("accel_bias_prior", self.accel_bias_prior),
@@ -154,7 +156,7 @@ impl ImuInitOptions {
 }
 
 /// How well the data determined the result.
-#[derive(Clone, Debug, PartialEq)]
+#[derive(Clone, Debug, PartialEq, serde::Serialize, schemars::JsonSchema)]
 pub struct ImuInitDiagnostics {
     /// Keyframes used (inside the IMU's time span).
     pub n_keyframes: usize,

@@ -41,16 +41,58 @@ pub struct MapParams {
 }
 
 impl MapParams {
-    /// OctoMap's defaults (0.7 / 0.4, clamping 0.1192 / 0.971, no max range).
+    /// OctoMap's defaults (0.7 / 0.4, clamping 0.1192 / 0.971, no max range;
+    /// [`crate::defaults`]).
     pub fn new(resolution: f64) -> Self {
         MapParams {
             resolution,
-            prob_hit: 0.7,
-            prob_miss: 0.4,
-            clamp_min: 0.1192,
-            clamp_max: 0.971,
+            prob_hit: crate::defaults::PROB_HIT,
+            prob_miss: crate::defaults::PROB_MISS,
+            clamp_min: crate::defaults::CLAMP_MIN,
+            clamp_max: crate::defaults::CLAMP_MAX,
             max_range: None,
         }
+    }
+
+    /// Checks the parameters: a positive finite resolution, probabilities in
+    /// (0, 1), `clamp_min ≤ clamp_max`, a positive finite max range.
+    pub fn check(&self) -> Result<()> {
+        let r = self.resolution;
+        if !(r.is_finite() && r > 0.0) {
+            return Err(Error::invalid(
+                "resolution",
+                format!("{r} is not a positive length"),
+            ));
+        }
+        let open = |what: &str, p: f64| -> Result<()> {
+            if p > 0.0 && p < 1.0 {
+                Ok(())
+            } else {
+                Err(Error::invalid(
+                    what,
+                    format!("{p} is not a probability in (0, 1)"),
+                ))
+            }
+        };
+        open("prob_hit", self.prob_hit)?;
+        open("prob_miss", self.prob_miss)?;
+        open("clamp_min", self.clamp_min)?;
+        open("clamp_max", self.clamp_max)?;
+        if self.clamp_min > self.clamp_max {
+            return Err(Error::invalid(
+                "clamp_min",
+                format!("{} exceeds clamp_max {}", self.clamp_min, self.clamp_max),
+            ));
+        }
+        if let Some(m) = self.max_range {
+            if !(m.is_finite() && m > 0.0) {
+                return Err(Error::invalid(
+                    "max_range",
+                    format!("{m} is not a positive length"),
+                ));
+            }
+        }
+        Ok(())
     }
 }
 
@@ -86,44 +128,8 @@ impl PartialEq for OccupancyMap {
 impl OccupancyMap {
     /// An empty map; checks the parameters.
     pub fn try_new(params: MapParams) -> Result<Self> {
+        params.check()?;
         let r = params.resolution;
-        if !(r.is_finite() && r > 0.0) {
-            return Err(Error::invalid(
-                "resolution",
-                format!("{r} is not a positive length"),
-            ));
-        }
-        let open = |what: &str, p: f64| -> Result<()> {
-            if p > 0.0 && p < 1.0 {
-                Ok(())
-            } else {
-                Err(Error::invalid(
-                    what,
-                    format!("{p} is not a probability in (0, 1)"),
-                ))
-            }
-        };
-        open("prob_hit", params.prob_hit)?;
-        open("prob_miss", params.prob_miss)?;
-        open("clamp_min", params.clamp_min)?;
-        open("clamp_max", params.clamp_max)?;
-        if params.clamp_min > params.clamp_max {
-            return Err(Error::invalid(
-                "clamp_min",
-                format!(
-                    "{} exceeds clamp_max {}",
-                    params.clamp_min, params.clamp_max
-                ),
-            ));
-        }
-        if let Some(m) = params.max_range {
-            if !(m.is_finite() && m > 0.0) {
-                return Err(Error::invalid(
-                    "max_range",
-                    format!("{m} is not a positive length"),
-                ));
-            }
-        }
         Ok(OccupancyMap {
             params,
             resolution_factor: 1.0 / r,

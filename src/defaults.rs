@@ -1,0 +1,106 @@
+//! Every option's default, written once.
+//!
+//! The core's `Default` impls, the command line (clap `default_value_t`) and
+//! the Python signatures use these constants; the Python stub and the
+//! signatures of the native module are checked against them in a test
+//! (`tests/python/test_defaults.py`, through [`TABLE`], which the module
+//! exports as `slam2world._slam2world.DEFAULTS`).
+//!
+//! Units: seconds, metres, m/s², radians unless the name says otherwise.
+
+/// Largest time difference of a matched SLAM/reference pair, seconds (evo's `--t_max_diff`).
+pub const MAX_DIFF: f64 = 0.01;
+/// Seconds added to the SLAM stamps before matching.
+pub const OFFSET: f64 = 0.0;
+/// Largest time offset searched when the offset is estimated, seconds (both signs).
+pub const MAX_OFFSET: f64 = 0.5;
+/// Largest reference gap bridged by interpolation, seconds.
+pub const MAX_GAP: f64 = 0.1;
+/// Confidence level of the reported intervals.
+pub const CONFIDENCE: f64 = 0.95;
+/// IRLS loss of the robust fit.
+pub const LOSS: &str = "huber";
+/// Rotation solver of the closed-form fit.
+pub const METHOD: &str = "horn";
+/// RANSAC hypotheses of the robust fit.
+pub const ROBUST_ITERATIONS: usize = 500;
+
+/// Magnitude of gravity, m/s².
+pub const GRAVITY: f64 = 9.81;
+/// Noise of a keyframe position in the inertial initialisation, metres.
+pub const KEYFRAME_POSITION_SIGMA: f64 = 0.01;
+/// Noise of a keyframe orientation in the inertial initialisation, radians.
+pub const KEYFRAME_ROTATION_SIGMA: f64 = 2e-3;
+/// Shortest interval between two keyframes of the inertial initialisation, seconds.
+pub const MIN_INTERVAL: f64 = 0.5;
+/// Largest gap between IMU samples inside a keyframe interval, seconds.
+pub const IMU_MAX_GAP: f64 = 0.05;
+
+/// LSD-SLAM viewer's `scaledDepthVarTH`: largest `idepth_var·depth⁴`.
+pub const SCALED_DEPTH_VAR: f64 = 1e-3;
+/// LSD-SLAM viewer's `absDepthVarTH`: largest `idepth_var·depth⁴·s²`.
+pub const ABS_DEPTH_VAR: f64 = 1e-1;
+/// LSD-SLAM viewer's `minNearSupport`: neighbours (3×3, the pixel included) that must agree.
+pub const MIN_NEAR_SUPPORT: u32 = 7;
+/// LSD-SLAM viewer's `sparsifyFactor`: keep one pixel in this many.
+pub const SPARSIFY: u32 = 1;
+/// LSD-SLAM viewer's `cutFirstNKf`: keyframes whose arrival index is `≤` this are dropped.
+pub const CUT_FIRST_KEYFRAMES: usize = 5;
+
+/// OctoMap's `prob_hit`: occupancy probability of a ray's end voxel.
+pub const PROB_HIT: f64 = 0.7;
+/// OctoMap's `prob_miss`: occupancy probability of a voxel a ray crosses.
+pub const PROB_MISS: f64 = 0.4;
+/// OctoMap's lower clamping threshold of the occupancy probability.
+pub const CLAMP_MIN: f64 = 0.1192;
+/// OctoMap's upper clamping threshold of the occupancy probability.
+pub const CLAMP_MAX: f64 = 0.971;
+/// OctoMap's occupancy threshold: a voxel above it is occupied.
+pub const OCCUPANCY_THRESHOLD: f64 = 0.5;
+
+/// A default as the Python side sees it.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum Value {
+    /// A float.
+    Float(f64),
+    /// An integer.
+    Int(i64),
+    /// A string.
+    Str(&'static str),
+}
+
+/// `(Python parameter name, default)` for every option whose default lives
+/// here; a name that means another thing in one function is given as
+/// `function.parameter` (the IMU's `max_gap` is not the reference's).
+pub const TABLE: &[(&str, Value)] = &[
+    ("max_diff", Value::Float(MAX_DIFF)),
+    ("offset", Value::Float(OFFSET)),
+    ("max_offset", Value::Float(MAX_OFFSET)),
+    ("max_gap", Value::Float(MAX_GAP)),
+    ("level", Value::Float(CONFIDENCE)),
+    ("loss", Value::Str(LOSS)),
+    ("method", Value::Str(METHOD)),
+    ("gravity", Value::Float(GRAVITY)),
+    (
+        "keyframe_position_sigma",
+        Value::Float(KEYFRAME_POSITION_SIGMA),
+    ),
+    (
+        "keyframe_rotation_sigma",
+        Value::Float(KEYFRAME_ROTATION_SIGMA),
+    ),
+    ("min_interval", Value::Float(MIN_INTERVAL)),
+    ("imu_initialize.max_gap", Value::Float(IMU_MAX_GAP)),
+    ("scaled_depth_var", Value::Float(SCALED_DEPTH_VAR)),
+    ("abs_depth_var", Value::Float(ABS_DEPTH_VAR)),
+    ("min_near_support", Value::Int(MIN_NEAR_SUPPORT as i64)),
+    ("sparsify", Value::Int(SPARSIFY as i64)),
+    (
+        "cut_first_keyframes",
+        Value::Int(CUT_FIRST_KEYFRAMES as i64),
+    ),
+    ("prob_hit", Value::Float(PROB_HIT)),
+    ("prob_miss", Value::Float(PROB_MISS)),
+    ("clamp_min", Value::Float(CLAMP_MIN)),
+    ("clamp_max", Value::Float(CLAMP_MAX)),
+];
