@@ -3,11 +3,8 @@
 //! A trajectory of SLAM keyframes holds `T_slam_cam`; a reference trajectory
 //! holds `T_world_body`. Timestamps are seconds.
 
-use std::path::Path;
-
 use nalgebra::{UnitQuaternion, Vector3};
 
-use crate::align::{align, AlignMethod, AlignOptions, Alignment};
 use crate::error::{Error, Result};
 use crate::geometry::Sim3;
 
@@ -119,23 +116,6 @@ impl Trajectory {
         }
     }
 
-    /// Reads a TUM file (`timestamp tx ty tz qx qy qz qw`, seconds, metres,
-    /// quaternion `(x, y, z, w)`).
-    pub fn read_tum(path: impl AsRef<Path>) -> Result<Trajectory> {
-        crate::io::text::read_tum(path.as_ref())
-    }
-
-    /// Reads EuRoC ground truth CSV (`ns, x, y, z, qw, qx, qy, qz, …`): times
-    /// become seconds, quaternions `(x, y, z, w)`.
-    pub fn read_euroc(path: impl AsRef<Path>) -> Result<Trajectory> {
-        crate::io::text::read_euroc(path.as_ref())
-    }
-
-    /// Writes a TUM file atomically (identity orientation where none is known).
-    pub fn write_tum(&self, path: impl AsRef<Path>) -> Result<()> {
-        crate::io::text::write_tum(self, path.as_ref())
-    }
-
     /// The poses at `times` (seconds, non-decreasing): positions interpolated
     /// linearly, orientations by slerp. Errors ([`Error::OutOfRange`]) for a
     /// time outside `[first, last]` or between two poses more than `max_gap`
@@ -198,7 +178,10 @@ impl Trajectory {
             return Err(format!("after the last pose ({} s)", ts[n - 1]));
         }
         let gap = ts[k] - ts[i];
-        if max_gap.is_nan() || gap > max_gap {
+        // A gap of max_gap up to the rounding of the stamps is bridged (a 10 Hz
+        // stream in Unix seconds has steps of 0.1 ± 2e-7).
+        let rounding = 4.0 * f64::EPSILON * ts[k].abs().max(max_gap.abs());
+        if max_gap.is_nan() || gap > max_gap + rounding {
             return Err(format!(
                 "inside a gap of {gap} s between poses {i} and {k} (max_gap {max_gap} s)"
             ));
@@ -324,154 +307,82 @@ fn matching_time_indices(
     out
 }
 
-/// Options of [`align_trajectories`].
-#[derive(Clone, Debug, PartialEq)]
-pub struct TrajectoryAlignOptions {
-    /// Largest time difference of a matched pair, seconds (default 0.01).
-    pub max_diff: f64,
-    /// Seconds added to the SLAM stamps before matching (default 0).
-    pub offset: f64,
-    /// Estimate the scale (Sim(3)); `false` for SE(3) (default true).
-    pub scale: bool,
-    /// Fit only the first `n` matched pairs (APE still over all pairs).
-    pub first_n: Option<usize>,
-    /// Rotation solver.
-    pub method: AlignMethod,
-}
-
-impl Default for TrajectoryAlignOptions {
-    fn default() -> Self {
-        TrajectoryAlignOptions {
-            max_diff: 0.01,
-            offset: 0.0,
-            scale: true,
-            first_n: None,
-            method: AlignMethod::Horn,
-        }
+/// Describes `[first, last]` of sorted stamps for an error message.
+fn span(t: &[f64]) -> String {
+    match (t.first(), t.last()) {
+        (Some(a), Some(b)) => format!("{}..{} s", crate::error::num(*a), crate::error::num(*b)),
+        _ => "empty".into(),
     }
 }
 
-/// Statistics of the absolute position error `‖p_ref − T(p_slam)‖` over all
-/// matched pairs, metres (as evo's APE, translation part; `std` is the
-/// population standard deviation).
-#[derive(Clone, Copy, Debug, PartialEq)]
-pub struct ApeStats {
-    /// Root mean square.
-    pub rmse: f64,
-    /// Mean.
-    pub mean: f64,
-    /// Median (mean of the two middle values for an even count).
-    pub median: f64,
-    /// Population standard deviation.
-    pub std: f64,
-    /// Smallest error.
-    pub min: f64,
-    /// Largest error.
-    pub max: f64,
-    /// Number of pairs.
-    pub n_pairs: usize,
-}
-
-impl ApeStats {
-    /// Statistics of `errors` (at least one, all finite).
-    pub fn from_errors(errors: &[f64]) -> Result<ApeStats> {
-        if errors.is_empty() {
-            return Err(Error::TooFew {
-                what: "errors".into(),
-                need: 1,
-                got: 0,
-            });
+/// Why two sets of stamps may fail to match: a unit mix-up, a constant
+/// offset, or too tight a `max_diff`.
+fn likely_cause(slam: &[f64], reference: &[f64], max_diff: f64, offset: f64) -> String {
+    let (Some(&s0), Some(&s1), Some(&r0), Some(&r1)) = (
+        slam.first(),
+        slam.last(),
+        reference.first(),
+        reference.last(),
+    ) else {
+        return "one trajectory is empty".into();
+    };
+    let (s0, s1) = (s0 + offset, s1 + offset);
+    let mid = |a: f64, b: f64| 0.5 * (a + b);
+    let (ms, mr) = (mid(s0, s1).abs(), mid(r0, r1).abs());
+    if ms > 0.0 && mr > 0.0 {
+        let ratio = ms / mr;
+        for (factor, unit) in [
+            (1e9, "nanoseconds"),
+            (1e6, "microseconds"),
+            (1e3, "milliseconds"),
+        ] {
+            if (ratio / factor).log10().abs() < 0.5 {
+                return format!("the SLAM stamps look like {unit} against reference seconds");
+            }
+            if (ratio * factor).log10().abs() < 0.5 {
+                return format!("the reference stamps look like {unit} against SLAM seconds");
+            }
         }
-        if let Some(i) = errors.iter().position(|e| !e.is_finite()) {
-            return Err(Error::NonFinite {
-                what: "errors".into(),
-                index: i,
-            });
-        }
-        let n = errors.len() as f64;
-        let mean = errors.iter().sum::<f64>() / n;
-        let rmse = (errors.iter().map(|e| e * e).sum::<f64>() / n).sqrt();
-        let std = (errors.iter().map(|e| (e - mean) * (e - mean)).sum::<f64>() / n).sqrt();
-        let mut sorted = errors.to_vec();
-        sorted.sort_by(f64::total_cmp);
-        let m = sorted.len() / 2;
-        let median = if sorted.len() % 2 == 1 {
-            sorted[m]
-        } else {
-            (sorted[m - 1] + sorted[m]) / 2.0
-        };
-        Ok(ApeStats {
-            rmse,
-            mean,
-            median,
-            std,
-            min: sorted[0],
-            max: sorted[sorted.len() - 1],
-            n_pairs: errors.len(),
-        })
     }
+    if s1 < r0 || r1 < s0 {
+        // The offset that puts the middles of the two ranges together.
+        let suggest = offset + mid(r0, r1) - mid(s0, s1);
+        return format!(
+            "the time ranges do not overlap: an offset of about {} s would line them up (give it as offset, or estimate it)",
+            crate::error::num((suggest * 1e3).round() / 1e3)
+        );
+    }
+    format!("the ranges overlap, but no stamps lie within max_diff {max_diff} s of each other (a larger max_diff, or an offset)")
 }
 
-/// The result of [`align_trajectories`].
-#[derive(Clone, Debug)]
-pub struct TrajectoryAlignment {
-    /// The fit: `transform` is `T_world_slam` (maps SLAM positions onto the
-    /// reference); residuals over the fitted pairs.
-    pub alignment: Alignment,
-    /// Matched pairs `(slam index, reference index)`.
-    pub pairs: Vec<(usize, usize)>,
-    /// Error statistics over all matched pairs.
-    pub ape: ApeStats,
-    /// Per pair `‖p_ref − T(p_slam)‖`, metres, in the order of `pairs`.
-    pub errors: Vec<f64>,
-}
-
-/// Associates `slam` with `reference` by time (as evo: `reference` first,
-/// `offset` added to the SLAM stamps), fits `T_world_slam` on the positions of
-/// the (first `first_n`) pairs, and reports the APE over all pairs.
-pub fn align_trajectories(
+/// Pairs `(slam index, reference index)` matched by time as evo does
+/// (`offset` seconds added to the SLAM stamps, nearest stamp within
+/// `max_diff`), in SLAM time order. Fewer than `need` is an
+/// [`Error::Unmatched`] that gives both time ranges and the likely cause.
+pub fn matched_pairs(
     slam: &Trajectory,
     reference: &Trajectory,
-    opts: &TrajectoryAlignOptions,
-) -> Result<TrajectoryAlignment> {
-    slam.check_lengths()?;
-    reference.check_lengths()?;
-    let pairs: Vec<(usize, usize)> = associate(reference, slam, opts.max_diff, opts.offset)
+    max_diff: f64,
+    offset: f64,
+    need: usize,
+) -> Result<Vec<(usize, usize)>> {
+    let mut pairs: Vec<(usize, usize)> = associate(reference, slam, max_diff, offset)
         .into_iter()
         .map(|(r, s)| (s, r))
         .collect();
-    if pairs.is_empty() {
-        return Err(Error::TooFew {
-            what: format!(
-                "pose pairs matched within max_diff {} s (offset {} s)",
-                opts.max_diff, opts.offset
-            ),
-            need: 3,
-            got: 0,
+    pairs.sort_unstable();
+    if pairs.len() < need {
+        return Err(Error::Unmatched {
+            matched: pairs.len(),
+            need,
+            slam_span: span(&slam.timestamps),
+            reference_span: span(&reference.timestamps),
+            max_diff,
+            offset,
+            cause: likely_cause(&slam.timestamps, &reference.timestamps, max_diff, offset),
         });
     }
-    let n_fit = opts.first_n.map_or(pairs.len(), |n| n.min(pairs.len()));
-    let src: Vec<Vector3<f64>> = pairs.iter().map(|&(s, _)| slam.positions[s]).collect();
-    let dst: Vec<Vector3<f64>> = pairs.iter().map(|&(_, r)| reference.positions[r]).collect();
-    let align_opts = AlignOptions {
-        scale: opts.scale,
-        method: opts.method,
-        weights: None,
-    };
-    let alignment = align(&src[..n_fit], &dst[..n_fit], &align_opts)?;
-    let t = &alignment.transform;
-    let errors: Vec<f64> = src
-        .iter()
-        .zip(&dst)
-        .map(|(s, d)| (d - t.transform_point(s)).norm())
-        .collect();
-    let ape = ApeStats::from_errors(&errors)?;
-    Ok(TrajectoryAlignment {
-        alignment,
-        pairs,
-        ape,
-        errors,
-    })
+    Ok(pairs)
 }
 
 /// The paper's frame-to-frame scale factors
@@ -565,6 +476,19 @@ mod tests {
     }
 
     #[test]
+    fn a_gap_of_max_gap_is_bridged_whatever_the_rounding_of_the_stamps() {
+        // 10 Hz in Unix seconds: the steps are 0.1 only up to the stamps' rounding.
+        let times: Vec<f64> = (0..20).map(|i| 1.4e9 + i as f64 * 0.1).collect();
+        let t = line(&times);
+        let mid: Vec<f64> = times.windows(2).map(|w| 0.5 * (w[0] + w[1])).collect();
+        assert_eq!(t.interpolate(&mid, 0.1).unwrap().len(), mid.len());
+        // A gap clearly longer than max_gap is not.
+        let sparse = line(&[0.0, 0.1, 0.3]);
+        assert!(sparse.interpolate(&[0.2], 0.1).is_err());
+        assert!(sparse.interpolate(&[0.05], 0.1).is_ok());
+    }
+
+    #[test]
     fn inconsistent_literals_are_refused_not_panicking() {
         let mut t = line(&[0.0, 1.0, 2.0]);
         t.positions.pop();
@@ -572,10 +496,6 @@ mod tests {
             t.interpolate(&[0.5], 1.0),
             Err(Error::ShapeMismatch { .. })
         ));
-        let r = line(&[0.0, 1.0, 2.0]);
-        let opts = TrajectoryAlignOptions::default();
-        assert!(align_trajectories(&t, &r, &opts).is_err());
-        assert!(align_trajectories(&r, &t, &opts).is_err());
     }
 
     #[test]
@@ -591,16 +511,6 @@ mod tests {
             scale_factors(&still, &reference[..3]),
             Err(Error::Degenerate { .. })
         ));
-    }
-
-    #[test]
-    fn ape_stats_match_definitions() {
-        let s = ApeStats::from_errors(&[1.0, 2.0, 3.0, 4.0]).unwrap();
-        assert_eq!(s.median, 2.5);
-        assert!((s.rmse - 7.5f64.sqrt()).abs() < 1e-15);
-        assert!((s.std - 1.25f64.sqrt()).abs() < 1e-15);
-        assert_eq!((s.min, s.max, s.n_pairs), (1.0, 4.0, 4));
-        assert!(ApeStats::from_errors(&[]).is_err());
     }
 
     #[test]

@@ -9,11 +9,11 @@ use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 use rand_distr::{Distribution, StandardNormal};
 use slam2world::align::covariance::covariance;
-use slam2world::align::extended::{align_trajectories_extended, ExtendedOptions};
 use slam2world::align::robust::{align_robust, RobustOptions};
 use slam2world::align::time_offset::{estimate_time_offset, TimeOffsetOptions};
+use slam2world::align::trajectories::{align_trajectories, TrajectoryAlignOptions};
 use slam2world::align::{align, AlignOptions};
-use slam2world::trajectory::{align_trajectories, TrajectoryAlignOptions};
+use slam2world::io::text::read_tum;
 use slam2world::{Sim3, Trajectory};
 
 fn data_dir() -> Option<PathBuf> {
@@ -28,7 +28,7 @@ fn data_dir() -> Option<PathBuf> {
 
 /// ORB-SLAM3 stamps are nanoseconds written as floats: seconds here.
 fn read_ns(path: &Path) -> Trajectory {
-    let t = Trajectory::read_tum(path).unwrap();
+    let t = read_tum(path).unwrap();
     Trajectory::try_new(
         t.timestamps.iter().map(|s| s * 1e-9).collect(),
         t.positions,
@@ -53,7 +53,7 @@ fn euroc_body_from_cam() -> Sim3 {
 fn robust_fit_ignores_thirty_percent_gross_outliers() {
     let Some(d) = data_dir() else { return };
     let est = read_ns(&d.join("kf_dataset-MH01_mono.txt"));
-    let gt = Trajectory::read_tum(d.join("MH_01_easy.txt")).unwrap();
+    let gt = read_tum(d.join("MH_01_easy.txt")).unwrap();
     let clean = align_trajectories(&est, &gt, &TrajectoryAlignOptions::default()).unwrap();
     // evo 1.38.1 -as (PROVENANCE.md): 352 pairs, scale 5.148581120866326.
     assert_eq!(clean.pairs.len(), 352);
@@ -108,7 +108,7 @@ fn robust_fit_ignores_thirty_percent_gross_outliers() {
 fn injected_time_offset_is_recovered() {
     let Some(d) = data_dir() else { return };
     let est = read_ns(&d.join("f_dataset-MH01_mono.txt"));
-    let gt = Trajectory::read_tum(d.join("MH_01_easy.txt")).unwrap();
+    let gt = read_tum(d.join("MH_01_easy.txt")).unwrap();
     let opts = TimeOffsetOptions::default();
     let base = estimate_time_offset(&est, &gt, &opts).unwrap();
     // The SLAM clock runs 50 ms late: 50 ms must be added back.
@@ -131,50 +131,48 @@ fn injected_time_offset_is_recovered() {
     );
     assert!(e.rmse < e.rmse_at_zero);
     // Through the trajectory fit: the offset is applied and reported.
-    let ext = ExtendedOptions {
+    let ext = TrajectoryAlignOptions {
         estimate_offset: Some(opts),
         ..Default::default()
     };
-    let r =
-        align_trajectories_extended(&late, &gt, &TrajectoryAlignOptions::default(), &ext).unwrap();
+    let r = align_trajectories(&late, &gt, &ext).unwrap();
     assert!((r.offset - e.offset).abs() < 1e-12);
     let plain = align_trajectories(&late, &gt, &TrajectoryAlignOptions::default()).unwrap();
-    assert!(r.trajectory.ape.rmse < plain.ape.rmse);
+    assert!(r.ape.rmse < plain.ape.rmse);
 }
 
 #[test]
 fn known_extrinsic_removes_the_lever_arm_residual() {
     let Some(d) = data_dir() else { return };
     let est = read_ns(&d.join("f_dataset-MH01_mono.txt"));
-    let gt = Trajectory::read_tum(d.join("MH_01_easy.txt")).unwrap();
+    let gt = read_tum(d.join("MH_01_easy.txt")).unwrap();
     let base = TrajectoryAlignOptions::default();
-    let before =
-        align_trajectories_extended(&est, &gt, &base, &ExtendedOptions::default()).unwrap();
-    let with = ExtendedOptions {
+    let before = align_trajectories(&est, &gt, &base).unwrap();
+    let with = TrajectoryAlignOptions {
         body_from_cam: Some(euroc_body_from_cam()),
         ..Default::default()
     };
-    let after = align_trajectories_extended(&est, &gt, &base, &with).unwrap();
+    let after = align_trajectories(&est, &gt, &with).unwrap();
     eprintln!(
         "APE rmse without the extrinsic {:.5} m (scale {:.6}), with {:.5} m (scale {:.6})",
-        before.trajectory.ape.rmse,
-        before.trajectory.alignment.transform.scale,
-        after.trajectory.ape.rmse,
-        after.trajectory.alignment.transform.scale
+        before.ape.rmse,
+        before.transform().scale,
+        after.ape.rmse,
+        after.transform().scale
     );
     // evo -as on the frames: rmse 0.038224 m.
-    assert!((before.trajectory.ape.rmse - 0.038224).abs() < 1e-5);
-    assert!(after.trajectory.ape.rmse < 0.8 * before.trajectory.ape.rmse);
+    assert!((before.ape.rmse - 0.038224).abs() < 1e-5);
+    assert!(after.ape.rmse < 0.8 * before.ape.rmse);
     // With orientations as well (the EuRoC body and camera axes differ: the
     // extrinsic's rotation is needed), the fit stays as good.
-    let both = ExtendedOptions {
+    let both = TrajectoryAlignOptions {
         body_from_cam: Some(euroc_body_from_cam()),
         use_orientations: true,
         ..Default::default()
     };
-    let joint = align_trajectories_extended(&est, &gt, &base, &both).unwrap();
-    eprintln!("with orientations: {:.5} m", joint.trajectory.ape.rmse);
-    assert!(joint.trajectory.ape.rmse < 1.2 * after.trajectory.ape.rmse);
+    let joint = align_trajectories(&est, &gt, &both).unwrap();
+    eprintln!("with orientations: {:.5} m", joint.ape.rmse);
+    assert!(joint.ape.rmse < 1.2 * after.ape.rmse);
 }
 
 #[test]

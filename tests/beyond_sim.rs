@@ -1,12 +1,12 @@
 //! Beyond one fit on the simulated experiment: the automatic start-up cut
 //! against the true stages, and the windowed alignment under scale drift.
 
-use slam2world::align::extended::{align_trajectories_extended, ExtendedOptions, SkipInit};
+use slam2world::align::trajectories::SkipInit;
+use slam2world::align::trajectories::{align_trajectories, TrajectoryAlignOptions};
 use slam2world::align::windowed::{align_windowed, Window, WindowedOptions};
 use slam2world::cloud::{backproject, backproject_per_keyframe, PointFilter};
 use slam2world::sim::evaluate::point_distances;
 use slam2world::sim::{simulate, ErrorStats, SimConfig};
-use slam2world::trajectory::{align_trajectories, TrajectoryAlignOptions};
 
 #[test]
 fn auto_skip_starts_in_the_converging_stretch_and_fixes_the_scale() {
@@ -17,13 +17,11 @@ fn auto_skip_starts_in_the_converging_stretch_and_fixes_the_scale() {
         };
         let sim = simulate(&cfg).unwrap();
         let truth = sim.truth.t_world_slam.scale;
-        let base = TrajectoryAlignOptions::default();
         let fit = |skip| {
-            align_trajectories_extended(
+            align_trajectories(
                 &sim.slam_frames,
                 &sim.reference,
-                &base,
-                &ExtendedOptions {
+                &TrajectoryAlignOptions {
                     skip_init: skip,
                     ..Default::default()
                 },
@@ -34,13 +32,10 @@ fn auto_skip_starts_in_the_converging_stretch_and_fixes_the_scale() {
         let auto = fit(SkipInit::Auto);
         let stages = auto.stages.clone().unwrap();
         // The first fitted frame (pairs index SLAM frames).
-        let start = auto.trajectory.pairs[auto.fit_start].0;
+        let start = auto.pairs[auto.fit_start].0;
         let err = |s: f64| (s / truth - 1.0).abs();
-        let (e_all, e_auto) = (
-            err(all.trajectory.alignment.transform.scale),
-            err(auto.trajectory.alignment.transform.scale),
-        );
-        let conv = auto.trajectory.pairs[stages.converging_start].0;
+        let (e_all, e_auto) = (err(all.transform().scale), err(auto.transform().scale));
+        let conv = auto.pairs[stages.converging_start].0;
         eprintln!(
             "seed {seed}: true stages {}..{}..; found converging {conv}, fit start {start}; \
              scale error all {e_all:.2e}, auto {e_auto:.2e}",
@@ -110,21 +105,20 @@ fn windowed_alignment_halves_the_cloud_error_under_scale_drift() {
 #[test]
 fn convert_reports_the_cut_the_inliers_and_the_windowed_comparison() {
     use slam2world::align::robust::RobustOptions;
-    use slam2world::io::mcap::Log;
-    use slam2world::pipeline::{convert, ConvertOptions};
+    use slam2world::pipeline::{convert, ConvertOptions, Recording};
     let sim = simulate(&SimConfig {
         scale_drift: 0.01,
         ..SimConfig::default().reduced(8)
     })
     .unwrap();
-    let log = Log {
+    let log = Recording {
         keyframes: sim.keyframes.clone(),
         reference: Some(sim.reference.clone()),
         ..Default::default()
     };
     let opts = ConvertOptions {
         filter: PointFilter::none(),
-        beyond: ExtendedOptions {
+        align: TrajectoryAlignOptions {
             skip_init: SkipInit::First(3),
             robust: Some(RobustOptions::default()),
             ..Default::default()
@@ -134,25 +128,23 @@ fn convert_reports_the_cut_the_inliers_and_the_windowed_comparison() {
     };
     let c = convert(&log, &opts).unwrap();
     let r = &c.report;
-    assert_eq!(r.beyond["fit_start"], 3);
-    assert!(r.beyond["skip_reason"]
-        .as_str()
-        .unwrap()
-        .contains("first 3"));
-    let n_in = r.beyond["n_inliers"].as_u64().unwrap() as usize;
+    let fit = r.fit.as_ref().unwrap();
+    assert_eq!(fit.fit_start, 3);
+    assert!(fit.skip_reason.contains("first 3"));
+    let n_in = fit.n_inliers.unwrap();
     assert_eq!(r.pairs.iter().filter(|p| p.fitted).count(), n_in);
     assert!(r.pairs.iter().take(3).all(|p| !p.fitted));
     let w = r.windowed.as_ref().unwrap();
-    assert!(w["windowed_rmse"].as_f64().unwrap() < w["single_rmse"].as_f64().unwrap());
-    let iv = r.beyond["intervals"]["scale"].as_array().unwrap();
+    assert!(w.windowed_rmse < w.single_rmse);
+    let iv = fit.intervals.as_ref().unwrap().scale;
     let s = r.t_world_slam.scale;
-    assert!(iv[0].as_f64().unwrap() < s && s < iv[1].as_f64().unwrap());
+    assert!(iv[0] < s && s < iv[1]);
 }
 
 #[test]
 fn convert_with_the_windowed_cloud_follows_the_drift() {
-    use slam2world::io::mcap::Log;
-    use slam2world::pipeline::{convert, ConvertOptions};
+    use slam2world::map::MapParams;
+    use slam2world::pipeline::{convert, ConvertOptions, Recording};
     // SLAM whose scale drifts 1 %/s: the cloud, map and world poses carried
     // keyframe by keyframe with the windowed Sim(3) lie closer to the true
     // surfaces and path than with the single one.
@@ -161,7 +153,7 @@ fn convert_with_the_windowed_cloud_follows_the_drift() {
         ..SimConfig::default().reduced(4)
     })
     .unwrap();
-    let log = Log {
+    let log = Recording {
         keyframes: sim.keyframes.clone(),
         reference: Some(sim.reference.clone()),
         ..Default::default()
@@ -173,7 +165,7 @@ fn convert_with_the_windowed_cloud_follows_the_drift() {
     };
     let base = ConvertOptions {
         compare_windowed: Some(Window::Poses(5)),
-        octree_resolution: Some(0.2),
+        map: Some(MapParams::new(0.2)),
         ..Default::default()
     };
     let single = convert(&log, &base).unwrap();
@@ -188,11 +180,8 @@ fn convert_with_the_windowed_cloud_follows_the_drift() {
     let (e_single, e_windowed) = (rmse(&single.cloud.points), rmse(&windowed.cloud.points));
     eprintln!("cloud rmse: single Sim(3) {e_single:.4} m, windowed {e_windowed:.4} m");
     assert!(e_windowed < 0.5 * e_single, "{e_windowed} vs {e_single}");
-    assert_eq!(
-        windowed.report.windowed.as_ref().unwrap()["cloud"],
-        "windowed"
-    );
-    assert_eq!(single.report.windowed.as_ref().unwrap()["cloud"], "single");
+    assert_eq!(windowed.report.windowed.as_ref().unwrap().cloud, "windowed");
+    assert_eq!(single.report.windowed.as_ref().unwrap().cloud, "single");
     // The single fit is still the one reported; the map is built from the
     // windowed cloud and the windowed camera centres.
     assert_eq!(

@@ -86,7 +86,7 @@ fn bad_data_exits_1_with_one_line() {
             "collinear",
         ),
         (vec![coincident.to_str().unwrap(), r], "coincide"),
-        (vec![e, r, "--offset", "100"], "matched"),
+        (vec![e, r, "--offset", "100"], "match a reference pose"),
         (vec![e, r, "--n-to-align", "2"], "at least 3"),
         (vec![e, r, "--ref-format", "euroc"], "comma-separated"),
     ];

@@ -3,11 +3,12 @@
 use std::path::{Path, PathBuf};
 
 use nalgebra::{Matrix3, UnitQuaternion, Vector3};
+use slam2world::align::trajectories::{align_trajectories, TrajectoryAlignOptions};
 use slam2world::cli::main_with_args;
 use slam2world::cloud::{backproject, backproject_per_keyframe, PointCloud, PointFilter};
 use slam2world::io::ply::{read_ply, read_xyz_text, write_ply};
-use slam2world::trajectory::{align_trajectories, TrajectoryAlignOptions};
-use slam2world::{Keyframe, PinholeCamera, Sim3, Trajectory};
+use slam2world::io::text::read_tum;
+use slam2world::{Keyframe, PinholeCamera, Sim3};
 
 fn data_dir(folder: &str) -> Option<PathBuf> {
     let p = Path::new(env!("CARGO_MANIFEST_DIR"))
@@ -165,8 +166,8 @@ fn orbslam2_map_points_land_in_the_vicon_room() {
     let Some(dir) = data_dir("euroc_v101_orbslam2_map") else {
         return;
     };
-    let est = Trajectory::read_tum(dir.join("KeyFrameTrajectory_TUM_Format.txt")).unwrap();
-    let gt = Trajectory::read_tum(dir.join("V1_01_easy_original.txt")).unwrap();
+    let est = read_tum(dir.join("KeyFrameTrajectory_TUM_Format.txt")).unwrap();
+    let gt = read_tum(dir.join("V1_01_easy_original.txt")).unwrap();
     let fit = align_trajectories(&est, &gt, &TrajectoryAlignOptions::default()).unwrap();
     let t = fit.alignment.transform;
     // evo 1.38.1 (PROVENANCE.md): 73 pairs, scale 1.00813, rmse 0.110870 m.
@@ -252,8 +253,8 @@ fn cli_transform_cloud_on_real_data() {
     ];
     assert_eq!(main_with_args(args.clone()), 0);
     let written = read_ply(&ply).unwrap();
-    let est = Trajectory::read_tum(dir.join("KeyFrameTrajectory_TUM_Format.txt")).unwrap();
-    let gt = Trajectory::read_tum(dir.join("V1_01_easy_original.txt")).unwrap();
+    let est = read_tum(dir.join("KeyFrameTrajectory_TUM_Format.txt")).unwrap();
+    let gt = read_tum(dir.join("V1_01_easy_original.txt")).unwrap();
     let t = align_trajectories(&est, &gt, &TrajectoryAlignOptions::default())
         .unwrap()
         .alignment

@@ -190,9 +190,9 @@ fn bad_config_is_refused() {
 
 // ---------------------------------------------------------------- with the conversion
 
+use slam2world::align::trajectories::{align_trajectories, TrajectoryAlignOptions};
 use slam2world::cloud::{backproject, PointFilter};
 use slam2world::sim::evaluate::{point_distances, transform_error, ErrorStats};
-use slam2world::trajectory::{align_trajectories, TrajectoryAlignOptions};
 
 #[test]
 fn noiseless_alignment_recovers_the_truth() {

@@ -6,8 +6,10 @@ mod common;
 use common::data;
 
 use nalgebra::Vector3;
+use slam2world::align::trajectories::{align_trajectories, TrajectoryAlignOptions};
 use slam2world::align::AlignMethod;
-use slam2world::trajectory::{align_trajectories, associate, TrajectoryAlignOptions};
+use slam2world::io::text::{read_euroc, read_tum, write_tum};
+use slam2world::trajectory::associate;
 use slam2world::{Error, Sim3, Trajectory};
 
 fn rel(a: f64, b: f64) -> f64 {
@@ -22,8 +24,8 @@ fn fr2_desk_se3_reproduces_published_rmse() {
     ) else {
         return;
     };
-    let gt = Trajectory::read_tum(gt).unwrap();
-    let est = Trajectory::read_tum(est).unwrap();
+    let gt = read_tum(gt).unwrap();
+    let est = read_tum(est).unwrap();
     assert_eq!((gt.len(), est.len()), (20957, 2893));
     let opts = TrajectoryAlignOptions {
         scale: false,
@@ -46,8 +48,8 @@ fn fr2_desk_mono_keyframes_sim3() {
     ) else {
         return;
     };
-    let gt = Trajectory::read_tum(gt).unwrap();
-    let est = Trajectory::read_tum(est).unwrap();
+    let gt = read_tum(gt).unwrap();
+    let est = read_tum(est).unwrap();
     for method in [AlignMethod::Horn, AlignMethod::Umeyama] {
         let opts = TrajectoryAlignOptions {
             method,
@@ -74,8 +76,8 @@ fn fr1_xyz_and_euroc_v102_sim3() {
         data("evo_tum_fr1_xyz", "freiburg1_xyz-ORB_kf_mono.txt"),
     ) {
         let r = align_trajectories(
-            &Trajectory::read_tum(est).unwrap(),
-            &Trajectory::read_tum(gt).unwrap(),
+            &read_tum(est).unwrap(),
+            &read_tum(gt).unwrap(),
             &TrajectoryAlignOptions::default(),
         )
         .unwrap();
@@ -87,10 +89,10 @@ fn fr1_xyz_and_euroc_v102_sim3() {
         data("euroc_v102", "V102_groundtruth.csv"),
         data("euroc_v102", "V102.txt"),
     ) {
-        let gt = Trajectory::read_euroc(gt).unwrap();
+        let gt = read_euroc(gt).unwrap();
         assert_eq!(gt.len(), 16702);
         assert!((gt.timestamps[0] - 1403715524.907).abs() < 1e-3);
-        let est = Trajectory::read_tum(est).unwrap();
+        let est = read_tum(est).unwrap();
         let r = align_trajectories(&est, &gt, &TrajectoryAlignOptions::default()).unwrap();
         assert_eq!(r.ape.n_pairs, 798);
         assert!(rel(r.alignment.transform.scale, 0.9796982521745786) < 1e-9);
@@ -123,8 +125,8 @@ fn tum_write_read_round_trip_is_exact() {
         orientations: Some(vec![s.rotation; 3]),
         ..t
     };
-    t.write_tum(&path).unwrap();
-    let back = Trajectory::read_tum(&path).unwrap();
+    write_tum(&t, &path).unwrap();
+    let back = read_tum(&path).unwrap();
     assert_eq!(back.timestamps, t.timestamps);
     assert_eq!(back.positions, t.positions);
     let (q0, q1) = (t.orientations.unwrap()[0], back.orientations.unwrap()[0]);
@@ -138,29 +140,23 @@ fn readers_report_line_numbers() {
     let dir = tempfile::tempdir().unwrap();
     let path = dir.path().join("bad.txt");
     std::fs::write(&path, "# header\n1 0 0 0 0 0 0 1\n2 0 0 0 0 0 x 1\n").unwrap();
-    match Trajectory::read_tum(&path) {
+    match read_tum(&path) {
         Err(Error::Parse { line, .. }) => assert_eq!(line, 3),
         other => panic!("{other:?}"),
     }
     std::fs::write(&path, "1 0 0 0 0 0 0 1\n2 0 0 0\n").unwrap();
-    assert!(matches!(
-        Trajectory::read_tum(&path),
-        Err(Error::Parse { line: 2, .. })
-    ));
+    assert!(matches!(read_tum(&path), Err(Error::Parse { line: 2, .. })));
     std::fs::write(&path, "2 0 0 0 0 0 0 1\n1 0 0 0 0 0 0 1\n").unwrap();
-    assert!(matches!(
-        Trajectory::read_tum(&path),
-        Err(Error::Parse { line: 2, .. })
-    ));
+    assert!(matches!(read_tum(&path), Err(Error::Parse { line: 2, .. })));
     std::fs::write(&path, "#only a header\n").unwrap();
-    assert!(Trajectory::read_tum(&path).is_err());
+    assert!(read_tum(&path).is_err());
     assert!(matches!(
-        Trajectory::read_tum(dir.path().join("missing.txt")),
+        read_tum(dir.path().join("missing.txt")),
         Err(Error::Io { .. })
     ));
     std::fs::write(&path, "#t,x\n1000000000,1,2,3,1,0,0,0\n2000000000,1,2\n").unwrap();
     assert!(matches!(
-        Trajectory::read_euroc(&path),
+        read_euroc(&path),
         Err(Error::Parse { line: 3, .. })
     ));
 }
@@ -173,8 +169,8 @@ fn associate_is_symmetric_in_its_pairs() {
     ) else {
         return;
     };
-    let gt = Trajectory::read_tum(gt).unwrap();
-    let est = Trajectory::read_tum(est).unwrap();
+    let gt = read_tum(gt).unwrap();
+    let est = read_tum(est).unwrap();
     let ab = associate(&gt, &est, 0.01, 0.0);
     let ba: Vec<(usize, usize)> = associate(&est, &gt, 0.01, 0.0)
         .into_iter()

@@ -14,7 +14,7 @@ use nalgebra::{Matrix3, Matrix4, SMatrix, SVector, UnitQuaternion, Vector3, Vect
 use super::{align, horn, umeyama, AlignDiagnostics, AlignOptions, Alignment};
 use crate::error::{Error, Result};
 use crate::geometry::Sim3;
-use crate::trajectory::{associate, Trajectory};
+use crate::trajectory::{matched_pairs, Trajectory};
 
 /// Iterations of the alternating schemes (they stop earlier once converged).
 const MAX_ITERATIONS: usize = 50;
@@ -346,7 +346,7 @@ pub fn estimate_body_from_cam(
 
 /// [`estimate_body_from_cam`] on two trajectories with orientations: SLAM
 /// keyframes `T_slam_cam` and reference body poses `T_world_body`, paired as
-/// [`associate`] does (`offset` seconds added to the SLAM stamps). Also
+/// [`matched_pairs`] does (`offset` seconds added to the SLAM stamps). Also
 /// returns the number of pairs.
 pub fn estimate_body_from_cam_trajectories(
     slam: &Trajectory,
@@ -362,11 +362,11 @@ pub fn estimate_body_from_cam_trajectories(
             "the extrinsic needs the orientations of both trajectories",
         ));
     };
-    let pairs = associate(reference, slam, max_diff, offset);
-    let a: Vec<Vector3<f64>> = pairs.iter().map(|&(_, i)| slam.positions[i]).collect();
-    let ra: Vec<_> = pairs.iter().map(|&(_, i)| qs[i]).collect();
-    let b: Vec<Vector3<f64>> = pairs.iter().map(|&(j, _)| reference.positions[j]).collect();
-    let rb: Vec<_> = pairs.iter().map(|&(j, _)| qr[j]).collect();
+    let pairs = matched_pairs(slam, reference, max_diff, offset, 3)?;
+    let a: Vec<Vector3<f64>> = pairs.iter().map(|&(i, _)| slam.positions[i]).collect();
+    let ra: Vec<_> = pairs.iter().map(|&(i, _)| qs[i]).collect();
+    let b: Vec<Vector3<f64>> = pairs.iter().map(|&(_, j)| reference.positions[j]).collect();
+    let rb: Vec<_> = pairs.iter().map(|&(_, j)| qr[j]).collect();
     Ok((estimate_body_from_cam(&a, &ra, &b, &rb)?, pairs.len()))
 }
 

@@ -13,13 +13,14 @@
 //! the target points, which yields `1/s`.)
 
 pub mod covariance;
-pub mod extended;
+
 pub mod handeye;
 mod horn;
 mod moments;
 pub mod robust;
 pub mod stages;
 pub mod time_offset;
+pub mod trajectories;
 mod umeyama;
 pub mod windowed;
 

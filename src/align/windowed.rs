@@ -12,7 +12,7 @@ use nalgebra::Vector3;
 use super::{align, AlignOptions, Alignment};
 use crate::error::{Error, Result};
 use crate::geometry::Sim3;
-use crate::trajectory::{associate, Trajectory};
+use crate::trajectory::{matched_pairs, Trajectory};
 
 /// The width of the window of each local fit.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -21,6 +21,23 @@ pub enum Window {
     Poses(usize),
     /// This length of reference path, metres (centred on the pose).
     Distance(f64),
+}
+
+impl Window {
+    /// Checks the window: at least 3 poses, or a finite distance `> 0` metres.
+    pub fn check(&self) -> Result<()> {
+        match *self {
+            Window::Poses(k) if k < 3 => Err(Error::invalid(
+                "window",
+                format!("need at least 3 poses, got {k}"),
+            )),
+            Window::Distance(d) if !(d.is_finite() && d > 0.0) => Err(Error::invalid(
+                "window",
+                format!("a distance must be finite and > 0 metres, got {d}"),
+            )),
+            _ => Ok(()),
+        }
+    }
 }
 
 impl Default for Window {
@@ -169,25 +186,8 @@ pub fn align_windowed(
 ) -> Result<WindowedAlignment> {
     slam.check_lengths()?;
     reference.check_lengths()?;
-    match opts.window {
-        Window::Poses(k) if k < 3 => {
-            return Err(Error::invalid(
-                "window",
-                format!("need at least 3 poses, got {k}"),
-            ));
-        }
-        Window::Distance(d) if !(d.is_finite() && d > 0.0) => {
-            return Err(Error::invalid(
-                "window",
-                format!("a distance must be finite and > 0 metres, got {d}"),
-            ));
-        }
-        _ => {}
-    }
-    let pairs: Vec<(usize, usize)> = associate(reference, slam, opts.max_diff, opts.offset)
-        .into_iter()
-        .map(|(r, s)| (s, r))
-        .collect();
+    opts.window.check()?;
+    let pairs = matched_pairs(slam, reference, opts.max_diff, opts.offset, 3)?;
     let src: Vec<Vector3<f64>> = pairs.iter().map(|&(s, _)| slam.positions[s]).collect();
     let dst: Vec<Vector3<f64>> = pairs.iter().map(|&(_, r)| reference.positions[r]).collect();
     let aopts = AlignOptions {
