@@ -10,6 +10,7 @@ use rand::SeedableRng;
 use rand_chacha::ChaCha8Rng;
 use rand_distr::{Distribution, Normal};
 use slam2world::imu::{imu_initialize, ImuInitOptions};
+use slam2world::io::text::{read_euroc, read_euroc_imu, read_tum};
 use slam2world::{Error, ImuSamples, Sim3, Trajectory};
 
 const G: f64 = 9.81;
@@ -337,15 +338,16 @@ fn euroc_v102_scale_and_gravity_agree_with_the_pose_fit() {
     ) else {
         return;
     };
-    let imu = ImuSamples::read_euroc(&imu_path).unwrap();
-    let est = Trajectory::read_tum(&est_path).unwrap();
-    let gt = Trajectory::read_euroc(&gt_path).unwrap();
+    let imu = read_euroc_imu(&imu_path).unwrap();
+    let est = read_tum(&est_path).unwrap();
+    let gt = read_euroc(&gt_path).unwrap();
     // The estimate's first 10 s are SLAM's own start-up (the pose-based fit
     // over 0–10 s leaves 4× the variance factor): windows start after it.
     for (start, window) in [(10.0, 70.0), (20.0, 60.0), (10.0, 20.0)] {
         let (kf, _) = v102_keyframes(&est, start, window);
         let fit =
-            slam2world::trajectory::align_trajectories(&kf, &gt, &Default::default()).unwrap();
+            slam2world::align::trajectories::align_trajectories(&kf, &gt, &Default::default())
+                .unwrap();
         let horn = fit.alignment.transform;
         let g_ref = horn.rotation.inverse() * Vector3::new(0.0, 0.0, -1.0);
         let a = imu_initialize(&kf, &imu, &ImuInitOptions::default()).unwrap();
@@ -545,28 +547,28 @@ fn euroc_csv_reader() {
          1403715523917143040,0.001,0.02,0.07,9.2,0.3,-3.1\n",
     )
     .unwrap();
-    let imu = ImuSamples::read_euroc(&p).unwrap();
+    let imu = read_euroc_imu(&p).unwrap();
     assert_eq!(imu.len(), 2);
     assert!((imu.timestamps[1] - imu.timestamps[0] - 0.004999936).abs() < 1e-6);
     assert_eq!(imu.gyro[0], Vector3::new(-0.0007, 0.0195, 0.0768));
     assert_eq!(imu.accel[1], Vector3::new(9.2, 0.3, -3.1));
     std::fs::write(&p, "1,2,3\n").unwrap();
     assert!(matches!(
-        ImuSamples::read_euroc(&p),
+        read_euroc_imu(&p),
         Err(Error::Parse { line: 1, .. })
     ));
     std::fs::write(&p, "1,2,3,4,5,6,x\n").unwrap();
     assert!(matches!(
-        ImuSamples::read_euroc(&p),
+        read_euroc_imu(&p),
         Err(Error::Parse { line: 1, .. })
     ));
     std::fs::write(&p, "2,0,0,0,0,0,0\n1,0,0,0,0,0,0\n").unwrap();
     assert!(matches!(
-        ImuSamples::read_euroc(&p),
+        read_euroc_imu(&p),
         Err(Error::InvalidArgument { .. })
     ));
     assert!(matches!(
-        ImuSamples::read_euroc(dir.path().join("none.csv")),
+        read_euroc_imu(dir.path().join("none.csv")),
         Err(Error::Io { .. })
     ));
 }
@@ -576,7 +578,7 @@ fn euroc_v102_imu_file_reads() {
     let Some(p) = shared_data("euroc_v102_imu", "V102.txt") else {
         return;
     };
-    let imu = ImuSamples::read_euroc(p).unwrap();
+    let imu = read_euroc_imu(p).unwrap();
     assert_eq!(imu.len(), 17100);
     let dt = imu.timestamps[imu.len() - 1] - imu.timestamps[0];
     assert!((dt - 85.49).abs() < 0.01, "{dt}");
@@ -657,7 +659,7 @@ fn write_log(s: &Scenario, path: &Path, with_reference: bool) {
 #[test]
 fn convert_takes_the_imu_path_without_reference_poses() {
     use slam2world::io::mcap::{read_mcap, ReadOptions};
-    use slam2world::pipeline::{convert, ConvertOptions};
+    use slam2world::pipeline::{convert, ConvertOptions, Recording};
     let s = scenario(
         Motion {
             excite: 1.0,
@@ -679,7 +681,7 @@ fn convert_takes_the_imu_path_without_reference_poses() {
     // No reference: T_world_slam from the IMU.
     let p = dir.path().join("imu_only.mcap");
     write_log(&s, &p, false);
-    let log = read_mcap(&p, &ReadOptions::default()).unwrap();
+    let log = Recording::from(read_mcap(&p, &ReadOptions::default()).unwrap());
     assert!(log.reference.is_none() && log.imu.is_some());
     let c = convert(&log, &opts).unwrap();
     assert!((c.transform().scale / s.truth.scale - 1.0).abs() < 1e-3);
@@ -692,7 +694,7 @@ fn convert_takes_the_imu_path_without_reference_poses() {
     // Both: the pose fit gives T_world_slam, the IMU is the consistency check.
     let p = dir.path().join("both.mcap");
     write_log(&s, &p, true);
-    let log = read_mcap(&p, &ReadOptions::default()).unwrap();
+    let log = Recording::from(read_mcap(&p, &ReadOptions::default()).unwrap());
     let c = convert(&log, &opts).unwrap();
     let imu = c.report.imu.as_ref().unwrap();
     assert!(!imu.used_for_transform);

@@ -10,13 +10,10 @@
 //!   one linear system over the keyframes (VINS-Mono / ORB-SLAM3 style), then
 //!   gravity refined with its magnitude fixed, optionally the accelerometer bias.
 
-use std::path::Path;
-
 use nalgebra::Vector3;
 
 use crate::error::{Error, Result};
 
-pub mod convert;
 pub mod init;
 pub mod preintegration;
 
@@ -98,72 +95,5 @@ impl ImuSamples {
     /// True when there are no samples.
     pub fn is_empty(&self) -> bool {
         self.timestamps.is_empty()
-    }
-
-    /// Reads EuRoC `imu0/data.csv` content: `timestamp [ns], w_x, w_y, w_z
-    /// [rad/s], a_x, a_y, a_z [m/s²]` per line, `#` comment lines and blank
-    /// lines skipped. Times become seconds.
-    ///
-    /// Errors: [`Error::Io`], [`Error::Parse`] (with the line number) for a
-    /// malformed line, and the checks of [`ImuSamples::try_new`].
-    pub fn read_euroc(path: impl AsRef<Path>) -> Result<ImuSamples> {
-        let path = path.as_ref();
-        let bytes = std::fs::read(path).map_err(|e| Error::io(path, e))?;
-        let bytes = bytes.strip_prefix(b"\xEF\xBB\xBF").unwrap_or(&bytes);
-        let text = std::str::from_utf8(bytes).map_err(|e| {
-            Error::parse(
-                path,
-                0,
-                format!("not UTF-8 text (byte {})", e.valid_up_to()),
-            )
-        })?;
-        let (mut timestamps, mut gyro, mut accel) = (Vec::new(), Vec::new(), Vec::new());
-        for (k, raw) in text.lines().enumerate() {
-            let line = raw.trim();
-            if line.is_empty() || line.starts_with('#') {
-                continue;
-            }
-            let fields: Vec<&str> = line.split(',').map(str::trim).collect();
-            if fields.len() != 7 {
-                return Err(Error::parse(
-                    path,
-                    k + 1,
-                    format!(
-                        "expected 7 comma-separated values (ns, gyro x y z, accel x y z), got {}",
-                        fields.len()
-                    ),
-                ));
-            }
-            // Integer nanoseconds where they are written so (EuRoC); a float otherwise.
-            let t = match fields[0].parse::<i64>() {
-                Ok(ns) => ns as f64 * 1e-9,
-                Err(_) => fields[0].parse::<f64>().map(|ns| ns * 1e-9).map_err(|_| {
-                    Error::parse(
-                        path,
-                        k + 1,
-                        format!("timestamp is not a number: {:?}", fields[0]),
-                    )
-                })?,
-            };
-            let mut v = [0.0; 6];
-            for (j, f) in fields[1..].iter().enumerate() {
-                v[j] = f.parse().map_err(|_| {
-                    Error::parse(
-                        path,
-                        k + 1,
-                        format!("field {} is not a number: {f:?}", j + 2),
-                    )
-                })?;
-            }
-            timestamps.push(t);
-            gyro.push(Vector3::new(v[0], v[1], v[2]));
-            accel.push(Vector3::new(v[3], v[4], v[5]));
-        }
-        ImuSamples::try_new(timestamps, gyro, accel).map_err(|e| match e {
-            Error::NonFinite { index, .. } => {
-                Error::parse(path, 0, format!("sample {index} is not finite"))
-            }
-            other => other,
-        })
     }
 }

@@ -578,6 +578,23 @@ pub fn read_xyz_text(path: impl AsRef<Path>) -> Result<PointCloud> {
     PointCloud::try_new(points, None, None)
 }
 
+/// Reads a point cloud file: PLY (recognised by its `ply` magic line, any
+/// PLY format) or whitespace-separated `x y z` text.
+pub fn read_cloud(path: impl AsRef<Path>) -> Result<PointCloud> {
+    use std::io::Read;
+    let path = path.as_ref();
+    let mut head = [0u8; 4];
+    let n = std::fs::File::open(path)
+        .and_then(|mut f| f.read(&mut head))
+        .map_err(|e| Error::io(path, e))?;
+    let is_ply = n >= 4 && &head[..3] == b"ply" && (head[3] == b'\n' || head[3] == b'\r');
+    if is_ply {
+        read_ply(path)
+    } else {
+        read_xyz_text(path)
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

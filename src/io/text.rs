@@ -5,6 +5,8 @@
 //! - EuRoC ground truth CSV (`state_groundtruth_estimate0/data.csv`):
 //!   `timestamp [ns], p_x, p_y, p_z, q_w, q_x, q_y, q_z, …` (w first; further
 //!   columns ignored), `#` header. Times become seconds (`ns / 1e9`, as evo does).
+//! - EuRoC IMU CSV (`imu0/data.csv`): `timestamp [ns], w_x, w_y, w_z [rad/s],
+//!   a_x, a_y, a_z [m/s²]`.
 
 use std::io::Write;
 use std::path::Path;
@@ -13,7 +15,44 @@ use nalgebra::{UnitQuaternion, Vector3};
 
 use crate::error::{Error, Result};
 use crate::geometry::unit_quaternion_xyzw;
+use crate::imu::ImuSamples;
 use crate::trajectory::Trajectory;
+
+/// Trajectory file formats.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub enum TrajectoryFormat {
+    /// `timestamp tx ty tz qx qy qz qw` (seconds).
+    #[default]
+    Tum,
+    /// EuRoC ground truth CSV: `ns, x, y, z, qw, qx, qy, qz, …`.
+    Euroc,
+}
+
+impl std::str::FromStr for TrajectoryFormat {
+    type Err = Error;
+    fn from_str(s: &str) -> Result<Self> {
+        match s.to_ascii_lowercase().as_str() {
+            "tum" => Ok(TrajectoryFormat::Tum),
+            "euroc" => Ok(TrajectoryFormat::Euroc),
+            _ => Err(Error::invalid(
+                "format",
+                format!(
+                    "expected \"tum\" or \"euroc\", got {}",
+                    crate::error::cut(s)
+                ),
+            )),
+        }
+    }
+}
+
+/// Reads a trajectory file in `format`.
+pub fn read_trajectory(path: impl AsRef<Path>, format: TrajectoryFormat) -> Result<Trajectory> {
+    let path = path.as_ref();
+    match format {
+        TrajectoryFormat::Tum => read_tum(path),
+        TrajectoryFormat::Euroc => read_euroc(path),
+    }
+}
 
 /// Reads a file as UTF-8 text, dropping a leading byte-order mark.
 fn read_text(path: &Path) -> Result<String> {
@@ -98,7 +137,8 @@ impl<'a> Builder<'a> {
 }
 
 /// Reads a TUM trajectory file (`timestamp tx ty tz qx qy qz qw` per line).
-pub fn read_tum(path: &Path) -> Result<Trajectory> {
+pub fn read_tum(path: impl AsRef<Path>) -> Result<Trajectory> {
+    let path = path.as_ref();
     let text = read_text(path)?;
     let mut b = Builder::new(path);
     for (k, raw) in text.lines().enumerate() {
@@ -124,7 +164,8 @@ pub fn read_tum(path: &Path) -> Result<Trajectory> {
 }
 
 /// Reads EuRoC ground truth CSV (`ns, x, y, z, qw, qx, qy, qz[, …]`).
-pub fn read_euroc(path: &Path) -> Result<Trajectory> {
+pub fn read_euroc(path: impl AsRef<Path>) -> Result<Trajectory> {
+    let path = path.as_ref();
     let text = read_text(path)?;
     let mut b = Builder::new(path);
     for (k, raw) in text.lines().enumerate() {
@@ -157,7 +198,8 @@ pub fn read_euroc(path: &Path) -> Result<Trajectory> {
 /// Writes a TUM file, atomically (temporary file in the same folder, renamed).
 /// Numbers are written in the shortest form that reads back exactly; poses
 /// without orientation get the identity quaternion.
-pub fn write_tum(traj: &Trajectory, path: &Path) -> Result<()> {
+pub fn write_tum(traj: &Trajectory, path: impl AsRef<Path>) -> Result<()> {
+    let path = path.as_ref();
     traj.check_lengths()?;
     crate::io::atomic::write_atomic(path, |file| {
         let mut w = std::io::BufWriter::new(file);
@@ -178,4 +220,43 @@ pub fn write_tum(traj: &Trajectory, path: &Path) -> Result<()> {
         }
         w.flush().map_err(io)
     })
+}
+
+/// Reads EuRoC `imu0/data.csv` content: `timestamp [ns], w_x, w_y, w_z
+/// [rad/s], a_x, a_y, a_z [m/s²]` per line, `#` comment lines and blank
+/// lines skipped. Times become seconds (integer nanoseconds read exactly).
+///
+/// Errors: [`Error::Io`], [`Error::Parse`] (with the line number) for a
+/// malformed line, and the checks of [`ImuSamples::try_new`].
+pub fn read_euroc_imu(path: impl AsRef<Path>) -> Result<ImuSamples> {
+    let path = path.as_ref();
+    let text = read_text(path)?;
+    let (mut timestamps, mut gyro, mut accel) = (Vec::new(), Vec::new(), Vec::new());
+    for (k, raw) in text.lines().enumerate() {
+        let line = raw.trim();
+        if line.is_empty() || line.starts_with('#') {
+            continue;
+        }
+        let fields: Vec<&str> = line.split(',').map(str::trim).collect();
+        if fields.len() != 7 {
+            return Err(Error::parse(
+                path,
+                k + 1,
+                format!(
+                    "expected 7 comma-separated values (ns, gyro x y z, accel x y z), got {}",
+                    fields.len()
+                ),
+            ));
+        }
+        // Integer nanoseconds where they are written so (EuRoC); a float otherwise.
+        let t = match fields[0].parse::<i64>() {
+            Ok(ns) => ns as f64 * 1e-9,
+            Err(_) => parse_fields(path, k + 1, &fields[..1])?[0] * 1e-9,
+        };
+        let v = parse_fields(path, k + 1, &fields[1..])?;
+        timestamps.push(t);
+        gyro.push(Vector3::new(v[0], v[1], v[2]));
+        accel.push(Vector3::new(v[3], v[4], v[5]));
+    }
+    ImuSamples::try_new(timestamps, gyro, accel)
 }
