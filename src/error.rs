@@ -81,6 +81,44 @@ pub enum Error {
         /// What was wrong.
         reason: String,
     },
+    /// Too few SLAM stamps matched a reference pose by time. The spans and the
+    /// likely cause (a unit mix-up, a constant offset) say why.
+    #[error(
+        "{matched} SLAM stamps match a reference pose within max_diff {max_diff} s (offset {offset} s), \
+         need {need}: SLAM {slam_span}, reference {reference_span}; {cause}"
+    )]
+    Unmatched {
+        /// Pairs found.
+        matched: usize,
+        /// Pairs needed.
+        need: usize,
+        /// First and last SLAM stamp, as text.
+        slam_span: String,
+        /// First and last reference stamp, as text.
+        reference_span: String,
+        /// The matching window, seconds.
+        max_diff: f64,
+        /// Seconds added to the SLAM stamps.
+        offset: f64,
+        /// The likely cause.
+        cause: String,
+    },
+    /// A message of a log that does not decode: the file, the topic, the
+    /// message's index on its topic and log time, and what was wrong where.
+    #[error("{}: topic {topic}: message {index} (log time {log_time} ns): {source}", path.display())]
+    Decode {
+        /// The log file.
+        path: PathBuf,
+        /// The topic.
+        topic: String,
+        /// Index of the message among the messages of its topic.
+        index: usize,
+        /// Its log time, nanoseconds.
+        log_time: u64,
+        /// What was wrong, with the byte offset in the message.
+        #[source]
+        source: WireError,
+    },
     /// An MCAP log that cannot be read or decoded.
     #[error("{}: {reason}", path.display())]
     Mcap {
@@ -89,6 +127,78 @@ pub enum Error {
         /// Topic, channel or record the problem was found in, when known.
         reason: String,
     },
+}
+
+/// What was wrong with a message's bytes (offsets are bytes from the start of
+/// the message; for CDR, from the end of its 4-byte header). The readers add
+/// the file, topic and message index ([`Error::Decode`]).
+#[derive(Clone, Debug, PartialEq, Eq, thiserror::Error)]
+pub enum WireError {
+    /// Fewer bytes than a field needs.
+    #[error(
+        "message too short: {need} bytes needed at offset {offset}, {len} bytes in the message"
+    )]
+    Truncated {
+        /// Where the field starts.
+        offset: usize,
+        /// Bytes the field needs.
+        need: usize,
+        /// Bytes in the message.
+        len: usize,
+    },
+    /// A field whose value is not allowed (an encapsulation, a wire type, a
+    /// length that does not fit).
+    #[error("offset {offset}: {what}")]
+    Malformed {
+        /// Where the field starts.
+        offset: usize,
+        /// What was wrong.
+        what: String,
+    },
+    /// A field of another type than the schema says, a missing field, or a
+    /// message that is not what its schema says (protobuf, JSON).
+    #[error("{what}")]
+    Schema {
+        /// What was expected and found.
+        what: String,
+    },
+    /// A well-formed value that is not allowed (a non-finite pose, a zero
+    /// quaternion).
+    #[error("{what}")]
+    Value {
+        /// The value and why it is refused.
+        what: String,
+    },
+}
+
+impl WireError {
+    /// A [`WireError::Malformed`] at `offset`.
+    pub fn malformed(offset: usize, what: impl Into<String>) -> Self {
+        WireError::Malformed {
+            offset,
+            what: what.into(),
+        }
+    }
+
+    /// A [`WireError::Schema`].
+    pub fn schema(what: impl Into<String>) -> Self {
+        WireError::Schema { what: what.into() }
+    }
+
+    /// A [`WireError::Value`].
+    pub fn value(what: impl Into<String>) -> Self {
+        WireError::Value { what: what.into() }
+    }
+
+    /// The byte offset of the problem, when it has one.
+    pub fn offset(&self) -> Option<usize> {
+        match self {
+            WireError::Truncated { offset, .. } | WireError::Malformed { offset, .. } => {
+                Some(*offset)
+            }
+            WireError::Schema { .. } | WireError::Value { .. } => None,
+        }
+    }
 }
 
 /// Result with the crate's [`Error`].
@@ -121,6 +231,38 @@ impl Error {
     }
 }
 
+/// A number for a message: plain where it is short, in exponent form where
+/// its plain form would be long (a stamp of `1e300` must not print 300 digits).
+pub fn num(x: f64) -> String {
+    if x == 0.0 || (1e-6..1e15).contains(&x.abs()) {
+        // Six decimals at most (a sum of tenths prints as 3.9, not 3.9000000000000004).
+        let s = format!("{x:.6}");
+        let s = s.trim_end_matches('0').trim_end_matches('.');
+        if s == "-0" || s.is_empty() {
+            format!("{x:e}")
+        } else {
+            s.to_string()
+        }
+    } else {
+        format!("{x:e}")
+    }
+}
+
+/// Longest piece of user text quoted in a message, characters.
+pub const QUOTE_MAX: usize = 80;
+
+/// `text` quoted for a message, cut to [`QUOTE_MAX`] characters (with the full
+/// length said) so that a bad 200 KB token does not become a 200 KB line.
+pub fn cut(text: &str) -> String {
+    let n = text.chars().count();
+    if n <= QUOTE_MAX {
+        format!("{text:?}")
+    } else {
+        let head: String = text.chars().take(QUOTE_MAX).collect();
+        format!("{head:?}… ({n} characters)")
+    }
+}
+
 /// Checks that a flat slice holds rows of `cols` values and that all are finite.
 /// Returns the number of rows.
 pub fn check_rows(what: &str, data: &[f64], cols: usize) -> Result<usize> {
@@ -138,4 +280,23 @@ pub fn check_rows(what: &str, data: &[f64], cols: usize) -> Result<usize> {
         });
     }
     Ok(data.len() / cols)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn numbers_and_quotes_stay_short() {
+        assert_eq!(num(0.1 + 0.2), "0.3");
+        assert_eq!(num(3.9000000000000004), "3.9");
+        assert_eq!(num(-50.0), "-50");
+        assert_eq!(num(0.0), "0");
+        assert_eq!(num(1e300), "1e300");
+        assert_eq!(num(1.5e-9), "1.5e-9");
+        let long = "x".repeat(200_000);
+        let q = cut(&long);
+        assert!(q.len() < 120 && q.contains("200000 characters"), "{q}");
+        assert_eq!(cut("abc"), "\"abc\"");
+    }
 }

@@ -105,10 +105,11 @@ impl From<Error> for PyErr {
                 Error::ShapeMismatch { .. }
                 | Error::NonFinite { .. }
                 | Error::TooFew { .. }
+                | Error::Unmatched { .. }
                 | Error::InvalidArgument { .. }
                 | Error::OutOfRange { .. } => &c.invalid,
                 Error::Degenerate { .. } => &c.degenerate,
-                Error::Parse { .. } | Error::Mcap { .. } => &c.format,
+                Error::Parse { .. } | Error::Mcap { .. } | Error::Decode { .. } => &c.format,
                 Error::Io { source, .. } => {
                     // OSError(errno, strerror, filename) keeps .errno/.filename usable.
                     let errno = source.raw_os_error();

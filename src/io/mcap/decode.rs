@@ -3,10 +3,10 @@
 //! `tf2_msgs/TFMessage` in ROS 1 and ROS 2 CDR; `foxglove.PoseInFrame` and
 //! `foxglove.PosesInFrame` in protobuf and JSON) and `sensor_msgs/Imu`.
 //!
-//! Decoders return `Err(String)` saying what was wrong; [`super::log`] adds the
-//! file, topic and message index.
+//! Decoders return a [`WireError`] saying what was wrong and where in the
+//! message; [`super::log`] adds the file, topic and message index.
 
-use super::wire::{pb_fields, Cdr, PbValue, Ros1, WireResult};
+use super::wire::{pb_fields, Cdr, PbValue, Ros1, WireError, WireResult};
 
 /// Size of one LSD-SLAM `InputPointDense` (f32 idepth, f32 idepth_var, u8 color[4]).
 pub const POINT_BYTES: usize = 12;
@@ -146,18 +146,23 @@ pub fn keyframe_ros1(data: &[u8]) -> WireResult<KeyframeMsg<'_>> {
     let cy = r.f32()? as f64;
     let height = r.u32()?;
     let width = r.u32()?;
+    let pc_offset = r.pos();
     let pointcloud = r.byte_array()?;
     // u32·u32·12 can exceed u64: count in u128.
     let expected = width as u128 * height as u128 * POINT_BYTES as u128;
     if !pointcloud.is_empty() && pointcloud.len() as u128 != expected {
-        return Err(format!(
-            "keyframe {id}: point cloud of {} bytes, expected width·height·12 = {width}·{height}·12 = {expected}",
-            pointcloud.len()
+        return Err(WireError::malformed(
+            pc_offset,
+            format!(
+                "keyframe {id}: point cloud of {} bytes, expected width·height·12 = {width}·{height}·12 = {expected}",
+                pointcloud.len()
+            ),
         ));
     }
     if is_keyframe && pointcloud.is_empty() {
-        return Err(format!(
-            "keyframe {id}: isKeyframe is set but the point cloud is empty"
+        return Err(WireError::malformed(
+            pc_offset,
+            format!("keyframe {id}: isKeyframe is set but the point cloud is empty"),
         ));
     }
     Ok(KeyframeMsg {
@@ -194,11 +199,15 @@ pub fn split_pointcloud(pc: &[u8]) -> (Vec<f32>, Vec<f32>, Vec<u8>) {
 pub fn graph_ros1(data: &[u8]) -> WireResult<Vec<(i32, [f64; 7])>> {
     let mut r = Ros1::new(data);
     let num_frames = r.u32()? as usize;
+    let at = r.pos();
     let frames = r.byte_array()?;
     if frames.len() != num_frames.saturating_mul(32) {
-        return Err(format!(
-            "graph: frameData of {} bytes, expected numFrames·32 = {num_frames}·32",
-            frames.len()
+        return Err(WireError::malformed(
+            at,
+            format!(
+                "graph: frameData of {} bytes, expected numFrames·32 = {num_frames}·32",
+                frames.len()
+            ),
         ));
     }
     let mut out = Vec::with_capacity(num_frames);
@@ -255,9 +264,9 @@ pub fn imu(encoding: &str, data: &[u8]) -> WireResult<ImuMsg> {
             let accel = [r.f64()?, r.f64()?, r.f64()?];
             Ok(ImuMsg { time, gyro, accel })
         }
-        other => Err(format!(
+        other => Err(WireError::schema(format!(
             "sensor_msgs/Imu in encoding {other:?} is not supported"
-        )),
+        ))),
     }
 }
 
@@ -351,7 +360,7 @@ pub fn pose_sample(kind: MessageKind, encoding: &str, data: &[u8]) -> WireResult
             let v = poses(kind, encoding, data)?;
             match v.last() {
                 Some(s) => Ok((s.time, s.position, s.orientation)),
-                None => Err("message without a pose".into()),
+                None => Err(WireError::schema("message without a pose")),
             }
         }
     }
@@ -405,7 +414,9 @@ fn ros_pose<R: Prim>(kind: MessageKind, r: &mut R) -> WireResult<Vec<StampedPose
             }
             Ok(out)
         }
-        other => Err(format!("{other:?} is not a ROS pose message")),
+        other => Err(WireError::schema(format!(
+            "{other:?} is not a ROS pose message"
+        ))),
     }
 }
 
@@ -462,14 +473,18 @@ fn foxglove_protobuf(kind: MessageKind, data: &[u8]) -> WireResult<Vec<StampedPo
             (1, v) => time = pb_time(v.as_bytes()?)?,
             (2, v) => frame_id = String::from_utf8_lossy(v.as_bytes()?).into_owned(),
             (3, PbValue::Bytes(b)) => poses.push(pb_pose(b)?),
-            (3, other) => return Err(format!("pose field is not a message: {other:?}")),
+            (3, other) => {
+                return Err(WireError::schema(format!(
+                    "pose field is not a message: {other:?}"
+                )))
+            }
             _ => {}
         }
     }
     let pose = match (kind, poses.last()) {
         (_, Some(p)) => *p,
         (MessageKind::PoseInFrame, None) => ([0.0; 3], [0.0, 0.0, 0.0, 1.0]),
-        (_, None) => return Err("PosesInFrame message without poses".into()),
+        (_, None) => return Err(WireError::schema("PosesInFrame message without poses")),
     };
     Ok(vec![StampedPose {
         time,
@@ -481,8 +496,9 @@ fn foxglove_protobuf(kind: MessageKind, data: &[u8]) -> WireResult<Vec<StampedPo
 }
 
 fn json_num(v: &serde_json::Value, what: &str) -> WireResult<f64> {
-    v.as_f64()
-        .ok_or_else(|| format!("JSON field {what}: expected a number, found {v}"))
+    v.as_f64().ok_or_else(|| {
+        WireError::schema(format!("JSON field {what}: expected a number, found {v}"))
+    })
 }
 
 fn json_pose(v: &serde_json::Value) -> WireResult<([f64; 3], [f64; 4])> {
@@ -504,8 +520,8 @@ fn json_pose(v: &serde_json::Value) -> WireResult<([f64; 3], [f64; 4])> {
 }
 
 fn foxglove_json(kind: MessageKind, data: &[u8]) -> WireResult<Vec<StampedPose>> {
-    let v: serde_json::Value =
-        serde_json::from_slice(data).map_err(|e| format!("invalid JSON: {e}"))?;
+    let v: serde_json::Value = serde_json::from_slice(data)
+        .map_err(|e| WireError::schema(format!("invalid JSON: {e}")))?;
     let t = &v["timestamp"];
     let time =
         json_num(&t["sec"], "timestamp.sec")? + json_num(&t["nsec"], "timestamp.nsec")? * 1e-9;
@@ -514,7 +530,7 @@ fn foxglove_json(kind: MessageKind, data: &[u8]) -> WireResult<Vec<StampedPose>>
         MessageKind::PoseInFrame => json_pose(&v["pose"])?,
         _ => match v["poses"].as_array().and_then(|a| a.last()) {
             Some(p) => json_pose(p)?,
-            None => return Err("PosesInFrame message without poses".into()),
+            None => return Err(WireError::schema("PosesInFrame message without poses")),
         },
     };
     Ok(vec![StampedPose {
@@ -533,14 +549,16 @@ pub fn poses(kind: MessageKind, encoding: &str, data: &[u8]) -> WireResult<Vec<S
             foxglove_protobuf(kind, data)
         }
         (MessageKind::PoseInFrame | MessageKind::PosesInFrame, "json") => foxglove_json(kind, data),
-        (MessageKind::PoseInFrame | MessageKind::PosesInFrame, _) => Err(format!(
-            "{kind:?} in message encoding {encoding:?} is not supported (protobuf or json)"
-        )),
+        (MessageKind::PoseInFrame | MessageKind::PosesInFrame, _) => {
+            Err(WireError::schema(format!(
+                "{kind:?} in message encoding {encoding:?} is not supported (protobuf or json)"
+            )))
+        }
         (_, "ros1") => ros_pose(kind, &mut Ros1::new(data)),
         (_, "cdr") => ros_pose(kind, &mut Cdr::new(data)?),
-        _ => Err(format!(
+        _ => Err(WireError::schema(format!(
             "{kind:?} in message encoding {encoding:?} is not supported (ros1 or cdr)"
-        )),
+        ))),
     }
 }
 
@@ -575,7 +593,11 @@ mod tests {
         m.extend_from_slice(&13u32.to_le_bytes());
         m.extend_from_slice(&[0u8; 13]);
         let e = keyframe_ros1(&m).unwrap_err();
-        assert!(e.contains("13 bytes") && e.contains("48"), "{e}");
+        // The length field of the point cloud sits at byte 65 of the message.
+        let WireError::Malformed { offset: 65, what } = &e else {
+            panic!("{e:?}")
+        };
+        assert!(what.contains("13 bytes") && what.contains("48"), "{e}");
     }
 
     #[test]

@@ -11,14 +11,14 @@ use rayon::prelude::*;
 use super::decode::{self, KeyframeMsg, MessageKind, StampedPose};
 use super::reader::{ChannelInfo, McapFile, RawMessage, ReadMode};
 use super::stream::MappedMessage;
-use crate::error::{Error, Result};
+use crate::error::{Error, Result, WireError};
 use crate::geometry::{PinholeCamera, Sim3};
 use crate::imu::ImuSamples;
 use crate::keyframe::Keyframe;
 use crate::trajectory::Trajectory;
 
 /// Which topics to read. `None` finds the topic by its schema name.
-#[derive(Clone, Debug, Default)]
+#[derive(Clone, Debug, Default, PartialEq, Eq)]
 pub struct ReadOptions {
     /// Topic of `lsd_slam_viewer/keyframeMsg`.
     pub keyframe_topic: Option<String>,
@@ -324,17 +324,18 @@ pub fn read_mcap(path: impl AsRef<Path>, options: &ReadOptions) -> Result<Log> {
 /// inverse depth, variance and RGB (for keyframes; live frames have none).
 type DecodedKeyframe = (KeyframeMsg<'static>, Option<(Vec<f32>, Vec<f32>, Vec<u8>)>);
 
-/// What a message becomes inside the chunk task. Errors keep their text; the
-/// file, topic and message index are added when the message is used.
+/// What a message becomes inside the chunk task. Errors keep what and where
+/// in the message; the file, topic and message index are added when the
+/// message is used.
 #[derive(Default)]
 enum Decoded {
-    Keyframe(Box<std::result::Result<DecodedKeyframe, String>>),
-    Graph(std::result::Result<Vec<(i32, [f64; 7])>, String>),
+    Keyframe(Box<std::result::Result<DecodedKeyframe, WireError>>),
+    Graph(std::result::Result<Vec<(i32, [f64; 7])>, WireError>),
     /// A checked, normalised pose sample.
     Pose(decode::PoseSample),
     Tf(Vec<StampedPose>),
     Imu(decode::ImuMsg),
-    Error(String),
+    Error(WireError),
     #[default]
     Other,
 }
@@ -390,14 +391,15 @@ fn decode_message(kind: Option<MessageKind>, c: &ChannelInfo, m: &RawMessage<'_>
 
 type Mapped = MappedMessage<Decoded>;
 
-fn at(path: &Path, topic: &str, i: usize, m: &Mapped, e: &str) -> Error {
-    mcap_err(
-        path,
-        format!(
-            "topic {topic}: message {i} (log time {} ns): {e}",
-            m.log_time
-        ),
-    )
+/// The decode error of message `i` of `topic`.
+fn at(path: &Path, topic: &str, i: usize, log_time: u64, e: WireError) -> Error {
+    Error::Decode {
+        path: path.to_path_buf(),
+        topic: topic.to_string(),
+        index: i,
+        log_time,
+        source: e,
+    }
 }
 
 struct Entry {
@@ -426,21 +428,13 @@ fn read_keyframes(
             let i = kf_index;
             kf_index += 1;
             let log_time = m.log_time;
-            let fail = |e: &str| {
-                mcap_err(
-                    path,
-                    format!(
-                        "topic {}: message {i} (log time {log_time} ns): {e}",
-                        kf.topic
-                    ),
-                )
-            };
+            let fail = |e: WireError| at(path, &kf.topic, i, log_time, e);
             let (msg, arrays) = match &mut m.value {
                 Decoded::Keyframe(r) => match r.as_mut() {
                     Ok((msg, arrays)) => (msg, arrays),
-                    Err(e) => return Err(fail(e)),
+                    Err(e) => return Err(fail(e.clone())),
                 },
-                _ => return Err(fail("not a keyframe message")),
+                _ => return Err(fail(WireError::schema("not a keyframe message"))),
             };
             // Moved out: each version's arrays are used once (the latest wins).
             let Some(arrays) = arrays.take() else {
@@ -464,8 +458,18 @@ fn read_keyframes(
             graph_index += 1;
             let frames = match &m.value {
                 Decoded::Graph(Ok(f)) => f,
-                Decoded::Graph(Err(e)) => return Err(at(path, graph_topic, i, m, e)),
-                _ => return Err(at(path, graph_topic, i, m, "not a graph message")),
+                Decoded::Graph(Err(e)) => {
+                    return Err(at(path, graph_topic, i, m.log_time, e.clone()))
+                }
+                _ => {
+                    return Err(at(
+                        path,
+                        graph_topic,
+                        i,
+                        m.log_time,
+                        WireError::schema("not a graph message"),
+                    ))
+                }
             };
             for (id, c2w) in frames {
                 if let Some(e) = latest.get_mut(id) {
@@ -534,8 +538,16 @@ fn read_reference(
                         *w, *x, *y, *z,
                     )));
                 }
-                Decoded::Error(e) => return Err(at(path, &c.topic, i, m, e)),
-                _ => return Err(at(path, &c.topic, i, m, "not a pose message")),
+                Decoded::Error(e) => return Err(at(path, &c.topic, i, m.log_time, e.clone())),
+                _ => {
+                    return Err(at(
+                        path,
+                        &c.topic,
+                        i,
+                        m.log_time,
+                        WireError::schema("not a pose message"),
+                    ))
+                }
             }
         }
         if !times.is_sorted_by(|a, b| a <= b) {
@@ -552,8 +564,16 @@ fn read_reference(
     for (i, m) in mine.enumerate() {
         match &m.value {
             Decoded::Tf(v) => decoded.push(v),
-            Decoded::Error(e) => return Err(at(path, &c.topic, i, m, e)),
-            _ => return Err(at(path, &c.topic, i, m, "not a TF message")),
+            Decoded::Error(e) => return Err(at(path, &c.topic, i, m.log_time, e.clone())),
+            _ => {
+                return Err(at(
+                    path,
+                    &c.topic,
+                    i,
+                    m.log_time,
+                    WireError::schema("not a TF message"),
+                ))
+            }
         }
     }
     let pair = match (&options.tf_parent, &options.tf_child) {
@@ -614,7 +634,7 @@ fn read_reference(
 }
 
 /// Checks a pose sample (finite, non-zero quaternion) and normalises its quaternion.
-fn checked_sample(s: decode::PoseSample) -> std::result::Result<decode::PoseSample, String> {
+fn checked_sample(s: decode::PoseSample) -> std::result::Result<decode::PoseSample, WireError> {
     let (time, position, orientation) = s;
     let finite = time.is_finite()
         && position
@@ -624,14 +644,15 @@ fn checked_sample(s: decode::PoseSample) -> std::result::Result<decode::PoseSamp
     let [x, y, z, w] = orientation;
     let norm = (x * x + y * y + z * z + w * w).sqrt();
     if !finite || norm < 1e-9 {
-        return Err(format!(
-            "{} pose (time {time}, position {position:?}, orientation {orientation:?})",
+        return Err(WireError::value(format!(
+            "{} pose (time {}, position {position:?}, orientation {orientation:?})",
             if finite {
                 "zero-quaternion"
             } else {
                 "non-finite"
-            }
-        ));
+            },
+            crate::error::num(time)
+        )));
     }
     Ok((time, position, [x / norm, y / norm, z / norm, w / norm]))
 }
@@ -669,14 +690,22 @@ fn read_imu(path: &Path, messages: &[Mapped], c: &ChannelInfo) -> Result<ImuSamp
                         path,
                         &c.topic,
                         i,
-                        m,
-                        &format!("non-finite IMU sample {s:?}"),
+                        m.log_time,
+                        WireError::value(format!("non-finite IMU sample {s:?}")),
                     ));
                 }
                 samples.push(s);
             }
-            Decoded::Error(e) => return Err(at(path, &c.topic, i, m, e)),
-            _ => return Err(at(path, &c.topic, i, m, "not an IMU message")),
+            Decoded::Error(e) => return Err(at(path, &c.topic, i, m.log_time, e.clone())),
+            _ => {
+                return Err(at(
+                    path,
+                    &c.topic,
+                    i,
+                    m.log_time,
+                    WireError::schema("not an IMU message"),
+                ))
+            }
         }
     }
     samples.sort_by(|a, b| a.time.total_cmp(&b.time));

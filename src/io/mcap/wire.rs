@@ -1,11 +1,14 @@
 //! Byte-level readers and writers for the three binary message encodings the
 //! logs use: ROS 1 (packed little-endian), ROS 2 CDR (XCDR1, aligned, either
 //! byte order) and the protobuf wire format. Every read is bounds-checked and
-//! returns `Err(String)` describing what was short or malformed; the message
-//! decoders add the file and topic.
+//! returns a [`WireError`] saying what was short or malformed and where; the
+//! log readers add the file, topic and message index
+//! ([`crate::Error::Decode`]).
 
-/// The error of a wire read: what was wrong, without file or topic.
-pub type WireResult<T> = std::result::Result<T, String>;
+pub use crate::error::WireError;
+
+/// The result of a wire read.
+pub type WireResult<T> = std::result::Result<T, WireError>;
 
 /// Reader of ROS 1 serialised messages (packed, little-endian).
 pub struct Ros1<'a> {
@@ -33,11 +36,11 @@ impl<'a> Ros1<'a> {
                 self.pos = end;
                 Ok(s)
             }
-            None => Err(format!(
-                "message too short: {n} bytes needed at offset {}, {} bytes in the message",
-                self.pos,
-                self.buf.len()
-            )),
+            None => Err(WireError::Truncated {
+                offset: self.pos,
+                need: n,
+                len: self.buf.len(),
+            }),
         }
     }
 
@@ -111,15 +114,21 @@ impl<'a> Cdr<'a> {
     /// Reads the encapsulation header (`00 01` little-endian, `00 00` big-endian).
     pub fn new(buf: &'a [u8]) -> WireResult<Self> {
         if buf.len() < 4 {
-            return Err(format!(
-                "CDR message of {} bytes has no encapsulation header",
-                buf.len()
-            ));
+            return Err(WireError::Truncated {
+                offset: 0,
+                need: 4,
+                len: buf.len(),
+            });
         }
         let little = match (buf[0], buf[1]) {
             (0, 1) | (0, 3) => true,
             (0, 0) | (0, 2) => false,
-            (a, b) => return Err(format!("unknown CDR encapsulation {a:#04x} {b:#04x}")),
+            (a, b) => {
+                return Err(WireError::malformed(
+                    0,
+                    format!("unknown CDR encapsulation {a:#04x} {b:#04x}"),
+                ))
+            }
         };
         Ok(Cdr {
             buf: &buf[4..],
@@ -143,11 +152,11 @@ impl<'a> Cdr<'a> {
                 self.pos = end;
                 Ok(s)
             }
-            None => Err(format!(
-                "CDR message too short: {n} bytes needed at offset {}, {} bytes after the header",
-                self.pos,
-                self.buf.len()
-            )),
+            None => Err(WireError::Truncated {
+                offset: self.pos,
+                need: n,
+                len: self.buf.len(),
+            }),
         }
     }
 
@@ -218,7 +227,9 @@ impl PbValue<'_> {
     pub fn as_f64(&self) -> WireResult<f64> {
         match self {
             PbValue::Fixed64(v) => Ok(f64::from_bits(*v)),
-            other => Err(format!("expected a double, found {other:?}")),
+            other => Err(WireError::schema(format!(
+                "expected a double, found {other:?}"
+            ))),
         }
     }
     /// An integer field (varint, or fixed32/64).
@@ -226,14 +237,16 @@ impl PbValue<'_> {
         match self {
             PbValue::Varint(v) | PbValue::Fixed64(v) => Ok(*v),
             PbValue::Fixed32(v) => Ok(*v as u64),
-            PbValue::Bytes(_) => Err("expected an integer, found bytes".into()),
+            PbValue::Bytes(_) => Err(WireError::schema("expected an integer, found bytes")),
         }
     }
     /// A length-delimited field.
     pub fn as_bytes(&self) -> WireResult<&[u8]> {
         match self {
             PbValue::Bytes(b) => Ok(b),
-            other => Err(format!("expected bytes, found {other:?}")),
+            other => Err(WireError::schema(format!(
+                "expected bytes, found {other:?}"
+            ))),
         }
     }
 }
@@ -242,7 +255,11 @@ fn varint(buf: &[u8], pos: &mut usize) -> WireResult<u64> {
     let mut v: u64 = 0;
     for shift in (0..64).step_by(7) {
         let Some(&b) = buf.get(*pos) else {
-            return Err(format!("protobuf varint runs past the end at offset {pos}"));
+            return Err(WireError::Truncated {
+                offset: *pos,
+                need: 1,
+                len: buf.len(),
+            });
         };
         *pos += 1;
         v |= ((b & 0x7f) as u64) << shift;
@@ -250,8 +267,9 @@ fn varint(buf: &[u8], pos: &mut usize) -> WireResult<u64> {
             return Ok(v);
         }
     }
-    Err(format!(
-        "protobuf varint longer than 10 bytes at offset {pos}"
+    Err(WireError::malformed(
+        *pos,
+        "protobuf varint longer than 10 bytes",
     ))
 }
 
@@ -290,16 +308,19 @@ impl<'a> PbFields<'a> {
                 self.pos = end;
                 Ok(s)
             }
-            None => Err(format!(
-                "protobuf field of {n} bytes runs past the end at offset {}",
-                self.pos
-            )),
+            None => Err(WireError::Truncated {
+                offset: self.pos,
+                need: n,
+                len: self.buf.len(),
+            }),
         }
     }
 
     fn field(&mut self) -> WireResult<(u32, PbValue<'a>)> {
+        let start = self.pos;
         let key = varint(self.buf, &mut self.pos)?;
-        let number = u32::try_from(key >> 3).map_err(|_| "protobuf field number too large")?;
+        let number = u32::try_from(key >> 3)
+            .map_err(|_| WireError::malformed(start, "protobuf field number too large"))?;
         let value = match key & 7 {
             0 => PbValue::Varint(varint(self.buf, &mut self.pos)?),
             1 => {
@@ -310,7 +331,8 @@ impl<'a> PbFields<'a> {
             }
             2 => {
                 let n = varint(self.buf, &mut self.pos)?;
-                let n = usize::try_from(n).map_err(|_| "protobuf length too large")?;
+                let n = usize::try_from(n)
+                    .map_err(|_| WireError::malformed(self.pos, "protobuf length too large"))?;
                 PbValue::Bytes(self.take(n)?)
             }
             5 => {
@@ -319,7 +341,12 @@ impl<'a> PbFields<'a> {
                 a.copy_from_slice(b);
                 PbValue::Fixed32(u32::from_le_bytes(a))
             }
-            t => return Err(format!("unsupported protobuf wire type {t}")),
+            t => {
+                return Err(WireError::malformed(
+                    start,
+                    format!("unsupported protobuf wire type {t}"),
+                ))
+            }
         };
         Ok((number, value))
     }
