@@ -83,7 +83,7 @@ fn align_reports_cut_offset_inliers_and_intervals() {
         T_BS,
         "--json",
     ]);
-    let b = &v["beyond"];
+    let b = &v["fit"];
     let start = b["fit_start"].as_u64().unwrap();
     assert!(start > 0 && start as usize == b["stages"]["stable_start"].as_u64().unwrap() as usize);
     assert!(b["skip_reason"].as_str().unwrap().contains("dropped"));

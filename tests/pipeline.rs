@@ -6,7 +6,7 @@ use std::path::Path;
 use nalgebra::{UnitQuaternion, Vector3};
 use slam2world::cloud::{backproject, PointFilter};
 use slam2world::io::mcap::{write_slam_log, McapFile, SlamLogOptions};
-use slam2world::pipeline::{convert_file, ConvertOptions};
+use slam2world::pipeline::{convert_path, ConvertOptions};
 use slam2world::{Keyframe, PinholeCamera, Sim3, Trajectory};
 
 fn truth() -> Sim3 {
@@ -75,7 +75,7 @@ fn opts() -> ConvertOptions {
 fn convert_recovers_the_transform_and_the_world_cloud() {
     let dir = tempfile::tempdir().unwrap();
     let path = write_log(dir.path());
-    let c = convert_file(&path, &opts()).unwrap();
+    let c = convert_path(&path, &opts()).unwrap();
     let t = c.transform();
     let want = truth();
     assert!((t.scale - want.scale).abs() < 1e-4, "scale {}", t.scale);
@@ -83,7 +83,7 @@ fn convert_recovers_the_transform_and_the_world_cloud() {
     assert!(t.rotation.angle_to(&want.rotation) < 1e-5);
     assert_eq!(c.report.frames_used, 8);
     assert!(c.report.frames_dropped.is_empty());
-    assert!(c.report.ape.rmse < 1e-4);
+    assert!(c.report.ape.as_ref().unwrap().rmse < 1e-4);
     // The world cloud is the SLAM cloud carried by the true transform.
     let (kfs, _) = scene(8);
     let slam_cloud = backproject(&kfs, &PointFilter::none(), None).unwrap();
@@ -156,10 +156,10 @@ fn cli_convert_writes_outputs_and_fails_cleanly() {
     ]);
     assert_eq!(code, 1);
     assert!(!out2.join("world.mcap").exists());
-    let err = slam2world::pipeline::convert_file(
+    let err = slam2world::pipeline::convert_path(
         &path,
         &ConvertOptions {
-            align: slam2world::trajectory::TrajectoryAlignOptions {
+            align: slam2world::align::trajectories::TrajectoryAlignOptions {
                 offset: 100.0,
                 ..Default::default()
             },
@@ -250,10 +250,10 @@ fn convert_with_an_octree_writes_map_bt_and_the_occupied_voxels() {
     let path = write_log(dir.path());
     let res = 0.2;
     let o = ConvertOptions {
-        octree_resolution: Some(res),
+        map: Some(slam2world::map::MapParams::new(res)),
         ..opts()
     };
-    let c = convert_file(&path, &o).unwrap();
+    let c = convert_path(&path, &o).unwrap();
     let map = c.octree.as_ref().expect("an octree");
     assert_eq!(map.resolution(), res);
 
@@ -403,7 +403,7 @@ fn convert_with_an_octree_writes_map_bt_and_the_occupied_voxels() {
         2
     );
     // Without an octree there is no map.bt and no octree section.
-    let none = convert_file(&path, &opts()).unwrap();
+    let none = convert_path(&path, &opts()).unwrap();
     assert!(none.octree.is_none() && none.report.octree.is_none());
     assert!(none.write_bt(dir.path().join("x.bt")).is_err());
 }

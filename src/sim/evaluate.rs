@@ -13,7 +13,7 @@ use crate::geometry::Sim3;
 use crate::trajectory::Trajectory;
 
 /// Summary of non-negative errors (metres).
-#[derive(Clone, Copy, Debug, PartialEq, serde::Serialize)]
+#[derive(Clone, Copy, Debug, PartialEq, serde::Serialize, schemars::JsonSchema)]
 pub struct ErrorStats {
     /// Number of values.
     pub n: usize,
@@ -67,7 +67,7 @@ impl ErrorStats {
 }
 
 /// Errors of an estimated `T_world_slam` against the true one.
-#[derive(Clone, Copy, Debug, PartialEq, serde::Serialize)]
+#[derive(Clone, Copy, Debug, PartialEq, serde::Serialize, schemars::JsonSchema)]
 pub struct TransformError {
     /// `s_est / s_true − 1` (relative).
     pub scale_error: f64,

@@ -29,7 +29,7 @@ pub use scene::Scene;
 /// Every size, stage boundary and noise level of a run. `Default` is the
 /// paper's full size with realistic noise; [`SimConfig::noiseless`] switches
 /// every error off.
-#[derive(Clone, Debug, PartialEq)]
+#[derive(Clone, Debug, PartialEq, serde::Serialize, serde::Deserialize, schemars::JsonSchema)]
 pub struct SimConfig {
     /// Seed of every random stream.
     pub seed: u64,
@@ -237,31 +237,6 @@ impl SimConfig {
             }
         }
         Ok(())
-    }
-
-    /// Every parameter as a JSON object keyed by field name (for reports and sidecars).
-    pub fn to_json(&self) -> serde_json::Value {
-        serde_json::json!({
-            "seed": self.seed, "n_frames": self.n_frames, "fps": self.fps,
-            "n_keyframes": self.n_keyframes, "width": self.width, "height": self.height,
-            "hfov_deg": self.hfov_deg, "path_length": self.path_length,
-            "slam_path_length": self.slam_path_length, "min_gradient": self.min_gradient,
-            "idepth_rel_sigma": self.idepth_rel_sigma, "converge_start": self.converge_start,
-            "stable_start": self.stable_start, "init_scale": self.init_scale,
-            "init_wander": self.init_wander, "jump_prob": self.jump_prob,
-            "jump_sigma": self.jump_sigma, "scale_drift": self.scale_drift,
-            "frame_pos_sigma": self.frame_pos_sigma, "frame_rot_sigma": self.frame_rot_sigma,
-            "burst_prob": self.burst_prob, "burst_sigma": self.burst_sigma,
-            "keyframe_pos_sigma": self.keyframe_pos_sigma,
-            "keyframe_rot_sigma": self.keyframe_rot_sigma, "imu_rate": self.imu_rate,
-            "reference_pos_sigma": self.reference_pos_sigma,
-            "reference_rot_sigma": self.reference_rot_sigma,
-            "gyro_noise_density": self.gyro_noise_density,
-            "gyro_random_walk": self.gyro_random_walk,
-            "accel_noise_density": self.accel_noise_density,
-            "accel_random_walk": self.accel_random_walk,
-            "gyro_bias": self.gyro_bias, "accel_bias": self.accel_bias,
-        })
     }
 
     /// Checks sizes, stage order and that every noise level is finite and ≥ 0.

@@ -616,7 +616,7 @@ def test_convert_beyond_one_fit(tmp_path: Path) -> None:
 
     conv = s2w.convert(path, filter=none, skip_init=3)
     rep = conv.report
-    assert conv.alignment.fit_start == rep["beyond"]["fit_start"] == 3
+    assert conv.alignment.fit_start == rep["fit"]["fit_start"] == 3
     assert [p["fitted"] for p in rep["pairs"]] == [k >= 3 for k in range(8)]
     assert rep["pairs_fitted"] == 5
     assert conv.alignment.n_pairs == 8
@@ -628,7 +628,7 @@ def test_convert_beyond_one_fit(tmp_path: Path) -> None:
     mask = conv.alignment.inliers
     assert mask is not None and mask.shape == (8,) and mask.dtype == np.bool_
     assert list(np.flatnonzero(~mask)) == [5]
-    assert conv.report["beyond"]["n_outliers"] == 1
+    assert conv.report["fit"]["n_outliers"] == 1
     assert [p["fitted"] for p in conv.report["pairs"]] == list(mask)
     scale = conv.transform.scale
     assert conv.alignment.transform.scale == pytest.approx(scale, rel=1e-12)
@@ -636,7 +636,7 @@ def test_convert_beyond_one_fit(tmp_path: Path) -> None:
     assert lo < scale < hi
     assert lo < S_TRUE < hi
     assert hi - lo < 0.1 * S_TRUE
-    assert [lo, hi] == pytest.approx(conv.report["beyond"]["intervals"]["scale"], rel=1e-9)
+    assert [lo, hi] == pytest.approx(conv.report["fit"]["intervals"]["scale"], rel=1e-9)
     assert conv.alignment.covariance.shape == (7, 7)
 
     # From a Log too, with a windowed comparison in the report.

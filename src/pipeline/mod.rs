@@ -1,0 +1,338 @@
+//! `convert`: a recording in, the metric world out.
+//!
+//! - [`source`]: what a conversion reads, one [`Recording`] from any input;
+//! - [`options`]: everything it can be told ([`ConvertOptions`], checked once);
+//! - [`poses`] / [`imu`]: where `T_world_slam` comes from — a metric
+//!   reference trajectory, or the raw IMU when there is none;
+//! - [`report`]: the typed model of every JSON document the commands write;
+//! - [`outputs`]: `world.mcap`, `cloud.ply`, `map.bt`, `report.json`.
+//!
+//! The SLAM poses (keyframes, or frames without depth) are associated with
+//! the reference by time and `T_world_slam` is fitted; the keyframes are
+//! backprojected with `T_world_slam · T_slam_cam` fused per keyframe (a cloud
+//! that came without keyframes is carried by `T_world_slam`). With
+//! [`ConvertOptions::map`] the world cloud also becomes an occupancy octree
+//! (OctoMap semantics): each keyframe's points are inserted as one scan from
+//! that keyframe's camera centre in the world frame.
+
+pub mod imu;
+pub mod options;
+pub mod outputs;
+pub mod poses;
+pub mod report;
+pub mod source;
+
+use std::collections::BTreeMap;
+use std::path::Path;
+use std::time::Instant;
+
+use crate::cloud::{backproject, backproject_per_keyframe, PointCloud};
+use crate::error::{Error, Result};
+use crate::geometry::Sim3;
+use crate::imu::ImuAlignment;
+use crate::keyframe::Keyframe;
+use crate::map::{MapParams, OccupancyMap, VoxelState};
+use crate::trajectory::Trajectory;
+
+pub use options::ConvertOptions;
+pub use outputs::{CLOUD_PLY, MAP_BT, REPORT_JSON, WORLD_MCAP};
+pub use poses::PoseFit;
+pub use report::Report;
+pub use source::{Recording, Source, SourceInfo};
+
+use report::{ApeReport, FitReport, OctreeReport, PairReport, Timing, TransformReport};
+
+/// Where `T_world_slam` came from.
+#[derive(Clone, Debug)]
+pub enum WorldFrame {
+    /// Fitted to reference poses.
+    Poses(Box<PoseFit>),
+    /// The inertial initialisation from raw IMU samples (no reference poses).
+    Imu(Box<ImuAlignment>),
+}
+
+impl WorldFrame {
+    /// `T_world_slam`: maps SLAM-frame points to metres in the world frame.
+    pub fn transform(&self) -> Sim3 {
+        match self {
+            WorldFrame::Poses(p) => p.alignment.transform(),
+            WorldFrame::Imu(a) => a.transform,
+        }
+    }
+
+    /// The pose fit, `None` on the IMU path.
+    pub fn poses(&self) -> Option<&PoseFit> {
+        match self {
+            WorldFrame::Poses(p) => Some(p),
+            WorldFrame::Imu(_) => None,
+        }
+    }
+}
+
+/// The result of [`convert`].
+#[derive(Clone, Debug)]
+pub struct Conversion {
+    /// Where `T_world_slam` came from, with everything the fit found.
+    pub world: WorldFrame,
+    /// The world cloud (metres, world frame).
+    pub cloud: PointCloud,
+    /// The SLAM poses (`T_world_cam`) in the world frame, by time.
+    pub slam_trajectory: Trajectory,
+    /// The reference trajectory (`T_world_body`), when there is one.
+    pub reference: Option<Trajectory>,
+    /// The report.
+    pub report: Report,
+    /// The occupancy octree of the world cloud (world frame), when asked for.
+    pub octree: Option<OccupancyMap>,
+}
+
+impl Conversion {
+    /// `T_world_slam`.
+    pub fn transform(&self) -> Sim3 {
+        self.world.transform()
+    }
+}
+
+fn secs(t: Instant) -> f64 {
+    t.elapsed().as_secs_f64()
+}
+
+/// A keyframe's camera centre in the world frame (OctoMap's `f32`): the
+/// translation of `T_world_slam · T_slam_cam`.
+fn camera_center(kf: &Keyframe, t_world_slam: &Sim3) -> [f32; 3] {
+    let c = t_world_slam.transform_point(&kf.pose.translation);
+    [c.x as f32, c.y as f32, c.z as f32]
+}
+
+/// Inserts the world cloud keyframe by keyframe, each from its camera centre
+/// (`origins`, by keyframe id).
+fn build_octree(
+    origins: &BTreeMap<i32, [f32; 3]>,
+    cloud: &PointCloud,
+    params: MapParams,
+) -> Result<(OccupancyMap, OctreeReport)> {
+    let t = Instant::now();
+    let mut map = OccupancyMap::try_new(params)?;
+    map.insert_keyframes(&cloud.points, &cloud.keyframe_ids, origins)?;
+    let time_s = secs(t);
+    let mut scans: Vec<i32> = cloud.keyframe_ids.clone();
+    scans.sort_unstable();
+    scans.dedup();
+    let report = OctreeReport {
+        resolution: params.resolution,
+        max_range: params.max_range,
+        prob_hit: params.prob_hit,
+        prob_miss: params.prob_miss,
+        clamp_min: params.clamp_min,
+        clamp_max: params.clamp_max,
+        scans: scans.len(),
+        points: cloud.len(),
+        leaves_occupied: map.leaves(VoxelState::Occupied).len(),
+        leaves_free: map.leaves(VoxelState::Free).len(),
+        nodes: map.num_nodes(),
+        memory_bytes: map.memory_bytes(),
+        time_s,
+    };
+    Ok((map, report))
+}
+
+/// Aligns the recording's SLAM poses with its reference (or initialises from
+/// its raw IMU) and builds the world cloud (and the octree, when asked for).
+///
+/// Errors: the options' ([`ConvertOptions::check`]); no SLAM poses, or neither
+/// reference nor IMU (naming the file); no SLAM stamp within `max_diff` of a
+/// reference pose (naming the file and topics); the fit's own errors (fewer
+/// than 3 pairs, degenerate motion); an octree for a cloud without keyframes.
+pub fn convert(rec: &Recording, opts: &ConvertOptions) -> Result<Conversion> {
+    opts.check()?;
+    let t0 = Instant::now();
+    let (slam, rows) = rec.slam_trajectory()?;
+    let world = match (&rec.reference, &rec.imu) {
+        (Some(r), _) => WorldFrame::Poses(Box::new(poses::fit(rec, &slam, r, opts)?)),
+        (None, Some(imu)) => WorldFrame::Imu(Box::new(imu::fit(&slam, imu, opts)?)),
+        (None, None) => {
+            return Err(Error::Mcap {
+                path: rec.source.path.clone(),
+                reason: "no reference pose topic and no raw IMU topic in the log".into(),
+            })
+        }
+    };
+    let align_s = secs(t0);
+    let t = world.transform();
+    if rec.keyframes.is_empty() && (opts.map.is_some() || opts.windowed_cloud) {
+        return Err(Error::invalid(
+            if opts.map.is_some() {
+                "octree"
+            } else {
+                "windowed_cloud"
+            },
+            "needs keyframes (each point with its camera); this input has poses and a cloud without rays",
+        ));
+    }
+    // With `windowed_cloud`: T_world_slam per keyframe, in the recording's order.
+    let per_keyframe: Option<Vec<Sim3>> = match (&world, opts.windowed_cloud) {
+        (WorldFrame::Poses(p), true) => p.windowed.as_ref().map(|w| {
+            rec.keyframes
+                .iter()
+                .map(|k| w.transform_at(k.timestamp))
+                .collect()
+        }),
+        _ => None,
+    };
+    // T_world_slam of keyframe `i` of the recording.
+    let t_of = |i: Option<usize>| match (&per_keyframe, i) {
+        (Some(ts), Some(i)) => ts[i],
+        _ => t,
+    };
+
+    let t1 = Instant::now();
+    let cloud = if !rec.keyframes.is_empty() {
+        match &per_keyframe {
+            Some(ts) => backproject_per_keyframe(&rec.keyframes, &opts.filter, ts)?,
+            None => backproject(&rec.keyframes, &opts.filter, Some(&t))?,
+        }
+    } else {
+        match &rec.cloud {
+            Some(c) => c.transformed(&t)?,
+            None => PointCloud::default(),
+        }
+    };
+    let backproject_s = secs(t1);
+
+    let (octree, octree_report) = match opts.map {
+        Some(params) => {
+            let origins = rec
+                .keyframes
+                .iter()
+                .enumerate()
+                .map(|(i, kf)| (kf.id, camera_center(kf, &t_of(Some(i)))))
+                .collect();
+            let (map, report) = build_octree(&origins, &cloud, params)?;
+            (Some(map), Some(report))
+        }
+        None => (None, None),
+    };
+
+    let world_slam = Trajectory::try_new(
+        slam.timestamps.clone(),
+        slam.positions
+            .iter()
+            .zip(&rows)
+            .map(|(p, &i)| t_of(i).transform_point(p))
+            .collect(),
+        slam.orientations.as_ref().map(|o| {
+            o.iter()
+                .zip(&rows)
+                .map(|(q, &i)| t_of(i).rotation * q)
+                .collect()
+        }),
+    )?;
+
+    // Keyframe id of SLAM row `s` (the row index for frames without keyframes).
+    let id_of = |s: usize| rows[s].map_or(s as i32, |i| rec.keyframes[i].id);
+    let mut used = vec![false; slam.len()];
+    let (pairs, fit, fit_rmse, ape, pairs_fitted, imu_report) = match &world {
+        WorldFrame::Poses(p) => {
+            let a = &p.alignment;
+            let reference = rec
+                .reference
+                .as_ref()
+                .map_or(&[][..], |r| &r.timestamps[..]);
+            let pairs: Vec<PairReport> = a
+                .pairs
+                .iter()
+                .zip(&a.errors)
+                .enumerate()
+                .map(|(k, (&(s, r), &error))| {
+                    used[s] = true;
+                    PairReport {
+                        keyframe_id: id_of(s),
+                        keyframe_time: slam.timestamps[s],
+                        reference_time: reference[r],
+                        error,
+                        fitted: a.fitted(k),
+                    }
+                })
+                .collect();
+            let imu = rec.imu.as_ref().map(|imu| {
+                imu::consistency_report(&slam, imu, rec.source.imu_topic.clone(), opts, &t)
+            });
+            (
+                pairs,
+                Some(FitReport::of(a, opts.confidence)),
+                Some(a.alignment.rmse),
+                Some(ApeReport::from(&a.ape)),
+                a.n_fit,
+                imu,
+            )
+        }
+        WorldFrame::Imu(a) => {
+            for (s, u) in used.iter_mut().enumerate() {
+                *u = a
+                    .timestamps
+                    .binary_search_by(|x| x.total_cmp(&slam.timestamps[s]))
+                    .is_ok();
+            }
+            let imu = report::ImuReport::new(rec.source.imu_topic.clone(), true, a, None);
+            (Vec::new(), None, None, None, 0, Some(imu))
+        }
+    };
+    let frames_dropped = (0..slam.len()).filter(|&s| !used[s]).map(id_of).collect();
+    let windowed = world.poses().and_then(|p| p.windowed_report(opts));
+    let report = Report {
+        input: rec.source.path.clone(),
+        format: rec.source.format.clone(),
+        keyframe_topic: rec.source.keyframe_topic.clone(),
+        graph_topic: rec.source.graph_topic.clone(),
+        reference_topic: world.poses().and(rec.source.reference_topic.clone()),
+        keyframes: slam.len(),
+        reference_poses: rec.reference.as_ref().map_or(0, Trajectory::len),
+        frames_used: used.iter().filter(|u| **u).count(),
+        frames_dropped,
+        pairs_fitted,
+        max_diff: opts.align.max_diff,
+        offset: world
+            .poses()
+            .map_or(opts.align.offset, |p| p.alignment.offset),
+        t_world_slam: TransformReport::from(&t),
+        fit_rmse,
+        ape,
+        pairs,
+        fit,
+        windowed,
+        points: cloud.len(),
+        timing: Timing {
+            read_s: 0.0,
+            align_s,
+            backproject_s,
+            write_s: 0.0,
+        },
+        imu: imu_report,
+        octree: octree_report,
+    };
+    Ok(Conversion {
+        world,
+        cloud,
+        slam_trajectory: world_slam,
+        reference: rec.reference.clone(),
+        report,
+        octree,
+    })
+}
+
+/// Reads the log at `path` (its container found from its bytes) and converts
+/// it; the report's `read_s` is filled in.
+pub fn convert_path(path: impl AsRef<Path>, opts: &ConvertOptions) -> Result<Conversion> {
+    opts.check()?;
+    convert_source(&*source::open_log(path.as_ref(), &opts.read)?, opts)
+}
+
+/// Reads `source` and converts it; the report's `read_s` is filled in.
+pub fn convert_source(source: &dyn Source, opts: &ConvertOptions) -> Result<Conversion> {
+    let t = Instant::now();
+    let rec = source.read()?;
+    let read_s = secs(t);
+    let mut c = convert(&rec, opts)?;
+    c.report.timing.read_s = read_s;
+    Ok(c)
+}

@@ -1,0 +1,96 @@
+//! The pose-reference path of `convert`: `T_world_slam` fitted to a metric
+//! reference trajectory (and, when asked, a windowed fit beside it).
+
+use crate::align::trajectories::{align_trajectories, TrajectoryAlignment};
+use crate::align::windowed::{align_windowed, WindowedAlignment, WindowedOptions};
+use crate::error::{Error, Result};
+use crate::trajectory::Trajectory;
+
+use super::options::ConvertOptions;
+use super::report::WindowedReport;
+use super::source::Recording;
+
+/// `T_world_slam` from reference poses.
+#[derive(Clone, Debug)]
+pub struct PoseFit {
+    /// The fit with its pairs, APE, start-up cut, inliers, offset, covariance.
+    pub alignment: TrajectoryAlignment,
+    /// The windowed fit, with `compare_windowed`.
+    pub windowed: Option<WindowedAlignment>,
+}
+
+/// Fits the recording's SLAM poses (`slam`, sorted by time) to `reference`.
+/// A match failure names the file and the topics.
+pub fn fit(
+    rec: &Recording,
+    slam: &Trajectory,
+    reference: &Trajectory,
+    opts: &ConvertOptions,
+) -> Result<PoseFit> {
+    let alignment = align_trajectories(slam, reference, &opts.align).map_err(|e| match e {
+        Error::Unmatched { .. } => Error::Mcap {
+            path: rec.source.path.clone(),
+            reason: format!(
+                "keyframes{} against reference{}: {e}",
+                rec.source
+                    .keyframe_topic
+                    .as_ref()
+                    .map_or(String::new(), |t| format!(" of topic {t}")),
+                rec.source
+                    .reference_topic
+                    .as_ref()
+                    .map(|t| format!(" topic {t}"))
+                    .or_else(|| {
+                        rec.source
+                            .reference_path
+                            .as_ref()
+                            .map(|p| format!(" {}", p.display()))
+                    })
+                    .unwrap_or_default()
+            ),
+        },
+        e => e,
+    })?;
+    let windowed = match opts.compare_windowed {
+        Some(window) => Some(align_windowed(
+            slam,
+            reference,
+            &WindowedOptions {
+                window,
+                max_diff: opts.align.max_diff,
+                offset: alignment.offset,
+                scale: opts.align.scale,
+            },
+        )?),
+        None => None,
+    };
+    Ok(PoseFit {
+        alignment,
+        windowed,
+    })
+}
+
+impl PoseFit {
+    /// The report's comparison of the windowed fit with the single one.
+    pub fn windowed_report(&self, opts: &ConvertOptions) -> Option<WindowedReport> {
+        let w = self.windowed.as_ref()?;
+        let (lo, hi) = w
+            .transforms
+            .iter()
+            .map(|t| t.scale)
+            .fold((f64::INFINITY, 0.0f64), |(a, b), s| (a.min(s), b.max(s)));
+        Some(WindowedReport {
+            cloud: if opts.windowed_cloud {
+                "windowed"
+            } else {
+                "single"
+            }
+            .into(),
+            window: format!("{:?}", opts.compare_windowed?),
+            windowed_rmse: w.rmse,
+            single_rmse: w.global.rmse,
+            scale_min: lo,
+            scale_max: hi,
+        })
+    }
+}

@@ -1,0 +1,779 @@
+//! Every JSON document the commands write, as one typed model.
+//!
+//! `convert` writes [`Report`] (`report.json`); `align --json` prints
+//! [`AlignReport`], `imu-init --json` [`ImuInitReport`], `evaluate`
+//! [`EvaluateReport`], `demo` [`DemoReport`] (`demo.json`) and `simulate` the
+//! truth sidecar [`TruthReport`] (`sim.truth.json`). Each type derives
+//! `Serialize` and `JsonSchema`; [`schemas`] gives the published JSON Schemas
+//! (`schema/*.schema.json`, checked against these types in the tests), and
+//! `slam2world schema NAME` prints one.
+//!
+//! Units: metres, seconds, degrees where a name ends in `_deg`; quaternions
+//! `(x, y, z, w)`; transforms `T_world_slam` map SLAM coordinates into metres.
+
+use std::path::PathBuf;
+
+use schemars::JsonSchema;
+use serde::{Deserialize, Serialize};
+
+use crate::align::covariance::Covariance;
+use crate::align::handeye::HandEye;
+use crate::align::stages::Stages;
+use crate::align::time_offset::TimeOffset;
+use crate::align::trajectories::{ApeStats, TrajectoryAlignment};
+use crate::error::{Error, Result};
+use crate::geometry::Sim3;
+use crate::imu::{ImuAlignment, ImuInitDiagnostics};
+use crate::sim::evaluate::{ErrorStats, TransformError};
+use crate::sim::SimConfig;
+
+/// A Sim(3) as the reports write it.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize, JsonSchema)]
+pub struct TransformReport {
+    /// Rotation `(x, y, z, w)`.
+    pub quaternion_xyzw: [f64; 4],
+    /// Translation, metres.
+    pub translation: [f64; 3],
+    /// Scale, metres per SLAM unit.
+    pub scale: f64,
+    /// The 4×4 matrix `[sR t; 0 1]`, row-major.
+    pub matrix: [[f64; 4]; 4],
+}
+
+impl From<&Sim3> for TransformReport {
+    fn from(t: &Sim3) -> Self {
+        let m = t.matrix();
+        TransformReport {
+            quaternion_xyzw: t.quaternion_xyzw(),
+            translation: [t.translation.x, t.translation.y, t.translation.z],
+            scale: t.scale,
+            matrix: std::array::from_fn(|r| std::array::from_fn(|c| m[(r, c)])),
+        }
+    }
+}
+
+impl TransformReport {
+    /// The transform back (from the quaternion, translation and scale).
+    pub fn to_sim3(&self) -> Result<Sim3> {
+        let t = self.translation;
+        Sim3::from_quaternion_xyzw(self.quaternion_xyzw, t.into(), self.scale)
+    }
+}
+
+/// APE statistics, metres (evo's APE, translation part).
+#[derive(Clone, Debug, PartialEq, Serialize, JsonSchema)]
+pub struct ApeReport {
+    /// Root mean square.
+    pub rmse: f64,
+    /// Mean.
+    pub mean: f64,
+    /// Median.
+    pub median: f64,
+    /// Population standard deviation.
+    pub std: f64,
+    /// Smallest.
+    pub min: f64,
+    /// Largest.
+    pub max: f64,
+    /// Matched pairs the statistics are over.
+    pub n_pairs: usize,
+}
+
+impl From<&ApeStats> for ApeReport {
+    fn from(a: &ApeStats) -> Self {
+        ApeReport {
+            rmse: a.rmse,
+            mean: a.mean,
+            median: a.median,
+            std: a.std,
+            min: a.min,
+            max: a.max,
+            n_pairs: a.n_pairs,
+        }
+    }
+}
+
+/// The start-up stages found in the scale factors `p_k` (indices into `p_k`).
+#[derive(Clone, Debug, PartialEq, Serialize, JsonSchema)]
+pub struct StagesReport {
+    /// First factor of the converging stretch.
+    pub converging_start: usize,
+    /// First factor of the stable stage.
+    pub stable_start: usize,
+    /// Number of factors.
+    pub n_factors: usize,
+    /// The stable level of `p_k` (≈ s²).
+    pub stable_level: f64,
+    /// Robust per-sample standard deviation of `ln p_k` once stable.
+    pub noise: f64,
+    /// Rolling window, factors.
+    pub window: usize,
+}
+
+impl From<&Stages> for StagesReport {
+    fn from(s: &Stages) -> Self {
+        StagesReport {
+            converging_start: s.converging_start,
+            stable_start: s.stable_start,
+            n_factors: s.n,
+            stable_level: s.stable_level,
+            noise: s.noise,
+            window: s.window,
+        }
+    }
+}
+
+/// The time-offset search.
+#[derive(Clone, Debug, PartialEq, Serialize, JsonSchema)]
+pub struct OffsetReport {
+    /// Seconds found (added to the SLAM stamps on top of the given offset).
+    pub estimated: f64,
+    /// rms residual at that offset, metres.
+    pub rmse: f64,
+    /// rms residual at offset 0, metres.
+    pub rmse_at_zero: f64,
+    /// SLAM poses used in the search.
+    pub n_used: usize,
+}
+
+impl From<&TimeOffset> for OffsetReport {
+    fn from(o: &TimeOffset) -> Self {
+        OffsetReport {
+            estimated: o.offset,
+            rmse: o.rmse,
+            rmse_at_zero: o.rmse_at_zero,
+            n_used: o.n_used,
+        }
+    }
+}
+
+/// Central confidence intervals of the fitted parameters.
+#[derive(Clone, Debug, PartialEq, Serialize, JsonSchema)]
+pub struct IntervalsReport {
+    /// Confidence level, e.g. 0.95.
+    pub level: f64,
+    /// Scale `[lo, hi]`.
+    pub scale: [f64; 2],
+    /// Translation `[lo, hi]` per axis, metres.
+    pub translation: [[f64; 2]; 3],
+    /// Half-width of the rotation interval about each world axis, degrees.
+    pub rotation_half_width_deg: [f64; 3],
+    /// Residual standard deviation per axis, metres.
+    pub sigma: f64,
+}
+
+impl IntervalsReport {
+    /// The intervals of `c` at `level`, `None` where they cannot be formed.
+    pub fn of(c: &Covariance, level: f64) -> Option<Self> {
+        let s = c.scale_interval(level).ok()?;
+        let t = c.translation_intervals(level).ok()?;
+        let r = c.rotation_half_widths(level).ok()?;
+        Some(IntervalsReport {
+            level,
+            scale: [s.0, s.1],
+            translation: t.map(|p| [p.0, p.1]),
+            rotation_half_width_deg: r.map(f64::to_degrees),
+            sigma: c.sigma2.sqrt(),
+        })
+    }
+}
+
+/// How the fit was made: the start-up cut and why, the time offset, the
+/// robust fit's inliers and the confidence intervals.
+#[derive(Clone, Debug, PartialEq, Serialize, JsonSchema)]
+pub struct FitReport {
+    /// Index of the first fitted pair.
+    pub fit_start: usize,
+    /// Why the pairs before it were dropped.
+    pub skip_reason: String,
+    /// Seconds added to the SLAM stamps (given plus estimated).
+    pub offset: f64,
+    /// The stages, with `skip_init = auto`.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub stages: Option<StagesReport>,
+    /// The offset search, with `estimate_offset`.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub offset_estimate: Option<OffsetReport>,
+    /// Inliers of the robust fit.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub n_inliers: Option<usize>,
+    /// Outliers of the robust fit.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub n_outliers: Option<usize>,
+    /// Confidence intervals, when the positions determine the covariance.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub intervals: Option<IntervalsReport>,
+}
+
+impl FitReport {
+    /// What the options of the fit did, intervals at `level`.
+    pub fn of(r: &TrajectoryAlignment, level: f64) -> Self {
+        let count = |want: bool| {
+            r.inliers
+                .as_ref()
+                .map(|m| m.iter().filter(|&&b| b == want).count())
+        };
+        FitReport {
+            fit_start: r.fit_start,
+            skip_reason: r.skip_reason.clone(),
+            offset: r.offset,
+            stages: r.stages.as_ref().map(StagesReport::from),
+            offset_estimate: r.offset_estimate.as_ref().map(OffsetReport::from),
+            n_inliers: count(true),
+            n_outliers: count(false),
+            intervals: r
+                .covariance
+                .as_ref()
+                .and_then(|c| IntervalsReport::of(c, level)),
+        }
+    }
+}
+
+/// One keyframe matched with a reference pose.
+#[derive(Clone, Debug, PartialEq, Serialize, JsonSchema)]
+pub struct PairReport {
+    /// Keyframe id.
+    pub keyframe_id: i32,
+    /// Keyframe time, seconds.
+    pub keyframe_time: f64,
+    /// Time of the matched reference pose, seconds.
+    pub reference_time: f64,
+    /// `‖p_ref − T(p_slam)‖`, metres.
+    pub error: f64,
+    /// True when the pair was used in the fit.
+    pub fitted: bool,
+}
+
+/// The windowed (drift-aware) fit against the single Sim(3).
+#[derive(Clone, Debug, PartialEq, Serialize, JsonSchema)]
+pub struct WindowedReport {
+    /// Which carried the cloud: `"windowed"` or `"single"`.
+    pub cloud: String,
+    /// The window, e.g. `Poses(20)` or `Distance(5.0)`.
+    pub window: String,
+    /// rms residual of the windowed fit, metres.
+    pub windowed_rmse: f64,
+    /// rms residual of the single fit over the same pairs, metres.
+    pub single_rmse: f64,
+    /// Smallest local scale.
+    pub scale_min: f64,
+    /// Largest local scale.
+    pub scale_max: f64,
+}
+
+/// The pose-based fit next to the IMU result.
+#[derive(Clone, Debug, PartialEq, Serialize, JsonSchema)]
+pub struct PoseCheck {
+    /// Scale of the pose-based fit, metres per SLAM unit.
+    pub pose_scale: f64,
+    /// `imu_scale / pose_scale − 1`.
+    pub scale_difference: f64,
+    /// Angle between the two gravity directions in the SLAM frame, degrees.
+    pub gravity_angle_deg: f64,
+}
+
+/// The inertial initialisation in `report.json`.
+#[derive(Clone, Debug, PartialEq, Serialize, JsonSchema)]
+pub struct ImuReport {
+    /// Topic of the raw IMU.
+    pub topic: Option<String>,
+    /// True when `T_world_slam` came from the IMU (no reference poses).
+    pub used_for_transform: bool,
+    /// Why the initialisation failed; the other fields are then absent.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub error: Option<String>,
+    /// Metres per SLAM unit and its standard deviation.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub scale: Option<[f64; 2]>,
+    /// Gravity in SLAM axes, m/s².
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub gravity_slam: Option<[f64; 3]>,
+    /// Standard deviation of the gravity direction, degrees.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub gravity_sigma_deg: Option<f64>,
+    /// Gyroscope bias and its standard deviation per axis, rad/s.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub gyro_bias: Option<[[f64; 3]; 2]>,
+    /// Accelerometer bias and its standard deviation per axis, m/s².
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub accel_bias: Option<[[f64; 3]; 2]>,
+    /// Keyframes used.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub keyframes_used: Option<usize>,
+    /// Time span of the keyframes used, seconds.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub duration: Option<f64>,
+    /// Rms variation of the interval accelerations, m/s².
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub excitation: Option<f64>,
+    /// `χ² / dof` of the final solve.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub variance_factor: Option<f64>,
+    /// Agreement with the pose-based fit, when the log has both.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub pose_check: Option<PoseCheck>,
+}
+
+fn v3(v: &nalgebra::Vector3<f64>) -> [f64; 3] {
+    [v.x, v.y, v.z]
+}
+
+impl ImuReport {
+    /// A successful initialisation.
+    pub fn new(
+        topic: Option<String>,
+        used: bool,
+        a: &ImuAlignment,
+        pose_check: Option<PoseCheck>,
+    ) -> Self {
+        ImuReport {
+            topic,
+            used_for_transform: used,
+            error: None,
+            scale: Some([a.scale, a.scale_sigma]),
+            gravity_slam: Some(v3(&a.gravity_slam)),
+            gravity_sigma_deg: Some(a.gravity_sigma.to_degrees()),
+            gyro_bias: Some([v3(&a.gyro_bias), v3(&a.gyro_bias_sigma)]),
+            accel_bias: Some([v3(&a.accel_bias), v3(&a.accel_bias_sigma)]),
+            keyframes_used: Some(a.diagnostics.n_keyframes),
+            duration: Some(a.diagnostics.duration),
+            excitation: Some(a.diagnostics.excitation),
+            variance_factor: Some(a.diagnostics.variance_factor),
+            pose_check,
+        }
+    }
+
+    /// A failed initialisation (only the reason).
+    pub fn failed(topic: Option<String>, error: String) -> Self {
+        ImuReport {
+            topic,
+            used_for_transform: false,
+            error: Some(error),
+            scale: None,
+            gravity_slam: None,
+            gravity_sigma_deg: None,
+            gyro_bias: None,
+            accel_bias: None,
+            keyframes_used: None,
+            duration: None,
+            excitation: None,
+            variance_factor: None,
+            pose_check: None,
+        }
+    }
+}
+
+/// What the report says of the octree.
+#[derive(Clone, Debug, PartialEq, Serialize, JsonSchema)]
+pub struct OctreeReport {
+    /// Voxel edge length, metres.
+    pub resolution: f64,
+    /// Max range of the rays, metres (`null`: no limit).
+    pub max_range: Option<f64>,
+    /// OctoMap's `prob_hit`.
+    pub prob_hit: f64,
+    /// OctoMap's `prob_miss`.
+    pub prob_miss: f64,
+    /// OctoMap's lower clamping threshold.
+    pub clamp_min: f64,
+    /// OctoMap's upper clamping threshold.
+    pub clamp_max: f64,
+    /// Scans inserted (keyframes with points).
+    pub scans: usize,
+    /// Points inserted.
+    pub points: usize,
+    /// Occupied leaves (pruned leaves count once).
+    pub leaves_occupied: usize,
+    /// Free leaves (pruned leaves count once).
+    pub leaves_free: usize,
+    /// Nodes of the tree, inner and leaf.
+    pub nodes: usize,
+    /// Heap bytes held by the tree.
+    pub memory_bytes: usize,
+    /// Wall time of the insertion, seconds.
+    pub time_s: f64,
+}
+
+/// Wall time of each stage, seconds.
+#[derive(Clone, Debug, Default, PartialEq, Serialize, JsonSchema)]
+pub struct Timing {
+    /// Reading and decoding the input.
+    pub read_s: f64,
+    /// Association and fit.
+    pub align_s: f64,
+    /// Backprojection into the world frame.
+    pub backproject_s: f64,
+    /// Writing the outputs.
+    pub write_s: f64,
+}
+
+/// What `report.json` holds (`convert`).
+#[derive(Clone, Debug, PartialEq, Serialize, JsonSchema)]
+pub struct Report {
+    /// The input read.
+    pub input: PathBuf,
+    /// Its format (`mcap`, `trajectory files`, …).
+    pub format: String,
+    /// Topic of the keyframes.
+    pub keyframe_topic: Option<String>,
+    /// Topic of the graph updates.
+    pub graph_topic: Option<String>,
+    /// Topic of the reference poses.
+    pub reference_topic: Option<String>,
+    /// Keyframes (latest version per id), or frames without depth.
+    pub keyframes: usize,
+    /// Reference poses.
+    pub reference_poses: usize,
+    /// Keyframes matched with a reference pose (frames used).
+    pub frames_used: usize,
+    /// Keyframes without a reference pose within `max_diff`, by id.
+    pub frames_dropped: Vec<i32>,
+    /// Pairs the fit used.
+    pub pairs_fitted: usize,
+    /// Association window, seconds.
+    pub max_diff: f64,
+    /// Seconds added to the SLAM stamps.
+    pub offset: f64,
+    /// `T_world_slam`.
+    pub t_world_slam: TransformReport,
+    /// Fit residual rms over the fitted pairs, metres (`null` on the IMU path).
+    pub fit_rmse: Option<f64>,
+    /// APE over all pairs (`null` on the IMU path).
+    pub ape: Option<ApeReport>,
+    /// Every matched pair.
+    pub pairs: Vec<PairReport>,
+    /// How the fit was made (`null` on the IMU path).
+    pub fit: Option<FitReport>,
+    /// The windowed alignment against the single Sim(3), when asked for.
+    pub windowed: Option<WindowedReport>,
+    /// Points in the world cloud.
+    pub points: usize,
+    /// Stage timings.
+    pub timing: Timing,
+    /// The inertial initialisation, when the input has raw IMU samples.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub imu: Option<ImuReport>,
+    /// The occupancy octree, when one was built.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub octree: Option<OctreeReport>,
+}
+
+/// The estimated camera–body extrinsic in `align --json`.
+#[derive(Clone, Debug, PartialEq, Serialize, JsonSchema)]
+pub struct HandEyeReport {
+    /// `T_body_cam` translation, metres.
+    pub translation: [f64; 3],
+    /// `T_body_cam` rotation `(x, y, z, w)`.
+    pub quaternion_xyzw: [f64; 4],
+    /// Scale of `T_world_slam` fitted with it.
+    pub scale: f64,
+    /// Translation of `T_world_slam` fitted with it, metres.
+    pub world_from_slam_translation: [f64; 3],
+    /// Rotation of `T_world_slam` fitted with it.
+    pub world_from_slam_quaternion_xyzw: [f64; 4],
+    /// rms of the body-position residuals, metres.
+    pub position_rmse: f64,
+    /// rms of the rotation residuals, degrees.
+    pub rotation_rmse_deg: f64,
+    /// Pose pairs used.
+    pub n_pairs: usize,
+}
+
+impl HandEyeReport {
+    /// The report of an estimate over `n_pairs` pairs.
+    pub fn of(he: &HandEye, n_pairs: usize) -> Self {
+        let b = &he.body_from_cam;
+        let w = &he.alignment.transform;
+        HandEyeReport {
+            translation: v3(&b.translation),
+            quaternion_xyzw: b.quaternion_xyzw(),
+            scale: w.scale,
+            world_from_slam_translation: v3(&w.translation),
+            world_from_slam_quaternion_xyzw: w.quaternion_xyzw(),
+            position_rmse: he.alignment.rmse,
+            rotation_rmse_deg: he.rotation_rmse.to_degrees(),
+            n_pairs,
+        }
+    }
+}
+
+/// What `align --json` prints.
+#[derive(Clone, Debug, PartialEq, Serialize, JsonSchema)]
+pub struct AlignReport {
+    /// The estimate file.
+    pub est: String,
+    /// The reference file.
+    #[serde(rename = "ref")]
+    pub reference: String,
+    /// Poses of the estimate.
+    pub n_est: usize,
+    /// Poses of the reference.
+    pub n_ref: usize,
+    /// Matched pairs.
+    pub n_pairs: usize,
+    /// Pairs fitted.
+    pub n_fitted: usize,
+    /// Association window, seconds.
+    pub max_diff: f64,
+    /// Seconds given to add to the EST stamps.
+    pub offset: f64,
+    /// Sim(3) (true) or SE(3).
+    pub with_scale: bool,
+    /// Scale of `T_ref_est`.
+    pub scale: f64,
+    /// Rotation of `T_ref_est`, row-major.
+    pub rotation: [[f64; 3]; 3],
+    /// Rotation `(x, y, z, w)`.
+    pub quaternion_xyzw: [f64; 4],
+    /// Translation, metres.
+    pub translation: [f64; 3],
+    /// Fit residual rms, metres.
+    pub fit_rmse: f64,
+    /// APE over every pair.
+    pub ape: ApeReport,
+    /// How the fit was made.
+    pub fit: FitReport,
+    /// The estimated camera–body extrinsic, with `--estimate-body-from-cam`.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub body_from_cam_estimate: Option<HandEyeReport>,
+}
+
+/// A transform without its matrix (the inertial initialisation's report).
+#[derive(Clone, Debug, PartialEq, Serialize, JsonSchema)]
+pub struct ScaledPose {
+    /// Scale, metres per SLAM unit.
+    pub scale: f64,
+    /// Rotation `(x, y, z, w)`.
+    pub quaternion_xyzw: [f64; 4],
+    /// Translation, metres.
+    pub translation: [f64; 3],
+}
+
+/// The pose-based comparison of `imu-init --reference`.
+#[derive(Clone, Debug, PartialEq, Serialize, JsonSchema)]
+pub struct ReferenceCheck {
+    /// Matched pairs.
+    pub n_pairs: usize,
+    /// Scale of the pose-based Horn fit.
+    pub horn_scale: f64,
+    /// `imu_scale / horn_scale − 1`.
+    pub scale_difference: f64,
+    /// Angle between the two gravity directions in the SLAM frame, degrees.
+    pub gravity_angle_deg: f64,
+    /// APE of the Horn fit, metres.
+    pub ape_rmse: f64,
+}
+
+/// What `imu-init --json` prints.
+#[derive(Clone, Debug, PartialEq, Serialize, JsonSchema)]
+pub struct ImuInitReport {
+    /// The keyframe file.
+    pub keyframes: String,
+    /// The IMU file.
+    pub imu: String,
+    /// Metres per SLAM unit.
+    pub scale: f64,
+    /// Its standard deviation.
+    pub scale_sigma: f64,
+    /// Gravity in SLAM axes, m/s².
+    pub gravity_slam: [f64; 3],
+    /// Standard deviation of the gravity direction, degrees.
+    pub gravity_sigma_deg: f64,
+    /// Gyroscope bias, rad/s.
+    pub gyro_bias: [f64; 3],
+    /// Its standard deviation per axis.
+    pub gyro_bias_sigma: [f64; 3],
+    /// Accelerometer bias, m/s².
+    pub accel_bias: [f64; 3],
+    /// Its standard deviation per axis.
+    pub accel_bias_sigma: [f64; 3],
+    /// `T_world_slam` (world z up).
+    pub transform: ScaledPose,
+    /// How well the data determined the result.
+    pub diagnostics: ImuInitDiagnostics,
+    /// The comparison with a pose reference, with `--reference`.
+    pub reference_check: Option<ReferenceCheck>,
+}
+
+impl ImuInitReport {
+    /// The report of `a` for the two input files.
+    pub fn of(
+        keyframes: String,
+        imu: String,
+        a: &ImuAlignment,
+        reference_check: Option<ReferenceCheck>,
+    ) -> Self {
+        let t = a.transform;
+        ImuInitReport {
+            keyframes,
+            imu,
+            scale: a.scale,
+            scale_sigma: a.scale_sigma,
+            gravity_slam: v3(&a.gravity_slam),
+            gravity_sigma_deg: a.gravity_sigma.to_degrees(),
+            gyro_bias: v3(&a.gyro_bias),
+            gyro_bias_sigma: v3(&a.gyro_bias_sigma),
+            accel_bias: v3(&a.accel_bias),
+            accel_bias_sigma: v3(&a.accel_bias_sigma),
+            transform: ScaledPose {
+                scale: t.scale,
+                quaternion_xyzw: t.quaternion_xyzw(),
+                translation: v3(&t.translation),
+            },
+            diagnostics: a.diagnostics.clone(),
+            reference_check,
+        }
+    }
+}
+
+/// The start-up stage boundaries of a simulated run, frame indices.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize, JsonSchema)]
+pub struct SimStages {
+    /// First frame of the converging stretch.
+    pub converge_start: usize,
+    /// First frame of the stable stage.
+    pub stable_start: usize,
+}
+
+/// The paper's scene: a square plane and eight cubes.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize, JsonSchema)]
+pub struct SceneReport {
+    /// Half the extent of the ground plane in x and y, metres.
+    pub plane_half: [f64; 2],
+    /// Lower corner of each cube, metres.
+    pub cube_min: Vec<[f64; 3]>,
+    /// Edge of the cubes, metres.
+    pub cube_size: f64,
+    /// Gravity in the world frame, m/s².
+    pub gravity: [f64; 3],
+}
+
+/// Tracked SLAM frames of a simulation (SLAM frame, SLAM units).
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize, JsonSchema)]
+pub struct FramesReport {
+    /// Times, seconds.
+    pub timestamps: Vec<f64>,
+    /// Camera positions.
+    pub positions: Vec<[f64; 3]>,
+    /// Camera orientations `(x, y, z, w)`.
+    pub orientations_xyzw: Option<Vec<[f64; 4]>>,
+}
+
+/// The truth of a simulated run (`sim.truth.json`, and in the log's metadata
+/// without the frames).
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize, JsonSchema)]
+pub struct TruthReport {
+    /// The true `T_world_slam`.
+    pub t_world_slam: TransformReport,
+    /// Every simulation parameter.
+    pub config: SimConfig,
+    /// The true stage boundaries.
+    pub stages: SimStages,
+    /// The scene.
+    pub scene: SceneReport,
+    /// Frame index of each keyframe.
+    pub keyframe_frames: Vec<usize>,
+    /// Length of the true path, metres.
+    pub true_path_length: f64,
+    /// The tracked frames (in the sidecar only).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub slam_frames: Option<FramesReport>,
+}
+
+/// What `evaluate` prints.
+#[derive(Clone, Debug, PartialEq, Serialize, JsonSchema)]
+pub struct EvaluateReport {
+    /// Distance of the converted points to the true surfaces, metres.
+    pub cloud: ErrorStats,
+    /// Error of the estimated `T_world_slam`.
+    pub transform: TransformError,
+    /// APE of the tracked frames of the stable stage, when the truth holds them.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub ape_stable_frames: Option<ErrorStats>,
+}
+
+/// The truth side of `demo.json`.
+#[derive(Clone, Debug, PartialEq, Serialize, JsonSchema)]
+pub struct DemoTruth {
+    /// The true `T_world_slam`.
+    pub t_world_slam: TransformReport,
+    /// Its scale.
+    pub scale: f64,
+}
+
+/// The alignment side of `demo.json`.
+#[derive(Clone, Debug, PartialEq, Serialize, JsonSchema)]
+pub struct DemoAlignment {
+    /// What was fitted.
+    pub fit: String,
+    /// Matched pairs.
+    pub pairs: usize,
+    /// APE rmse, metres.
+    pub rmse: f64,
+    /// Scale error of a fit on every tracked frame (start-up included).
+    pub scale_error_all_frames: f64,
+    /// Scale error of a fit on the tracked frames of the stable stage.
+    pub scale_error_stable_frames: f64,
+}
+
+/// Wall time of the demo's steps, seconds.
+#[derive(Clone, Debug, PartialEq, Serialize, JsonSchema)]
+pub struct DemoSeconds {
+    /// Simulation.
+    pub simulate: f64,
+    /// Writing the log.
+    pub write_log: f64,
+    /// Reading, converting, writing the outputs.
+    pub convert: f64,
+    /// Scoring.
+    pub score: f64,
+}
+
+/// What `demo` writes (`demo.json`).
+#[derive(Clone, Debug, PartialEq, Serialize, JsonSchema)]
+pub struct DemoReport {
+    /// The estimated `T_world_slam`.
+    pub t_world_slam: TransformReport,
+    /// The truth.
+    pub truth: DemoTruth,
+    /// Error of the estimate.
+    pub transform_error: TransformError,
+    /// Distance of the converted points to the true surfaces, metres.
+    pub cloud_error: ErrorStats,
+    /// The same with the true transform (SLAM's own depth error).
+    pub cloud_error_true_transform: ErrorStats,
+    /// APE of the aligned keyframes against the true path, metres.
+    pub ape_keyframes: ErrorStats,
+    /// The fit.
+    pub alignment: DemoAlignment,
+    /// The true stage boundaries.
+    pub stages: SimStages,
+    /// The scene.
+    pub scene: SceneReport,
+    /// Every simulation parameter.
+    pub config: SimConfig,
+    /// The figures' raw arrays (little-endian), by name: paths relative to the folder.
+    pub files: std::collections::BTreeMap<String, String>,
+    /// Step timings.
+    pub seconds: DemoSeconds,
+}
+
+/// `(name, JSON Schema)` of every document above, as published in `schema/`.
+pub fn schemas() -> Vec<(&'static str, schemars::Schema)> {
+    vec![
+        ("report", schemars::schema_for!(Report)),
+        ("align", schemars::schema_for!(AlignReport)),
+        ("imu-init", schemars::schema_for!(ImuInitReport)),
+        ("evaluate", schemars::schema_for!(EvaluateReport)),
+        ("demo", schemars::schema_for!(DemoReport)),
+        ("truth", schemars::schema_for!(TruthReport)),
+    ]
+}
+
+/// A document as pretty JSON with a final newline.
+pub fn to_json_bytes<T: Serialize>(value: &T) -> Result<Vec<u8>> {
+    let mut b =
+        serde_json::to_vec_pretty(value).map_err(|e| Error::invalid("report", e.to_string()))?;
+    b.push(b'\n');
+    Ok(b)
+}

@@ -1,0 +1,247 @@
+//! What a conversion reads: one [`Recording`], whatever the input was.
+//!
+//! Every reader in [`crate::io`] returns its own model (an MCAP [`Log`], a
+//! trajectory, a point cloud); a [`Source`] turns one kind of input into a
+//! `Recording`, and [`crate::pipeline::convert`] never asks which it was.
+//! Adding an input format means writing its reader in `io/` and one `Source`
+//! here. The two sources of today are the examples:
+//!
+//! ```no_run
+//! use slam2world::pipeline::source::{McapSource, Source, TrajectoryFiles};
+//! use slam2world::io::mcap::ReadOptions;
+//! use slam2world::io::text::TrajectoryFormat;
+//!
+//! // An MCAP log of LSD-SLAM keyframes, graph updates, reference poses, IMU.
+//! let log = McapSource { path: "run.mcap".into(), read: ReadOptions::default() }.read()?;
+//! assert!(!log.keyframes.is_empty());
+//!
+//! // Text files: SLAM keyframe poses (TUM), a metric reference (EuRoC CSV) and
+//! // the SLAM map points (PLY); the frames carry no depth, the cloud no rays.
+//! let files = TrajectoryFiles {
+//!     slam: "KeyFrameTrajectory.txt".into(),
+//!     slam_format: TrajectoryFormat::Tum,
+//!     reference: Some(("data.csv".into(), TrajectoryFormat::Euroc)),
+//!     cloud: Some("MapPoints.ply".into()),
+//! }
+//! .read()?;
+//! assert!(files.frames.is_some() && files.cloud.is_some());
+//! # Ok::<(), slam2world::Error>(())
+//! ```
+//!
+//! A new source (say a ROS bag) implements [`Source::read`] with its reader
+//! and fills what it has: keyframes (pose `T_slam_cam`, camera, inverse depth)
+//! or frames without depth (poses only) plus a cloud in the SLAM frame; an
+//! optional reference trajectory `T_world_body`; optional raw IMU; and in
+//! [`SourceInfo`] where each part came from.
+
+use std::path::{Path, PathBuf};
+
+use crate::cloud::PointCloud;
+use crate::error::{Error, Result};
+use crate::imu::ImuSamples;
+use crate::io::mcap::{read_mcap, Log, ReadOptions, TopicInfo};
+use crate::io::text::{read_trajectory, TrajectoryFormat};
+use crate::keyframe::Keyframe;
+use crate::trajectory::Trajectory;
+
+/// Where a recording's parts came from.
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct SourceInfo {
+    /// The input (a log, or the SLAM trajectory file).
+    pub path: PathBuf,
+    /// The input's format, as the report names it (`mcap`, `trajectory files`).
+    pub format: String,
+    /// Topic of the keyframes.
+    pub keyframe_topic: Option<String>,
+    /// Topic of the graph updates.
+    pub graph_topic: Option<String>,
+    /// Topic of the reference poses.
+    pub reference_topic: Option<String>,
+    /// Topic of the raw IMU.
+    pub imu_topic: Option<String>,
+    /// File of the reference, when it is not the input itself.
+    pub reference_path: Option<PathBuf>,
+    /// File of the cloud, when it is not the input itself.
+    pub cloud_path: Option<PathBuf>,
+    /// Every topic of a log (empty for files without topics).
+    pub topics: Vec<TopicInfo>,
+    /// Keyframe messages read (all versions).
+    pub keyframe_messages: usize,
+    /// Graph messages read.
+    pub graph_messages: usize,
+    /// Keyframe poses overwritten by graph messages.
+    pub graph_updates: usize,
+    /// True when a log was read through its index (false: a linear scan).
+    pub indexed: bool,
+}
+
+/// Everything a conversion needs, from any source.
+#[derive(Clone, Debug, Default)]
+pub struct Recording {
+    /// Where each part came from.
+    pub source: SourceInfo,
+    /// Keyframes with inverse-depth images (LSD-SLAM, DROID-SLAM), the latest
+    /// version of each id in order of first arrival; poses `T_slam_cam`.
+    pub keyframes: Vec<Keyframe>,
+    /// Frame poses without depth (`T_slam_cam`, sorted by time), for sources
+    /// that give poses and a separate cloud.
+    pub frames: Option<Trajectory>,
+    /// Points in the SLAM frame that come without their camera rays.
+    pub cloud: Option<PointCloud>,
+    /// Reference poses `T_world_body`, sorted by time.
+    pub reference: Option<Trajectory>,
+    /// Raw IMU samples, sorted by time.
+    pub imu: Option<ImuSamples>,
+}
+
+impl From<Log> for Recording {
+    fn from(log: Log) -> Self {
+        Recording {
+            source: SourceInfo {
+                path: log.path,
+                format: "mcap".into(),
+                keyframe_topic: log.keyframe_topic,
+                graph_topic: log.graph_topic,
+                reference_topic: log.reference_topic,
+                imu_topic: log.imu_topic,
+                reference_path: None,
+                cloud_path: None,
+                topics: log.topics,
+                keyframe_messages: log.keyframe_messages,
+                graph_messages: log.graph_messages,
+                graph_updates: log.graph_updates,
+                indexed: log.indexed,
+            },
+            keyframes: log.keyframes,
+            frames: None,
+            cloud: None,
+            reference: log.reference,
+            imu: log.imu,
+        }
+    }
+}
+
+/// One kind of input that a conversion can read.
+pub trait Source {
+    /// Reads the input into a recording.
+    fn read(&self) -> Result<Recording>;
+}
+
+/// An MCAP log (`lsd_slam_viewer` keyframes and graph updates, a pose topic,
+/// raw IMU), topics found by schema unless named.
+#[derive(Clone, Debug, PartialEq)]
+pub struct McapSource {
+    /// The log.
+    pub path: PathBuf,
+    /// Topics to read.
+    pub read: ReadOptions,
+}
+
+impl Source for McapSource {
+    fn read(&self) -> Result<Recording> {
+        read_mcap(&self.path, &self.read).map(Recording::from)
+    }
+}
+
+/// Trajectory text files: the SLAM poses, an optional metric reference and an
+/// optional SLAM-frame cloud (PLY, or `x y z` text).
+#[derive(Clone, Debug, PartialEq)]
+pub struct TrajectoryFiles {
+    /// SLAM keyframe or frame poses `T_slam_cam`.
+    pub slam: PathBuf,
+    /// Their format.
+    pub slam_format: TrajectoryFormat,
+    /// The reference `T_world_body` and its format.
+    pub reference: Option<(PathBuf, TrajectoryFormat)>,
+    /// Points in the SLAM frame: PLY (found by its magic line), else `x y z` text.
+    pub cloud: Option<PathBuf>,
+}
+
+impl Source for TrajectoryFiles {
+    fn read(&self) -> Result<Recording> {
+        let frames = read_trajectory(&self.slam, self.slam_format)?;
+        let reference = match &self.reference {
+            Some((p, f)) => Some(read_trajectory(p, *f)?),
+            None => None,
+        };
+        let cloud = match &self.cloud {
+            Some(p) => Some(crate::io::ply::read_cloud(p)?),
+            None => None,
+        };
+        Ok(Recording {
+            source: SourceInfo {
+                path: self.slam.clone(),
+                format: "trajectory files".into(),
+                reference_path: self.reference.as_ref().map(|(p, _)| p.clone()),
+                cloud_path: self.cloud.clone(),
+                ..SourceInfo::default()
+            },
+            keyframes: Vec::new(),
+            frames: Some(frames),
+            cloud,
+            reference,
+            imu: None,
+        })
+    }
+}
+
+/// The source of a log file, found from its first bytes (MCAP today).
+///
+/// Errors: [`Error::Io`] when it cannot be opened, [`Error::Parse`] when its
+/// content is no log slam2world reads.
+pub fn open_log(path: &Path, read: &ReadOptions) -> Result<Box<dyn Source>> {
+    use std::io::Read;
+    let mut head = [0u8; 8];
+    let n = std::fs::File::open(path)
+        .and_then(|mut f| f.read(&mut head))
+        .map_err(|e| Error::io(path, e))?;
+    if head[..n] == crate::io::mcap::reader::MAGIC[..] {
+        return Ok(Box::new(McapSource {
+            path: path.to_path_buf(),
+            read: read.clone(),
+        }));
+    }
+    Err(Error::parse(
+        path,
+        0,
+        "not a log slam2world reads (expected an MCAP file)",
+    ))
+}
+
+impl Recording {
+    /// The SLAM poses the fit uses, sorted by time, and for each row the
+    /// keyframe it came from (`None` for frames without depth): the keyframe
+    /// poses when there are keyframes, else the frames.
+    pub fn slam_trajectory(&self) -> Result<(Trajectory, Vec<Option<usize>>)> {
+        if self.keyframes.is_empty() {
+            let Some(f) = &self.frames else {
+                return Err(self.missing_slam());
+            };
+            return Ok((f.clone(), vec![None; f.len()]));
+        }
+        let kf = &self.keyframes;
+        let mut order: Vec<usize> = (0..kf.len()).collect();
+        order.sort_by(|&a, &b| kf[a].timestamp.total_cmp(&kf[b].timestamp));
+        let traj = Trajectory::try_new(
+            order.iter().map(|&i| kf[i].timestamp).collect(),
+            order.iter().map(|&i| kf[i].pose.translation).collect(),
+            Some(order.iter().map(|&i| kf[i].pose.rotation).collect()),
+        )?;
+        Ok((traj, order.into_iter().map(Some).collect()))
+    }
+
+    /// The error for an input without SLAM poses.
+    pub(crate) fn missing_slam(&self) -> Error {
+        let reason = match &self.source.keyframe_topic {
+            Some(t) => format!("topic {t}: no keyframe with a point cloud"),
+            None if self.source.format == "mcap" => {
+                "no lsd_slam_viewer/keyframeMsg topic in the log".into()
+            }
+            None => "no SLAM poses in the input".into(),
+        };
+        Error::Mcap {
+            path: self.source.path.clone(),
+            reason,
+        }
+    }
+}
