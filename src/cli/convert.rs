@@ -1,23 +1,27 @@
-//! `slam2world convert LOG.mcap -o OUTDIR`: `world.mcap`, `cloud.ply`, `report.json`,
+//! `slam2world convert LOG -o OUTDIR`: `world.mcap`, `cloud.ply`, `report.json`,
 //! and with `--octree RES` the occupancy map `map.bt` (its occupied voxels also
 //! in `world.mcap`).
 
 use std::path::PathBuf;
-use std::time::Instant;
 
 use clap::Args;
 use indicatif::{ProgressBar, ProgressDrawTarget, ProgressStyle};
 
+use super::args::{finite, parse_transform, positive, print, FitArgs};
 use crate::cloud::PointFilter;
+use crate::defaults;
 use crate::error::Result;
-use crate::io::mcap::{read_mcap, ReadOptions, WorldFlavor};
-use crate::pipeline::{convert, ConvertOptions, CLOUD_PLY, MAP_BT, REPORT_JSON, WORLD_MCAP};
-use crate::trajectory::TrajectoryAlignOptions;
+use crate::io::mcap::{ReadOptions, WorldFlavor};
+use crate::map::MapParams;
+use crate::pipeline::report::ImuReport;
+use crate::pipeline::{
+    convert_source, source, ConvertOptions, CLOUD_PLY, MAP_BT, REPORT_JSON, WORLD_MCAP,
+};
 
 /// Arguments of `convert`.
 #[derive(Args, Debug)]
 pub struct ConvertArgs {
-    /// The MCAP log (LSD-SLAM keyframes + reference poses).
+    /// The log (MCAP) with LSD-SLAM keyframes and reference poses or raw IMU.
     pub log: PathBuf,
     /// Output folder (created when missing).
     #[arg(short, long)]
@@ -36,11 +40,11 @@ pub struct ConvertArgs {
     /// gravity from preintegration); with one, the report compares both.
     #[arg(long)]
     pub imu_topic: Option<String>,
-    /// `T_imu_cam` as 16 comma-separated numbers (row-major 4×4, metres).
-    #[arg(long, value_name = "M", allow_hyphen_values = true)]
+    /// `T_imu_cam`: 16 numbers (row-major 4×4) or 7 (tx ty tz qx qy qz qw), metres.
+    #[arg(long, value_name = "NUMBERS", allow_hyphen_values = true)]
     pub imu_from_cam: Option<String>,
     /// Magnitude of gravity for the IMU path, m/s².
-    #[arg(long, default_value_t = 9.81)]
+    #[arg(long, default_value_t = defaults::GRAVITY, value_parser = positive)]
     pub gravity: f64,
     /// TF parent frame, when the reference is a tf2_msgs/TFMessage topic.
     #[arg(long)]
@@ -48,30 +52,28 @@ pub struct ConvertArgs {
     /// TF child frame, when the reference is a tf2_msgs/TFMessage topic.
     #[arg(long)]
     pub tf_child: Option<String>,
-    /// Largest keyframe–reference time difference of a pair, seconds.
-    #[arg(long, default_value_t = 0.01)]
-    pub max_diff: f64,
-    /// Seconds added to the keyframe stamps before matching.
-    #[arg(long, default_value_t = 0.0, allow_hyphen_values = true)]
-    pub offset: f64,
-    /// Fit on the first N pairs only (the residuals still cover all pairs).
-    #[arg(long)]
-    pub n_to_align: Option<usize>,
     /// Keep every pixel with a positive inverse depth (no viewer filters).
     #[arg(long)]
     pub no_filter: bool,
     /// Build an occupancy octree with this voxel edge (metres): writes `map.bt`
     /// (OctoMap) and the occupied voxels into `world.mcap`.
-    #[arg(long, value_name = "RES", allow_hyphen_values = true)]
+    #[arg(long, value_name = "RES", allow_hyphen_values = true, value_parser = finite)]
     pub octree: Option<f64>,
     /// Octree rays longer than this (metres) only clear space.
-    #[arg(
-        long,
-        value_name = "M",
-        requires = "octree",
-        allow_hyphen_values = true
-    )]
+    #[arg(long, value_name = "M", requires = "octree", allow_hyphen_values = true, value_parser = finite)]
     pub octree_max_range: Option<f64>,
+    /// OctoMap's probability of a ray's end voxel being occupied.
+    #[arg(long, value_name = "P", requires = "octree", default_value_t = defaults::PROB_HIT)]
+    pub prob_hit: f64,
+    /// OctoMap's probability of a crossed voxel being occupied.
+    #[arg(long, value_name = "P", requires = "octree", default_value_t = defaults::PROB_MISS)]
+    pub prob_miss: f64,
+    /// OctoMap's lower clamping threshold.
+    #[arg(long, value_name = "P", requires = "octree", default_value_t = defaults::CLAMP_MIN)]
+    pub clamp_min: f64,
+    /// OctoMap's upper clamping threshold.
+    #[arg(long, value_name = "P", requires = "octree", default_value_t = defaults::CLAMP_MAX)]
+    pub clamp_max: f64,
     /// Write ROS 2 PointCloud2 + TFMessage instead of Foxglove schemas.
     #[arg(long)]
     pub ros2: bool,
@@ -86,11 +88,56 @@ pub struct ConvertArgs {
     /// world poses) instead of the single one: for SLAM whose scale drifts.
     #[arg(long, requires = "compare_windowed")]
     pub windowed_cloud: bool,
+    /// Association and fit options.
     #[command(flatten)]
-    pub beyond: super::beyond::BeyondArgs,
+    pub fit: FitArgs,
 }
 
-/// Runs the conversion and writes the three outputs.
+impl ConvertArgs {
+    /// The core options these flags ask for.
+    pub fn options(&self) -> Result<ConvertOptions> {
+        let imu_from_cam = match &self.imu_from_cam {
+            Some(m) => parse_transform("--imu-from-cam", m)?,
+            None => crate::geometry::Sim3::identity(),
+        };
+        Ok(ConvertOptions {
+            read: ReadOptions {
+                keyframe_topic: self.keyframe_topic.clone(),
+                graph_topic: self.graph_topic.clone(),
+                pose_topic: self.pose_topic.clone(),
+                imu_topic: self.imu_topic.clone(),
+                tf_parent: self.tf_parent.clone(),
+                tf_child: self.tf_child.clone(),
+            },
+            align: self.fit.options(),
+            filter: if self.no_filter {
+                PointFilter::none()
+            } else {
+                PointFilter::default()
+            },
+            imu: crate::imu::ImuInitOptions {
+                imu_from_cam,
+                gravity: self.gravity,
+                ..crate::imu::ImuInitOptions::default()
+            },
+            map: self.octree.map(|resolution| MapParams {
+                resolution,
+                prob_hit: self.prob_hit,
+                prob_miss: self.prob_miss,
+                clamp_min: self.clamp_min,
+                clamp_max: self.clamp_max,
+                max_range: self.octree_max_range,
+            }),
+            compare_windowed: self
+                .compare_windowed
+                .map(crate::align::windowed::Window::Poses),
+            windowed_cloud: self.windowed_cloud,
+            confidence: self.fit.confidence,
+        })
+    }
+}
+
+/// Runs the conversion and writes the outputs.
 pub fn run(args: &ConvertArgs) -> Result<()> {
     let target = if args.quiet {
         ProgressDrawTarget::hidden()
@@ -98,60 +145,20 @@ pub fn run(args: &ConvertArgs) -> Result<()> {
         // Draws only when stderr is a terminal.
         ProgressDrawTarget::stderr()
     };
-    let bar = ProgressBar::with_draw_target(Some(4), target);
+    let bar = ProgressBar::with_draw_target(Some(3), target);
     if let Ok(style) = ProgressStyle::with_template("{spinner} [{pos}/{len}] {msg} ({elapsed})") {
         bar.set_style(style);
     }
-    let opts = ConvertOptions {
-        read: ReadOptions {
-            keyframe_topic: args.keyframe_topic.clone(),
-            graph_topic: args.graph_topic.clone(),
-            pose_topic: args.pose_topic.clone(),
-            imu_topic: args.imu_topic.clone(),
-            tf_parent: args.tf_parent.clone(),
-            tf_child: args.tf_child.clone(),
-        },
-        align: TrajectoryAlignOptions {
-            max_diff: args.max_diff,
-            offset: args.offset,
-            first_n: args.n_to_align,
-            ..TrajectoryAlignOptions::default()
-        },
-        filter: if args.no_filter {
-            PointFilter::none()
-        } else {
-            PointFilter::default()
-        },
-        imu: crate::imu::ImuInitOptions {
-            imu_from_cam: match &args.imu_from_cam {
-                Some(m) => super::imu_init::parse_matrix(m)?,
-                None => crate::geometry::Sim3::identity(),
-            },
-            gravity: args.gravity,
-            ..crate::imu::ImuInitOptions::default()
-        },
-        octree_resolution: args.octree,
-        octree_max_range: args.octree_max_range,
-        beyond: args.beyond.options(),
-        compare_windowed: args
-            .compare_windowed
-            .map(crate::align::windowed::Window::Poses),
-        windowed_cloud: args.windowed_cloud,
-    };
-    // Bad octree parameters fail before the log is read.
+    let opts = args.options()?;
+    // Bad options fail before the log is read.
     opts.check()?;
-    bar.set_message("reading the log");
-    let t = Instant::now();
-    let log = read_mcap(&args.log, &opts.read)?;
-    let read_s = t.elapsed().as_secs_f64();
-    bar.inc(1);
-    bar.set_message(if opts.octree_resolution.is_some() {
-        "aligning, backprojecting and building the octree"
+    let src = source::open_log(&args.log, &opts.read)?;
+    bar.set_message(if opts.map.is_some() {
+        "reading, aligning, backprojecting and building the octree"
     } else {
-        "aligning and backprojecting"
+        "reading, aligning and backprojecting"
     });
-    let mut c = convert(&log, &opts)?;
-    c.report.timing.read_s = read_s;
+    let c = convert_source(&*src, &opts)?;
     bar.inc(2);
     bar.set_message("writing");
     let flavor = if args.ros2 {
@@ -162,50 +169,57 @@ pub fn run(args: &ConvertArgs) -> Result<()> {
     c.write_all(&args.output, flavor)?;
     bar.inc(1);
     bar.finish_and_clear();
-    if !args.quiet {
-        let r = &c.report;
-        let t = &r.t_world_slam;
-        println!(
-            "{} keyframes, {} matched ({} dropped), fit on {}",
-            r.keyframes,
-            r.frames_used,
-            r.frames_dropped.len(),
-            r.pairs_fitted
-        );
-        println!(
-            "T_world_slam: scale {:.6}, translation {:?}, quaternion xyzw {:?}",
-            t.scale, t.translation, t.quaternion_xyzw
-        );
-        println!(
-            "APE rmse {:.4} m (mean {:.4}, max {:.4}); {} points",
-            r.ape.rmse, r.ape.mean, r.ape.max, r.points
-        );
-        if let Some(imu) = &r.imu {
-            println!("{}", imu_summary(imu));
-        }
-        if let Some(o) = &r.octree {
-            println!(
-                "octree {} m: {} occupied and {} free leaves, {} nodes, {:.1} MiB, {:.3} s",
-                o.resolution,
-                o.leaves_occupied,
-                o.leaves_free,
-                o.nodes,
-                o.memory_bytes as f64 / (1024.0 * 1024.0),
-                o.time_s
-            );
-        }
-        for name in [WORLD_MCAP, CLOUD_PLY, REPORT_JSON] {
-            println!("wrote {}", args.output.join(name).display());
-        }
-        if c.octree.is_some() {
-            println!("wrote {}", args.output.join(MAP_BT).display());
-        }
+    if args.quiet {
+        return Ok(());
     }
-    Ok(())
+    let r = &c.report;
+    let t = &r.t_world_slam;
+    let mut s = format!(
+        "{} keyframes, {} matched ({} dropped), fit on {}\n",
+        r.keyframes,
+        r.frames_used,
+        r.frames_dropped.len(),
+        r.pairs_fitted
+    );
+    s += &format!(
+        "T_world_slam: scale {:.6}, translation {:?}, quaternion xyzw {:?}\n",
+        t.scale, t.translation, t.quaternion_xyzw
+    );
+    match &r.ape {
+        Some(a) => {
+            s += &format!(
+                "APE rmse {:.4} m (mean {:.4}, max {:.4}); {} points\n",
+                a.rmse, a.mean, a.max, r.points
+            )
+        }
+        None => s += &format!("{} points\n", r.points),
+    }
+    if let Some(imu) = &r.imu {
+        s += &imu_summary(imu);
+        s.push('\n');
+    }
+    if let Some(o) = &r.octree {
+        s += &format!(
+            "octree {} m: {} occupied and {} free leaves, {} nodes, {:.1} MiB, {:.3} s\n",
+            o.resolution,
+            o.leaves_occupied,
+            o.leaves_free,
+            o.nodes,
+            o.memory_bytes as f64 / (1024.0 * 1024.0),
+            o.time_s
+        );
+    }
+    for name in [WORLD_MCAP, CLOUD_PLY, REPORT_JSON] {
+        s += &format!("wrote {}\n", args.output.join(name).display());
+    }
+    if c.octree.is_some() {
+        s += &format!("wrote {}\n", args.output.join(MAP_BT).display());
+    }
+    print(&s)
 }
 
 /// One line on the inertial initialisation.
-fn imu_summary(r: &crate::imu::convert::ImuReport) -> String {
+fn imu_summary(r: &ImuReport) -> String {
     if let Some(e) = &r.error {
         return format!("IMU: not used ({e})");
     }

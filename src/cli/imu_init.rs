@@ -3,17 +3,21 @@
 //! from raw IMU samples (EuRoC `imu0/data.csv`), with their uncertainty; and,
 //! with `--reference`, a consistency check against a pose-based Horn fit.
 
-use std::io::Write;
-use std::path::{Path, PathBuf};
+use std::path::PathBuf;
 
 use clap::Args;
-use nalgebra::{Matrix4, Vector3};
+use nalgebra::Vector3;
 
-use super::align::Format;
-use crate::error::{Error, Result};
+use super::align::format;
+use super::args::{finite, non_negative, parse_transform, positive, print, print_json};
+use crate::align::trajectories::{align_trajectories, TrajectoryAlignOptions};
+use crate::defaults;
+use crate::error::Result;
 use crate::geometry::Sim3;
-use crate::imu::{imu_initialize, ImuAlignment, ImuInitOptions, ImuSamples};
-use crate::trajectory::{align_trajectories, Trajectory, TrajectoryAlignOptions};
+use crate::imu::{imu_initialize, ImuAlignment, ImuInitOptions};
+use crate::io::text::{read_euroc_imu, read_trajectory, TrajectoryFormat};
+use crate::pipeline::report::{ImuInitReport, ReferenceCheck};
+use crate::trajectory::Trajectory;
 
 /// Options of `slam2world imu-init`.
 #[derive(Args, Debug)]
@@ -24,75 +28,50 @@ pub struct ImuInitArgs {
     /// Raw IMU samples, EuRoC imu0/data.csv (ns; gyro rad/s; accel m/s²).
     #[arg(value_name = "IMU")]
     imu: PathBuf,
-    /// Format of KEYFRAMES.
-    #[arg(long, value_enum, default_value = "tum")]
-    format: Format,
-    /// `T_imu_cam` as 16 comma-separated numbers, a row-major 4×4 matrix in
-    /// metres (EuRoC / Kalibr `T_BS` of the camera); identity by default.
-    #[arg(long, value_name = "M", allow_hyphen_values = true)]
+    /// Format of KEYFRAMES: tum or euroc.
+    #[arg(long, value_name = "tum|euroc", default_value = "tum", value_parser = format)]
+    format: TrajectoryFormat,
+    /// `T_imu_cam`: 16 numbers (a row-major 4×4 matrix) or 7 (tx ty tz qx qy qz
+    /// qw), metres (EuRoC / Kalibr `T_BS` of the camera); identity by default.
+    #[arg(long, value_name = "NUMBERS", allow_hyphen_values = true)]
     imu_from_cam: Option<String>,
     /// Seconds added to the keyframe stamps to get IMU-clock times.
-    #[arg(
-        long,
-        default_value_t = 0.0,
-        value_name = "S",
-        allow_negative_numbers = true
-    )]
+    #[arg(long, default_value_t = 0.0, value_name = "S", allow_negative_numbers = true, value_parser = finite)]
     time_offset: f64,
     /// Magnitude of gravity, m/s².
-    #[arg(long, default_value_t = 9.81, value_name = "G")]
+    #[arg(long, default_value_t = defaults::GRAVITY, value_name = "G", value_parser = positive)]
     gravity: f64,
     /// Keep the accelerometer bias at zero instead of estimating it.
     #[arg(long)]
     no_accel_bias: bool,
     /// Noise of a keyframe position, metres.
-    #[arg(long, default_value_t = 0.01, value_name = "M")]
+    #[arg(long, default_value_t = defaults::KEYFRAME_POSITION_SIGMA, value_name = "M", value_parser = non_negative)]
     keyframe_position_sigma: f64,
     /// Noise of a keyframe orientation, rad.
-    #[arg(long, default_value_t = 2e-3, value_name = "RAD")]
+    #[arg(long, default_value_t = defaults::KEYFRAME_ROTATION_SIGMA, value_name = "RAD", value_parser = non_negative)]
     keyframe_rotation_sigma: f64,
     /// Shortest interval between two keyframes used, seconds.
-    #[arg(long, default_value_t = 0.5, value_name = "S")]
+    #[arg(long, default_value_t = defaults::MIN_INTERVAL, value_name = "S", value_parser = non_negative)]
     min_interval: f64,
     /// Use only keyframes from this many seconds after the first one.
-    #[arg(long, default_value_t = 0.0, value_name = "S")]
+    #[arg(long, default_value_t = 0.0, value_name = "S", value_parser = non_negative)]
     start: f64,
     /// Use only keyframes within this many seconds of --start.
-    #[arg(long, value_name = "S")]
+    #[arg(long, value_name = "S", value_parser = non_negative)]
     window: Option<f64>,
     /// A metric, gravity-aligned pose file of the same motion (ground truth,
     /// motion capture): the report adds the pose-based Horn fit for comparison.
     #[arg(long, value_name = "REF")]
     reference: Option<PathBuf>,
-    /// Format of REF.
-    #[arg(long, value_enum, default_value = "euroc")]
-    ref_format: Format,
+    /// Format of REF: tum or euroc.
+    #[arg(long, value_name = "tum|euroc", default_value = "euroc", value_parser = format)]
+    ref_format: TrajectoryFormat,
     /// Largest time difference of a matched keyframe/reference pair, seconds.
-    #[arg(long, default_value_t = 0.01, value_name = "S")]
+    #[arg(long, default_value_t = defaults::MAX_DIFF, value_name = "S", value_parser = non_negative)]
     max_diff: f64,
-    /// Print one JSON object instead of text.
+    /// Print one JSON object instead of text (schema: `slam2world schema imu-init`).
     #[arg(long)]
     json: bool,
-}
-
-fn read(path: &Path, format: Format) -> Result<Trajectory> {
-    match format {
-        Format::Tum => Trajectory::read_tum(path),
-        Format::Euroc => Trajectory::read_euroc(path),
-    }
-}
-
-pub(crate) fn parse_matrix(s: &str) -> Result<Sim3> {
-    let v: std::result::Result<Vec<f64>, _> =
-        s.split(',').map(|f| f.trim().parse::<f64>()).collect();
-    let v = v.map_err(|_| Error::invalid("--imu-from-cam", format!("not numbers: {s:?}")))?;
-    if v.len() != 16 {
-        return Err(Error::invalid(
-            "--imu-from-cam",
-            format!("expected 16 numbers (row-major 4×4), got {}", v.len()),
-        ));
-    }
-    Sim3::from_matrix(&Matrix4::from_row_slice(&v))
 }
 
 /// Keyframes with `start ≤ t − t_first ≤ start + window`.
@@ -116,34 +95,22 @@ fn cut(t: &Trajectory, start: f64, window: Option<f64>) -> Result<Trajectory> {
     )
 }
 
-fn v3(v: &Vector3<f64>) -> [f64; 3] {
-    [v.x, v.y, v.z]
-}
-
 /// The pose-based comparison: Horn fit scale and gravity direction.
-struct Check {
-    n_pairs: usize,
-    horn_scale: f64,
-    scale_difference: f64,
-    gravity_angle_deg: f64,
-    ape_rmse: f64,
-}
-
 fn check(
     kf: &Trajectory,
     reference: &Trajectory,
     a: &ImuAlignment,
     max_diff: f64,
-) -> Result<Check> {
+) -> Result<ReferenceCheck> {
     let opts = TrajectoryAlignOptions {
         max_diff,
         ..TrajectoryAlignOptions::default()
     };
     let fit = align_trajectories(kf, reference, &opts)?;
-    let t = fit.alignment.transform;
+    let t = fit.transform();
     let g_ref = t.rotation.inverse() * Vector3::new(0.0, 0.0, -1.0);
     let cos = a.gravity_slam.normalize().dot(&g_ref).clamp(-1.0, 1.0);
-    Ok(Check {
+    Ok(ReferenceCheck {
         n_pairs: fit.pairs.len(),
         horn_scale: t.scale,
         scale_difference: a.scale / t.scale - 1.0,
@@ -154,17 +121,18 @@ fn check(
 
 /// Runs the command; prints to stdout.
 pub fn run(args: ImuInitArgs) -> Result<()> {
+    let imu_from_cam = match &args.imu_from_cam {
+        Some(s) => parse_transform("--imu-from-cam", s)?,
+        None => Sim3::identity(),
+    };
     let keyframes = cut(
-        &read(&args.keyframes, args.format)?,
+        &read_trajectory(&args.keyframes, args.format)?,
         args.start,
         args.window,
     )?;
-    let imu = ImuSamples::read_euroc(&args.imu)?;
+    let imu = read_euroc_imu(&args.imu)?;
     let opts = ImuInitOptions {
-        imu_from_cam: match &args.imu_from_cam {
-            Some(s) => parse_matrix(s)?,
-            None => Sim3::identity(),
-        },
+        imu_from_cam,
         time_offset: args.time_offset,
         gravity: args.gravity,
         estimate_accel_bias: !args.no_accel_bias,
@@ -177,62 +145,25 @@ pub fn run(args: ImuInitArgs) -> Result<()> {
     let chk = match &args.reference {
         Some(p) => Some(check(
             &keyframes,
-            &read(p, args.ref_format)?,
+            &read_trajectory(p, args.ref_format)?,
             &a,
             args.max_diff,
         )?),
         None => None,
     };
-    let text = if args.json {
-        json(&args, &a, chk.as_ref())
-    } else {
-        text(&a, chk.as_ref())
-    };
-    let mut out = std::io::stdout().lock();
-    out.write_all(text.as_bytes())
-        .and_then(|_| out.flush())
-        .map_err(|e| Error::io("<stdout>", e))
+    if args.json {
+        let report = ImuInitReport::of(
+            args.keyframes.display().to_string(),
+            args.imu.display().to_string(),
+            &a,
+            chk,
+        );
+        return print_json(&report);
+    }
+    print(&text(&a, chk.as_ref()))
 }
 
-fn json(args: &ImuInitArgs, a: &ImuAlignment, chk: Option<&Check>) -> String {
-    let t = a.transform;
-    let d = &a.diagnostics;
-    let v = serde_json::json!({
-        "keyframes": args.keyframes.display().to_string(),
-        "imu": args.imu.display().to_string(),
-        "scale": a.scale,
-        "scale_sigma": a.scale_sigma,
-        "gravity_slam": v3(&a.gravity_slam),
-        "gravity_sigma_deg": a.gravity_sigma.to_degrees(),
-        "gyro_bias": v3(&a.gyro_bias),
-        "gyro_bias_sigma": v3(&a.gyro_bias_sigma),
-        "accel_bias": v3(&a.accel_bias),
-        "accel_bias_sigma": v3(&a.accel_bias_sigma),
-        "transform": {
-            "scale": t.scale,
-            "quaternion_xyzw": t.quaternion_xyzw(),
-            "translation": v3(&t.translation),
-        },
-        "diagnostics": {
-            "n_keyframes": d.n_keyframes, "n_dropped": d.n_dropped, "n_skipped": d.n_skipped,
-            "duration": d.duration, "excitation": d.excitation,
-            "initial_scale": d.initial_scale, "initial_gravity_norm": d.initial_gravity_norm,
-            "rotation_rms": d.rotation_rms, "position_rms": d.position_rms,
-            "velocity_rms": d.velocity_rms, "variance_factor": d.variance_factor,
-            "relative_scale_sigma": d.relative_scale_sigma,
-        },
-        "reference_check": chk.map(|c| serde_json::json!({
-            "n_pairs": c.n_pairs,
-            "horn_scale": c.horn_scale,
-            "scale_difference": c.scale_difference,
-            "gravity_angle_deg": c.gravity_angle_deg,
-            "ape_rmse": c.ape_rmse,
-        })),
-    });
-    format!("{v}\n")
-}
-
-fn text(a: &ImuAlignment, chk: Option<&Check>) -> String {
+fn text(a: &ImuAlignment, chk: Option<&ReferenceCheck>) -> String {
     let d = &a.diagnostics;
     let t = a.transform;
     let q = t.quaternion_xyzw();

@@ -8,10 +8,11 @@ use std::ffi::OsString;
 use clap::{Parser, Subcommand};
 
 pub mod align;
-pub mod beyond;
+pub mod args;
 pub mod convert;
 pub mod imu_init;
 pub mod inspect;
+pub mod schema;
 pub mod sim;
 pub mod transform_cloud;
 
@@ -28,7 +29,7 @@ pub struct Cli {
 #[derive(Subcommand, Debug)]
 enum Command {
     /// Fit the Sim(3) between two trajectory files and print the error statistics.
-    Align(align::AlignArgs),
+    Align(Box<align::AlignArgs>),
     /// Metric scale, gravity direction and IMU biases of SLAM keyframes from raw IMU samples.
     ImuInit(imu_init::ImuInitArgs),
     /// Convert an MCAP log into world.mcap, cloud.ply and report.json.
@@ -42,19 +43,22 @@ enum Command {
     /// Simulate the paper-size run, convert, score, write outputs and figures.
     Demo(sim::DemoArgs),
     /// Align EST to REF and carry a SLAM-frame point cloud (PLY or x y z text) into the world frame.
-    TransformCloud(transform_cloud::TransformCloudArgs),
+    TransformCloud(Box<transform_cloud::TransformCloudArgs>),
+    /// Print the JSON Schema of a document the commands write (report.json, align --json, …).
+    Schema(schema::SchemaArgs),
 }
 
 fn run(cli: Cli) -> Result<()> {
     match cli.command {
-        Command::Align(args) => align::run(args),
+        Command::Align(args) => align::run(*args),
         Command::ImuInit(args) => imu_init::run(args),
         Command::Convert(args) => convert::run(&args),
         Command::Inspect(args) => inspect::run(&args),
         Command::Simulate(args) => sim::run_simulate(&args),
         Command::Evaluate(args) => sim::run_evaluate(&args),
         Command::Demo(args) => sim::run_demo(&args),
-        Command::TransformCloud(args) => transform_cloud::run(args),
+        Command::TransformCloud(args) => transform_cloud::run(*args),
+        Command::Schema(args) => schema::run(&args),
     }
 }
 

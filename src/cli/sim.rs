@@ -10,23 +10,28 @@
 //! - `demo -o DIR`: simulate the paper-size run, align, convert, score, write
 //!   the outputs and the figures, print a summary.
 
-use std::io::Write;
+use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
 use std::time::Instant;
 
 use clap::Args;
 use nalgebra::Vector3;
-use serde_json::{json, Value};
 
+use super::args::print;
+use crate::align::trajectories::align_trajectories;
 use crate::cloud::backproject;
 use crate::error::{Error, Result};
 use crate::geometry::Sim3;
 use crate::io::atomic::write_bytes_atomic;
 use crate::io::mcap::{read_mcap, write_slam_log, SlamLogOptions, WorldFlavor};
-use crate::pipeline::{convert, ConvertOptions};
+use crate::pipeline::report::{
+    to_json_bytes, DemoAlignment, DemoReport, DemoSeconds, DemoTruth, EvaluateReport, FramesReport,
+    SceneReport, SimStages, TransformReport, TruthReport,
+};
+use crate::pipeline::{convert, ConvertOptions, Recording};
 use crate::sim::evaluate::{ape, point_distances, transform_error, ErrorStats};
 use crate::sim::{simulate, CameraPath, Scene, SimConfig, Simulation};
-use crate::trajectory::{align_trajectories, scale_factors, Trajectory};
+use crate::trajectory::{scale_factors, Trajectory};
 
 /// Options shared by `simulate` and `demo`: which run.
 #[derive(Args, Debug, Clone)]
@@ -79,6 +84,10 @@ pub struct SimulateArgs {
     /// Where to write the truth (default: the log's name with `.truth.json`).
     #[arg(long, value_name = "FILE")]
     truth: Option<PathBuf>,
+    /// Leave the reference pose topic out (keyframes and raw IMU only: the
+    /// log of the inertial path).
+    #[arg(long)]
+    no_reference: bool,
     #[command(flatten)]
     run: RunArgs,
 }
@@ -117,97 +126,79 @@ pub struct DemoArgs {
     run: RunArgs,
 }
 
-fn sim3_json(t: &Sim3) -> Value {
-    json!({
-        "quaternion_xyzw": t.quaternion_xyzw(),
-        "translation": [t.translation.x, t.translation.y, t.translation.z],
-        "scale": t.scale,
-    })
+/// A transform given in a JSON file: the fields of [`TransformReport`] that
+/// define it (a `report.json`, `demo.json` or truth file has them under
+/// `t_world_slam`).
+#[derive(serde::Deserialize)]
+struct TransformSpec {
+    quaternion_xyzw: [f64; 4],
+    translation: [f64; 3],
+    scale: f64,
 }
 
-fn sim3_from_json(v: &Value, path: &Path) -> Result<Sim3> {
-    let bad = |what: &str| {
-        Error::parse(
-            path,
-            0,
-            format!("t_world_slam: missing or malformed {what}"),
-        )
-    };
-    let nums = |key: &str, n: usize| -> Result<Vec<f64>> {
-        let a = v
-            .get(key)
-            .and_then(Value::as_array)
-            .ok_or_else(|| bad(key))?;
-        let out: Vec<f64> = a.iter().filter_map(Value::as_f64).collect();
-        if out.len() != n {
-            return Err(bad(key));
-        }
-        Ok(out)
-    };
-    let q = nums("quaternion_xyzw", 4)?;
-    let t = nums("translation", 3)?;
-    let s = v
-        .get("scale")
-        .and_then(Value::as_f64)
-        .ok_or_else(|| bad("scale"))?;
-    Sim3::from_quaternion_xyzw([q[0], q[1], q[2], q[3]], Vector3::new(t[0], t[1], t[2]), s)
+/// A JSON file holding a transform: under `t_world_slam`, or as the object itself.
+#[derive(serde::Deserialize)]
+#[serde(untagged)]
+enum TransformFile {
+    Field { t_world_slam: TransformSpec },
+    Bare(TransformSpec),
 }
 
-/// The truth of a run as JSON (`frames`: also the tracked SLAM frames).
-fn truth_json(sim: &Simulation, frames: bool) -> Value {
-    let scene = &sim.truth.scene;
-    let mut v = json!({
-        "t_world_slam": sim3_json(&sim.truth.t_world_slam),
-        "config": sim.config.to_json(),
-        "stages": {
-            "converge_start": sim.config.converge_start,
-            "stable_start": sim.config.stable_start,
-        },
-        "scene": {
-            "plane_half": scene.plane_half,
-            "cube_min": scene.cube_min.iter().map(|c| [c.x, c.y, c.z]).collect::<Vec<_>>(),
-            "cube_size": scene.cube_size,
-            "gravity": [0.0, 0.0, -crate::sim::scene::GRAVITY],
-        },
-        "keyframe_frames": sim.truth.keyframe_frames,
-        "true_path_length": sim.config.path_length,
-    });
-    if frames {
-        let f = &sim.slam_frames;
-        v["slam_frames"] = json!({
-            "timestamps": f.timestamps,
-            "positions": f.positions.iter().map(|p| [p.x, p.y, p.z]).collect::<Vec<_>>(),
-            "orientations_xyzw": f.orientations.as_ref().map(|o| {
-                o.iter().map(|q| [q.i, q.j, q.k, q.w]).collect::<Vec<_>>()
-            }),
-        });
+impl TransformSpec {
+    fn to_sim3(&self) -> Result<Sim3> {
+        Sim3::from_quaternion_xyzw(self.quaternion_xyzw, self.translation.into(), self.scale)
     }
-    v
 }
 
-fn json_bytes(v: &Value) -> Result<Vec<u8>> {
-    let mut b = serde_json::to_vec_pretty(v).map_err(|e| Error::invalid("json", e.to_string()))?;
-    b.push(b'\n');
-    Ok(b)
+/// The truth of a run (`frames`: also the tracked SLAM frames).
+fn truth_report(sim: &Simulation, frames: bool) -> TruthReport {
+    let scene = &sim.truth.scene;
+    TruthReport {
+        t_world_slam: TransformReport::from(&sim.truth.t_world_slam),
+        config: sim.config.clone(),
+        stages: SimStages {
+            converge_start: sim.config.converge_start,
+            stable_start: sim.config.stable_start,
+        },
+        scene: SceneReport {
+            plane_half: scene.plane_half,
+            cube_min: scene.cube_min.iter().map(|c| [c.x, c.y, c.z]).collect(),
+            cube_size: scene.cube_size,
+            gravity: [0.0, 0.0, -crate::sim::scene::GRAVITY],
+        },
+        keyframe_frames: sim.truth.keyframe_frames.clone(),
+        true_path_length: sim.config.path_length,
+        slam_frames: frames.then(|| {
+            let f = &sim.slam_frames;
+            FramesReport {
+                timestamps: f.timestamps.clone(),
+                positions: f.positions.iter().map(|p| [p.x, p.y, p.z]).collect(),
+                orientations_xyzw: f
+                    .orientations
+                    .as_ref()
+                    .map(|o| o.iter().map(|q| [q.i, q.j, q.k, q.w]).collect()),
+            }
+        }),
+    }
 }
 
 fn truth_path_for(log: &Path) -> PathBuf {
     log.with_extension("truth.json")
 }
 
-/// Writes the simulated log and its truth.
-fn write_log(sim: &Simulation, log: &Path, truth: &Path) -> Result<()> {
-    let truth_meta = serde_json::to_string(&truth_json(sim, false))
+/// Writes the simulated log (with the reference poses when `reference`) and its truth.
+fn write_log(sim: &Simulation, log: &Path, truth: &Path, reference: bool) -> Result<()> {
+    let truth_meta = serde_json::to_string(&truth_report(sim, false))
         .map_err(|e| Error::invalid("json", e.to_string()))?;
     write_slam_log(
         log,
         &sim.keyframes,
-        Some(&sim.reference),
+        reference.then_some(&sim.reference),
         Some(&sim.imu),
         &[("truth".to_string(), truth_meta)],
         &SlamLogOptions::default(),
     )?;
-    write_bytes_atomic(truth, &json_bytes(&truth_json(sim, true))?)
+    write_bytes_atomic(truth, &to_json_bytes(&truth_report(sim, true))?)
 }
 
 /// `slam2world simulate`.
@@ -218,96 +209,88 @@ pub fn run_simulate(args: &SimulateArgs) -> Result<()> {
         .truth
         .clone()
         .unwrap_or_else(|| truth_path_for(&args.output));
-    write_log(&sim, &args.output, &truth)?;
+    write_log(&sim, &args.output, &truth, !args.no_reference)?;
     println!(
         "wrote {} ({} keyframes, {} reference poses, {} IMU samples) and {}",
         args.output.display(),
         sim.keyframes.len(),
-        sim.reference.len(),
+        if args.no_reference {
+            0
+        } else {
+            sim.reference.len()
+        },
         sim.imu.len(),
         truth.display()
     );
     Ok(())
 }
 
-fn stats_json(s: &ErrorStats) -> Value {
-    json!({"n": s.n, "mean": s.mean, "median": s.median, "rmse": s.rmse, "p95": s.p95, "max": s.max})
-}
-
 /// `slam2world evaluate`.
 pub fn run_evaluate(args: &EvaluateArgs) -> Result<()> {
     let text = std::fs::read_to_string(&args.truth).map_err(|e| Error::io(&args.truth, e))?;
-    let truth: Value = serde_json::from_str(&text)
+    let truth: TruthReport = serde_json::from_str(&text)
         .map_err(|e| Error::parse(&args.truth, e.line(), e.to_string()))?;
-    let t_true = sim3_from_json(&truth["t_world_slam"], &args.truth)?;
+    let t_true = truth.t_world_slam.to_sim3()?;
     let est = parse_transform(&args.transform)?;
     let cloud = crate::io::ply::read_ply(&args.cloud)?;
     let scene = Scene::paper()?;
     let d = point_distances(&scene, &cloud.points)?;
-    let mut out = json!({
-        "cloud": stats_json(&ErrorStats::from_values("points", &d)?),
-        "transform": serde_json::to_value(transform_error(&est, &t_true)).map_err(|e| Error::invalid("json", e.to_string()))?,
-    });
     // APE of the tracked frames of the stable stage, when the truth holds them.
-    let cfg = &truth["config"];
-    if let (Some(frames), Some(n), Some(fps), Some(len), Some(stable)) = (
-        truth.get("slam_frames"),
-        cfg["n_frames"].as_u64(),
-        cfg["fps"].as_f64(),
-        cfg["path_length"].as_f64(),
-        truth["stages"]["stable_start"].as_u64(),
-    ) {
-        let path = CameraPath::paper(n as f64 / fps, len)?;
-        let ts: Vec<f64> = frames["timestamps"]
-            .as_array()
-            .map(|a| a.iter().filter_map(Value::as_f64).collect())
-            .unwrap_or_default();
-        let ps: Vec<Vector3<f64>> = frames["positions"]
-            .as_array()
-            .map(|a| {
-                a.iter()
-                    .filter_map(|p| {
-                        let p = p.as_array()?;
-                        Some(Vector3::new(
-                            p.first()?.as_f64()?,
-                            p.get(1)?.as_f64()?,
-                            p.get(2)?.as_f64()?,
-                        ))
-                    })
-                    .collect()
-            })
-            .unwrap_or_default();
-        if ts.len() == ps.len() && (stable as usize) < ts.len() {
-            let k = stable as usize;
-            let traj = Trajectory::try_new(ts[k..].to_vec(), ps[k..].to_vec(), None)?;
-            out["ape_stable_frames"] = stats_json(&ape(&traj, &est, &path)?);
+    let cfg = &truth.config;
+    let ape_stable_frames = match &truth.slam_frames {
+        Some(f)
+            if f.timestamps.len() == f.positions.len()
+                && truth.stages.stable_start < f.timestamps.len() =>
+        {
+            let path = CameraPath::paper(cfg.n_frames as f64 / cfg.fps, cfg.path_length)?;
+            let k = truth.stages.stable_start;
+            let traj = Trajectory::try_new(
+                f.timestamps[k..].to_vec(),
+                f.positions[k..].iter().map(|&p| Vector3::from(p)).collect(),
+                None,
+            )?;
+            Some(ape(&traj, &est, &path)?)
         }
-    }
-    let bytes = json_bytes(&out)?;
+        _ => None,
+    };
+    let report = EvaluateReport {
+        cloud: ErrorStats::from_values("points", &d)?,
+        transform: transform_error(&est, &t_true),
+        ape_stable_frames,
+    };
+    let bytes = to_json_bytes(&report)?;
     if let Some(o) = &args.output {
         write_bytes_atomic(o, &bytes)?;
     }
-    std::io::stdout()
-        .write_all(&bytes)
-        .map_err(|e| Error::io("<stdout>", e))?;
-    Ok(())
+    print(&String::from_utf8_lossy(&bytes))
 }
 
 fn parse_transform(s: &str) -> Result<Sim3> {
     let p = Path::new(s);
     if p.is_file() {
         let text = std::fs::read_to_string(p).map_err(|e| Error::io(p, e))?;
-        let v: Value =
-            serde_json::from_str(&text).map_err(|e| Error::parse(p, e.line(), e.to_string()))?;
-        let inner = v.get("t_world_slam").unwrap_or(&v);
-        return sim3_from_json(inner, p);
+        let file: TransformFile = serde_json::from_str(&text).map_err(|_| {
+            Error::parse(
+                p,
+                0,
+                "expected a t_world_slam object (quaternion_xyzw, translation, scale), alone or as a field",
+            )
+        })?;
+        return match file {
+            TransformFile::Field { t_world_slam } => t_world_slam.to_sim3(),
+            TransformFile::Bare(t) => t.to_sim3(),
+        };
     }
     let nums: Vec<f64> = s
         .split([',', ' '])
         .filter(|t| !t.is_empty())
         .map(|t| {
-            t.parse::<f64>()
-                .map_err(|_| Error::invalid("--transform", format!("not a number: {t:?}")))
+            t.parse::<f64>().map_err(|_| {
+                Error::invalid(
+                    "--transform",
+                    format!("not a number: {}", crate::error::cut(t)),
+                )
+            })
         })
         .collect::<Result<_>>()?;
     if nums.len() != 8 {
@@ -352,12 +335,12 @@ pub fn run_demo(args: &DemoArgs) -> Result<()> {
     // The log a LSD-SLAM user records, and its truth.
     let log_path = dir.join("sim.mcap");
     let truth_file = dir.join("sim.truth.json");
-    write_log(&sim, &log_path, &truth_file)?;
+    write_log(&sim, &log_path, &truth_file, true)?;
     let t_log = t0.elapsed().as_secs_f64() - t_sim;
 
     // Convert it: read, associate, align (keyframes vs reference), backproject, write.
     let opts = ConvertOptions::default();
-    let log = read_mcap(&log_path, &opts.read)?;
+    let log = Recording::from(read_mcap(&log_path, &opts.read)?);
     let conv = convert(&log, &opts)?;
     conv.write_all(dir, WorldFlavor::Foxglove)?;
     let est = conv.transform();
@@ -437,35 +420,48 @@ pub fn run_demo(args: &DemoArgs) -> Result<()> {
     // The figures' arrays, out of the way of the outputs a user opens.
     std::fs::create_dir_all(dir.join("plot_data"))
         .map_err(|e| Error::io(dir.join("plot_data"), e))?;
-    let mut names = serde_json::Map::new();
+    let mut names = BTreeMap::new();
     for (key, name, bytes) in &files {
         write_bytes_atomic(&dir.join(name), bytes)?;
-        names.insert((*key).into(), json!(name));
+        names.insert((*key).to_string(), (*name).to_string());
     }
-    let report = json!({
-        "t_world_slam": sim3_json(&est),
-        "truth": {
-            "t_world_slam": sim3_json(&sim.truth.t_world_slam),
-            "scale": sim.truth.t_world_slam.scale,
+    let fit = conv
+        .world
+        .poses()
+        .map(|p| &p.alignment)
+        .ok_or_else(|| Error::invalid("demo", "the simulated log has reference poses"))?;
+    let truth = truth_report(&sim, false);
+    let report = DemoReport {
+        t_world_slam: TransformReport::from(&est),
+        truth: DemoTruth {
+            t_world_slam: truth.t_world_slam,
+            scale: sim.truth.t_world_slam.scale,
         },
-        "transform_error": serde_json::to_value(terr).map_err(|e| Error::invalid("json", e.to_string()))?,
-        "cloud_error": stats_json(&err),
-        "cloud_error_true_transform": stats_json(&err_true),
-        "ape_keyframes": stats_json(&ape_kf),
-        "alignment": {
-            "fit": "keyframes vs reference (the convert pipeline, report.json)",
-            "pairs": conv.alignment.trajectory.pairs.len(),
-            "rmse": conv.alignment.trajectory.ape.rmse,
-            "scale_error_all_frames": all_frames.alignment.transform.scale / sim.truth.t_world_slam.scale - 1.0,
-            "scale_error_stable_frames": stable_fit.alignment.transform.scale / sim.truth.t_world_slam.scale - 1.0,
+        transform_error: terr,
+        cloud_error: err,
+        cloud_error_true_transform: err_true,
+        ape_keyframes: ape_kf,
+        alignment: DemoAlignment {
+            fit: "keyframes vs reference (the convert pipeline, report.json)".into(),
+            pairs: fit.pairs.len(),
+            rmse: fit.ape.rmse,
+            scale_error_all_frames: all_frames.transform().scale / sim.truth.t_world_slam.scale
+                - 1.0,
+            scale_error_stable_frames: stable_fit.transform().scale / sim.truth.t_world_slam.scale
+                - 1.0,
         },
-        "stages": {"converge_start": cfg.converge_start, "stable_start": cfg.stable_start},
-        "scene": truth_json(&sim, false)["scene"].clone(),
-        "config": cfg.to_json(),
-        "files": Value::Object(names),
-        "seconds": {"simulate": t_sim, "write_log": t_log, "convert": t_convert, "score": t_score},
-    });
-    write_bytes_atomic(&dir.join("demo.json"), &json_bytes(&report)?)?;
+        stages: truth.stages,
+        scene: truth.scene,
+        config: cfg.clone(),
+        files: names,
+        seconds: DemoSeconds {
+            simulate: t_sim,
+            write_log: t_log,
+            convert: t_convert,
+            score: t_score,
+        },
+    };
+    write_bytes_atomic(&dir.join("demo.json"), &to_json_bytes(&report)?)?;
 
     let plots = if args.no_plots {
         None
@@ -503,8 +499,8 @@ pub fn run_demo(args: &DemoArgs) -> Result<()> {
     );
     println!(
         "  fit on all tracked frames (start-up included): scale error {:+.2} %; stable frames only: {:+.3} %",
-        100.0 * (all_frames.alignment.transform.scale / sim.truth.t_world_slam.scale - 1.0),
-        100.0 * (stable_fit.alignment.transform.scale / sim.truth.t_world_slam.scale - 1.0),
+        100.0 * report.alignment.scale_error_all_frames,
+        100.0 * report.alignment.scale_error_stable_frames,
     );
     println!(
         "  cloud: {} points, distance to the true surfaces median {:.1} mm, rmse {:.1} mm, p95 {:.1} mm (true transform: median {:.1} mm, ratio {:.3})",
@@ -570,9 +566,10 @@ mod tests {
         assert_eq!(t.translation, Vector3::new(1.0, 2.0, 3.0));
         assert!(parse_transform("0,0,0,1,1,2,3").is_err());
         assert!(parse_transform("0,0,0,1,1,2,3,x").is_err());
-        let j = sim3_json(&t);
-        let back = sim3_from_json(&j, Path::new("x")).unwrap();
-        assert!((back.matrix() - t.matrix()).amax() < 1e-12);
-        assert!(sim3_from_json(&json!({"scale": 1.0}), Path::new("x")).is_err());
+        let spec: TransformSpec =
+            serde_json::from_value(serde_json::to_value(TransformReport::from(&t)).unwrap())
+                .unwrap();
+        assert!((spec.to_sim3().unwrap().matrix() - t.matrix()).amax() < 1e-12);
+        assert!(serde_json::from_str::<TransformSpec>(r#"{"scale": 1.0}"#).is_err());
     }
 }

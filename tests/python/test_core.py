@@ -359,7 +359,7 @@ def test_fr2_desk_se3_reproduces_published_rmse() -> None:
     assert round(r.rmse, 6) == 0.008119  # evo doc/performance.md
     assert r.transform.scale == 1.0
     assert "TrajectoryAlignment(" in repr(r)
-    sub = s2w.align_trajectories(est, ref, scale=False, first_n=100)
+    sub = s2w.align_trajectories(est, ref, scale=False, n_to_align=100)
     assert sub.n_pairs == r.n_pairs and len(sub.alignment.residuals) == 100
     with pytest.raises(s2w.InvalidInputError, match="matched"):
         s2w.align_trajectories(est, ref, offset=1e6)

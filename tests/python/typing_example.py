@@ -42,7 +42,7 @@ def fit(slam: npt.NDArray[np.float64], world: npt.NDArray[np.float64]) -> tuple[
     a: s2w.Alignment = s2w.align(slam, world, scale=True, method="horn")
     traj = s2w.Trajectory(np.arange(len(slam), dtype=np.float64), slam)
     ref = s2w.Trajectory(np.arange(len(world), dtype=np.float64), world)
-    r: s2w.TrajectoryAlignment = s2w.align_trajectories(traj, ref, max_diff=0.01, first_n=None)
+    r: s2w.TrajectoryAlignment = s2w.align_trajectories(traj, ref, max_diff=0.01, n_to_align=None)
     idx_slam, idx_ref = s2w.associate(traj, ref)
     p: npt.NDArray[np.float64] = s2w.scale_factors(slam[idx_slam], world[idx_ref])
     return a.transform.scale, float(r.rmse + p.mean() * 0.0)

@@ -1,0 +1,205 @@
+//! Arguments shared by the commands: value parsers, and the association and
+//! fit options of `align`, `convert` and `transform-cloud` (one flag, one
+//! default, one help text for all three).
+
+use clap::Args;
+use nalgebra::Matrix4;
+
+use crate::align::robust::{RobustLoss, RobustOptions};
+use crate::align::time_offset::TimeOffsetOptions;
+use crate::align::trajectories::{SkipInit, TrajectoryAlignOptions};
+use crate::align::AlignMethod;
+use crate::defaults;
+use crate::error::{cut, Error, Result};
+use crate::geometry::Sim3;
+
+/// clap parser: a finite number.
+pub(crate) fn finite(s: &str) -> std::result::Result<f64, String> {
+    match s.trim().parse::<f64>() {
+        Ok(v) if v.is_finite() => Ok(v),
+        _ => Err(format!("expected a finite number, got {}", cut(s))),
+    }
+}
+
+/// clap parser: a finite number `>= 0`.
+pub(crate) fn non_negative(s: &str) -> std::result::Result<f64, String> {
+    match finite(s) {
+        Ok(v) if v >= 0.0 => Ok(v),
+        _ => Err(format!("expected a finite number >= 0, got {}", cut(s))),
+    }
+}
+
+/// clap parser: a finite number `> 0`.
+pub(crate) fn positive(s: &str) -> std::result::Result<f64, String> {
+    match finite(s) {
+        Ok(v) if v > 0.0 => Ok(v),
+        _ => Err(format!("expected a finite number > 0, got {}", cut(s))),
+    }
+}
+
+/// clap parser: a confidence level in (0, 1).
+pub(crate) fn level(s: &str) -> std::result::Result<f64, String> {
+    match finite(s) {
+        Ok(v) if v > 0.0 && v < 1.0 => Ok(v),
+        _ => Err(format!("expected a level in (0, 1), got {}", cut(s))),
+    }
+}
+
+/// Parses a rigid transform: 16 numbers (a row-major 4×4 matrix) or 7
+/// (`tx ty tz qx qy qz qw`), separated by commas, semicolons or spaces; metres.
+pub fn parse_transform(what: &str, s: &str) -> Result<Sim3> {
+    let v: std::result::Result<Vec<f64>, _> = s
+        .split(|c: char| c == ',' || c == ';' || c.is_whitespace())
+        .filter(|t| !t.is_empty())
+        .map(str::parse::<f64>)
+        .collect();
+    let v = v.map_err(|e| Error::invalid(what, format!("{e} in {}", cut(s))))?;
+    match v.len() {
+        16 => Sim3::from_matrix(&Matrix4::from_row_slice(&v)),
+        7 => Sim3::from_quaternion_xyzw(
+            [v[3], v[4], v[5], v[6]],
+            nalgebra::Vector3::new(v[0], v[1], v[2]),
+            1.0,
+        ),
+        n => Err(Error::invalid(
+            what,
+            format!("expected 16 numbers (row-major 4x4) or 7 (tx ty tz qx qy qz qw), got {n}"),
+        )),
+    }
+}
+
+fn body_from_cam(s: &str) -> std::result::Result<Sim3, String> {
+    parse_transform("--body-from-cam", s).map_err(|e| e.to_string())
+}
+
+fn skip_init(s: &str) -> std::result::Result<SkipInit, String> {
+    s.parse().map_err(|e: Error| e.to_string())
+}
+
+fn loss(s: &str) -> std::result::Result<RobustLoss, String> {
+    s.parse().map_err(|e: Error| e.to_string())
+}
+
+fn method(s: &str) -> std::result::Result<AlignMethod, String> {
+    s.parse().map_err(|e: Error| e.to_string())
+}
+
+/// Association and fit options of `align`, `convert` and `transform-cloud`.
+#[derive(Args, Debug, Clone)]
+pub struct FitArgs {
+    /// Largest time difference of a matched pair, seconds.
+    #[arg(long, default_value_t = defaults::MAX_DIFF, value_name = "S", value_parser = non_negative)]
+    pub max_diff: f64,
+    /// Seconds added to the SLAM (EST) stamps before matching.
+    #[arg(long, default_value_t = defaults::OFFSET, value_name = "S", allow_negative_numbers = true, value_parser = finite)]
+    pub offset: f64,
+    /// Fit SE(3) (scale fixed to 1) instead of Sim(3).
+    #[arg(long)]
+    pub no_scale: bool,
+    /// Fit only the first N matched pairs after the start-up cut (the error
+    /// is still over all pairs).
+    #[arg(long, value_name = "N")]
+    pub n_to_align: Option<usize>,
+    /// Rotation solver: horn (quaternion) or umeyama (SVD).
+    #[arg(long, value_name = "horn|umeyama", default_value = defaults::METHOD, value_parser = method)]
+    pub method: AlignMethod,
+    /// Drop the start of the run from the fit: `auto` (start-up stages found in
+    /// the frame-to-frame scale factors) or a number of matched pairs.
+    #[arg(long, value_name = "auto|N", value_parser = skip_init)]
+    pub skip_init: Option<SkipInit>,
+    /// Robust fit (RANSAC over minimal fits, IRLS, inlier mask).
+    #[arg(long)]
+    pub robust: bool,
+    /// Largest residual of an inlier, metres (default: from the data).
+    #[arg(long, value_name = "M", requires = "robust", value_parser = positive)]
+    pub inlier_threshold: Option<f64>,
+    /// IRLS loss of the robust fit.
+    #[arg(long, value_name = "huber|cauchy", default_value = defaults::LOSS, value_parser = loss)]
+    pub loss: RobustLoss,
+    /// Use the orientations as well as the positions (near-straight paths).
+    #[arg(long)]
+    pub use_orientations: bool,
+    /// Estimate the time offset between the SLAM poses and the reference and apply it.
+    #[arg(long)]
+    pub estimate_offset: bool,
+    /// Largest offset searched by --estimate-offset, seconds.
+    #[arg(long, value_name = "S", default_value_t = defaults::MAX_OFFSET, value_parser = positive)]
+    pub max_offset: f64,
+    /// Known camera–body extrinsic T_body_cam: 16 numbers (row-major 4x4) or 7
+    /// (tx ty tz qx qy qz qw), separated by commas or spaces; metres.
+    #[arg(long, value_name = "NUMBERS", value_parser = body_from_cam, allow_hyphen_values = true)]
+    pub body_from_cam: Option<Sim3>,
+    /// Confidence level of the reported intervals.
+    #[arg(long, value_name = "P", default_value_t = defaults::CONFIDENCE, value_parser = level)]
+    pub confidence: f64,
+}
+
+impl FitArgs {
+    /// The core options these flags ask for.
+    pub fn options(&self) -> TrajectoryAlignOptions {
+        TrajectoryAlignOptions {
+            max_diff: self.max_diff,
+            offset: self.offset,
+            scale: !self.no_scale,
+            n_to_align: self.n_to_align,
+            method: self.method,
+            skip_init: self.skip_init.unwrap_or_default(),
+            robust: self.robust.then(|| RobustOptions {
+                inlier_threshold: self.inlier_threshold,
+                loss: self.loss,
+                ..Default::default()
+            }),
+            use_orientations: self.use_orientations,
+            estimate_offset: self.estimate_offset.then(|| TimeOffsetOptions {
+                max_offset: self.max_offset,
+                ..Default::default()
+            }),
+            body_from_cam: self.body_from_cam,
+        }
+    }
+}
+
+/// The text lines of what the fit's options did (empty parts left out):
+/// start-up cut, time offset, inliers, intervals.
+pub fn fit_text(r: &crate::pipeline::report::FitReport) -> String {
+    let mut s = String::new();
+    if r.fit_start > 0 || r.stages.is_some() {
+        s += &format!("start-up cut: {}\n", r.skip_reason);
+    }
+    if let Some(o) = &r.offset_estimate {
+        s += &format!(
+            "time offset: {:+.6} s added to EST (estimated {:+.6} s; fit rmse {:.6} m, {:.6} m without)\n",
+            r.offset, o.estimated, o.rmse, o.rmse_at_zero
+        );
+    }
+    if let (Some(k), Some(out)) = (r.n_inliers, r.n_outliers) {
+        s += &format!("robust fit: {k} inliers, {out} outliers\n");
+    }
+    if let Some(i) = &r.intervals {
+        let t = &i.translation;
+        let rot = &i.rotation_half_width_deg;
+        s += &format!(
+            "{:.0} % intervals: scale [{:.9}, {:.9}]; translation x [{:.6}, {:.6}] y [{:.6}, {:.6}] z [{:.6}, {:.6}]; rotation ±[{:.4}, {:.4}, {:.4}] deg\n",
+            i.level * 100.0, i.scale[0], i.scale[1], t[0][0], t[0][1], t[1][0], t[1][1], t[2][0], t[2][1],
+            rot[0], rot[1], rot[2]
+        );
+    }
+    s
+}
+
+/// Writes `text` to stdout (a closed pipe is an error like any other write).
+pub(crate) fn print(text: &str) -> Result<()> {
+    use std::io::Write;
+    let mut out = std::io::stdout().lock();
+    out.write_all(text.as_bytes())
+        .and_then(|_| out.flush())
+        .map_err(|e| Error::io("<stdout>", e))
+}
+
+/// Prints `value` as one line of compact JSON.
+pub(crate) fn print_json<T: serde::Serialize>(value: &T) -> Result<()> {
+    let mut text =
+        serde_json::to_string(value).map_err(|e| Error::invalid("report", e.to_string()))?;
+    text.push('\n');
+    print(&text)
+}
