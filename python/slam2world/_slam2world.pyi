@@ -297,7 +297,7 @@ def align_trajectories(
     max_diff: float = 0.01,
     offset: float = 0.0,
     scale: bool = True,
-    first_n: int | None = None,
+    n_to_align: int | None = None,
     method: str = "horn",
     skip_init: str | int | None = None,
     robust: str | None = None,
@@ -599,7 +599,9 @@ def imu_initialize(
 @final
 class Conversion:
     @property
-    def alignment(self) -> TrajectoryAlignment: ...
+    def alignment(self) -> TrajectoryAlignment | None: ...
+    @property
+    def imu_alignment(self) -> ImuAlignment | None: ...
     @property
     def transform(self) -> Sim3: ...
     @property
@@ -628,11 +630,14 @@ def convert(
     offset: float = 0.0,
     n_to_align: int | None = None,
     scale: bool = True,
+    method: str = "horn",
     filter: PointFilter | None = None,
-    imu_topic: str | None = None,
-    imu_from_cam: Sim3 | None = None,
     octree_resolution: float | None = None,
     octree_max_range: float | None = None,
+    prob_hit: float = 0.7,
+    prob_miss: float = 0.4,
+    clamp_min: float = 0.1192,
+    clamp_max: float = 0.971,
     skip_init: str | int | None = None,
     robust: str | None = None,
     inlier_threshold: float | None = None,
@@ -643,4 +648,10 @@ def convert(
     body_from_cam: Sim3 | None = None,
     compare_windowed: int | float | None = None,
     windowed_cloud: bool = False,
+    imu_topic: str | None = None,
+    imu_from_cam: Sim3 | None = None,
+    gravity: float = 9.81,
+    level: float = 0.95,
 ) -> Conversion: ...
+
+DEFAULTS: dict[str, float | int | str]

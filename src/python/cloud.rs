@@ -13,7 +13,7 @@ use numpy::{
 };
 use pyo3::prelude::*;
 
-use super::convert::{c_slice, Points};
+use super::arrays::{c_slice, Points};
 use super::geometry::PySim3;
 use crate::cloud::{self, PointCloud, PointFilter};
 use crate::error::Error;

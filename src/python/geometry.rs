@@ -6,7 +6,7 @@ use numpy::{IntoPyArray, PyArray1, PyArray2, ToPyArray};
 use pyo3::prelude::*;
 use pyo3::types::PyTuple;
 
-use super::convert::{c_slice, matrix3, matrix4, matrix_to_array, vec_f64, vector3, Points};
+use super::arrays::{c_slice, matrix3, matrix4, matrix_to_array, vec_f64, vector3, Points};
 use crate::geometry::{rotation_from_matrix, PointScalar, Sim3};
 
 /// A similarity transform `p ↦ s·R·p + t`; `T_a_b` maps frame-b coordinates into frame a.

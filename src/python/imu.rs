@@ -9,9 +9,9 @@ use numpy::{IntoPyArray, PyArray1, PyArray2};
 use pyo3::prelude::*;
 use pyo3::types::PyDict;
 
-use super::convert::{rows_f64, to_array2, vec_f64};
-use super::core::PyTrajectory;
+use super::arrays::{rows_f64, to_array2, vec_f64};
 use super::geometry::PySim3;
+use super::trajectory::PyTrajectory;
 use crate::imu::{imu_initialize, ImuAlignment, ImuInitOptions, ImuSamples};
 
 fn vectors(obj: &Bound<'_, PyAny>, what: &str) -> PyResult<Vec<Vector3<f64>>> {
@@ -55,7 +55,7 @@ impl PyImuSamples {
     /// Reads EuRoC `imu0/data.csv` content (ns; gyro rad/s; accel m/s²).
     #[staticmethod]
     fn read_euroc(py: Python<'_>, path: PathBuf) -> PyResult<Self> {
-        let inner = py.detach(|| ImuSamples::read_euroc(&path))?;
+        let inner = py.detach(|| crate::io::text::read_euroc_imu(&path))?;
         Ok(PyImuSamples { inner })
     }
 
@@ -95,6 +95,12 @@ impl PyImuSamples {
 #[pyclass(name = "ImuAlignment", module = "slam2world._slam2world", frozen)]
 pub struct PyImuAlignment {
     inner: ImuAlignment,
+}
+
+impl From<ImuAlignment> for PyImuAlignment {
+    fn from(inner: ImuAlignment) -> Self {
+        PyImuAlignment { inner }
+    }
 }
 
 #[pymethods]

@@ -8,7 +8,7 @@ use numpy::{AllowTypeChange, IntoPyArray, PyArray1, PyArray2, PyArrayLike1};
 use pyo3::prelude::*;
 use pyo3::types::PyDict;
 
-use super::convert::{c_slice, rows_f64, to_array2, vector3, Points};
+use super::arrays::{c_slice, rows_f64, to_array2, vector3, Points};
 use crate::error::Error;
 use crate::map::{MapParams, OccupancyMap, VoxelState};
 
@@ -293,6 +293,11 @@ impl PyOccupancyMap {
     /// Wraps a map built in Rust (e.g. by `convert`).
     pub(crate) fn from_core(inner: OccupancyMap) -> Self {
         PyOccupancyMap { inner }
+    }
+
+    /// The core map.
+    pub(crate) fn core(&self) -> &OccupancyMap {
+        &self.inner
     }
 }
 

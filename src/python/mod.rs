@@ -1,19 +1,23 @@
-//! PyO3 bindings (feature `python`): thin wrappers over the core, one error
-//! mapping (`errors.rs`), array conversion in `convert.rs`.
+//! PyO3 bindings (feature `python`): thin wrappers over the core, each file
+//! named after the core module it wraps (`align.rs` wraps `align/`, `io.rs`
+//! wraps `io/`, `pipeline.rs` wraps `pipeline/`, …), one error mapping
+//! (`errors.rs`, for `error.rs`), array conversion in `arrays.rs`.
 
 use pyo3::prelude::*;
 
-mod beyond;
+mod align;
+mod arrays;
 mod cli;
 mod cloud;
-mod convert;
-mod core;
+mod defaults;
 mod errors;
 mod geometry;
 mod imu;
+mod io;
 mod map;
-mod mcap;
+mod pipeline;
 mod sim;
+mod trajectory;
 
 #[pymodule]
 fn _slam2world(m: &Bound<'_, PyModule>) -> PyResult<()> {
@@ -22,11 +26,13 @@ fn _slam2world(m: &Bound<'_, PyModule>) -> PyResult<()> {
     geometry::register(m)?;
     sim::register(m)?;
     map::register(m)?;
-    core::register(m)?;
-    beyond::register(m)?;
+    trajectory::register(m)?;
+    align::register(m)?;
     cloud::register(m)?;
     cli::register(m)?;
-    mcap::register(m)?;
+    io::register(m)?;
+    pipeline::register(m)?;
     imu::register(m)?;
+    defaults::register(m)?;
     Ok(())
 }

@@ -9,10 +9,10 @@ use numpy::{IntoPyArray, PyArray1, PyArray2, PyArray3};
 use pyo3::prelude::*;
 use pyo3::types::PyDict;
 
+use super::arrays::{c_slice, rows_f64, to_array2, vec_f64, Points};
 use super::cloud::PyKeyframe;
-use super::convert::{c_slice, rows_f64, to_array2, vec_f64, Points};
-use super::core::PyTrajectory;
 use super::geometry::PySim3;
+use super::trajectory::PyTrajectory;
 use crate::error::Error;
 use crate::sim::{self, SimConfig, Simulation};
 use crate::trajectory::Trajectory;
@@ -73,7 +73,7 @@ impl PySimulation {
     #[getter]
     fn config<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyDict>> {
         let d = PyDict::new(py);
-        if let serde_json::Value::Object(map) = self.inner.config.to_json() {
+        if let Ok(serde_json::Value::Object(map)) = serde_json::to_value(&self.inner.config) {
             for (k, v) in map {
                 match v {
                     serde_json::Value::Array(a) => {

@@ -1,77 +1,29 @@
-//! Alignment and trajectories for Python: `align`, `Alignment`, `Trajectory`,
-//! `associate`, `align_trajectories`, `TrajectoryAlignment`, `scale_factors`.
+//! Alignment for Python: `align`, `Alignment`, `align_trajectories`,
+//! `TrajectoryAlignment`, and the fits beyond one closed form —
+//! `detect_stages` / `Stages`, `estimate_time_offset`, `align_windowed` /
+//! `WindowedAlignment`, `estimate_body_from_cam`.
 
-use std::path::PathBuf;
-
-use nalgebra::{UnitQuaternion, Vector3};
-use numpy::{
-    AllowTypeChange, IntoPyArray, PyArray1, PyArray2, PyArrayLike2, PyArrayMethods,
-    PyUntypedArrayMethods, ToPyArray,
-};
+use numpy::{IntoPyArray, PyArray1, PyArray2, PyArrayMethods};
 use pyo3::prelude::*;
 use pyo3::sync::PyOnceLock;
 use pyo3::types::{PyDict, PyTuple};
 
-use super::convert::{c_slice, rows_f64, to_array2, vec_f64};
+use super::arrays::{to_array2, vec_f64, vectors, with_points};
 use super::geometry::PySim3;
+use super::trajectory::{index_arrays, PyTrajectory};
 use crate::align::covariance::{covariance, Covariance};
-use crate::align::extended::{
-    align_trajectories_extended, ExtendedAlignment, ExtendedOptions, SkipInit,
-};
+use crate::align::handeye::estimate_body_from_cam_trajectories;
 use crate::align::robust::{align_robust, RobustOptions};
-use crate::align::stages::Stages;
-use crate::align::time_offset::TimeOffsetOptions;
+use crate::align::stages::{detect_stages, Stages};
+use crate::align::time_offset::{estimate_time_offset, TimeOffsetOptions};
+use crate::align::trajectories::{
+    align_trajectories, ApeStats, SkipInit, TrajectoryAlignOptions, TrajectoryAlignment,
+};
+use crate::align::windowed::{align_windowed, Window, WindowedAlignment, WindowedOptions};
 use crate::align::{
     fit_flat, residuals_flat, AlignDiagnostics, AlignMethod, AlignOptions, Alignment,
 };
 use crate::error::Error;
-use crate::geometry::unit_quaternion_xyzw;
-use crate::trajectory::{
-    associate, scale_factors, ApeStats, Trajectory, TrajectoryAlignOptions, TrajectoryAlignment,
-};
-
-/// Runs `f` on the row-major `(N, 3)` `f64` data of `obj`, borrowed without a
-/// copy when it is a C-contiguous float64 array.
-fn with_points<R>(
-    obj: &Bound<'_, PyAny>,
-    what: &str,
-    f: impl FnOnce(&[f64]) -> PyResult<R>,
-) -> PyResult<R> {
-    let arr: PyArrayLike2<'_, f64, AllowTypeChange> = obj.extract().map_err(|_| {
-        PyErr::from(Error::ShapeMismatch {
-            what: what.into(),
-            expected: "a 2-D array of shape (N, 3)".into(),
-            got: "something else".into(),
-        })
-    })?;
-    let shape = arr.shape();
-    if shape[1] != 3 {
-        return Err(Error::ShapeMismatch {
-            what: what.into(),
-            expected: "(N, 3)".into(),
-            got: format!("{shape:?}"),
-        }
-        .into());
-    }
-    match c_slice(&arr) {
-        Some(s) => f(s),
-        None => {
-            let v: Vec<f64> = arr.as_array().iter().copied().collect();
-            f(&v)
-        }
-    }
-}
-
-fn vectors(obj: &Bound<'_, PyAny>, what: &str) -> PyResult<Vec<Vector3<f64>>> {
-    let v = rows_f64(obj, what, 3)?;
-    Ok(v.chunks_exact(3)
-        .map(|r| Vector3::new(r[0], r[1], r[2]))
-        .collect())
-}
-
-fn flat(v: &[Vector3<f64>]) -> Vec<f64> {
-    v.iter().flat_map(|p| [p.x, p.y, p.z]).collect()
-}
 
 fn diagnostics_dict<'py>(py: Python<'py>, d: &AlignDiagnostics) -> PyResult<Bound<'py, PyDict>> {
     let dict = PyDict::new(py);
@@ -351,190 +303,6 @@ fn align_py(
     })
 }
 
-/// Timestamped positions (seconds, metres) with optional orientations `(x, y, z, w)`.
-#[pyclass(name = "Trajectory", module = "slam2world._slam2world", frozen)]
-pub struct PyTrajectory {
-    pub inner: Trajectory,
-}
-
-#[pymethods]
-impl PyTrajectory {
-    #[new]
-    #[pyo3(signature = (timestamps, positions, orientations=None))]
-    fn new(
-        timestamps: &Bound<'_, PyAny>,
-        positions: &Bound<'_, PyAny>,
-        orientations: Option<&Bound<'_, PyAny>>,
-    ) -> PyResult<Self> {
-        let t = vec_f64(timestamps, "timestamps", None)?;
-        let p = vectors(positions, "positions")?;
-        let o = match orientations {
-            None => None,
-            Some(o) => {
-                let v = rows_f64(o, "orientations", 4)?;
-                let q: Result<Vec<UnitQuaternion<f64>>, Error> = v
-                    .chunks_exact(4)
-                    .enumerate()
-                    .map(|(i, r)| {
-                        unit_quaternion_xyzw([r[0], r[1], r[2], r[3]])
-                            .map_err(|e| Error::invalid("orientations", format!("row {i}: {e}")))
-                    })
-                    .collect();
-                Some(q?)
-            }
-        };
-        Ok(PyTrajectory {
-            inner: Trajectory::try_new(t, p, o)?,
-        })
-    }
-
-    /// Reads a TUM file (`timestamp tx ty tz qx qy qz qw`).
-    #[staticmethod]
-    fn read_tum(py: Python<'_>, path: PathBuf) -> PyResult<Self> {
-        let inner = py.detach(|| Trajectory::read_tum(&path))?;
-        Ok(PyTrajectory { inner })
-    }
-
-    /// Reads EuRoC ground truth CSV (ns, x, y, z, qw, qx, qy, qz, …).
-    #[staticmethod]
-    fn read_euroc(py: Python<'_>, path: PathBuf) -> PyResult<Self> {
-        let inner = py.detach(|| Trajectory::read_euroc(&path))?;
-        Ok(PyTrajectory { inner })
-    }
-
-    /// Writes a TUM file (atomically: a temporary file renamed into place).
-    fn write_tum(&self, py: Python<'_>, path: PathBuf) -> PyResult<()> {
-        Ok(py.detach(|| self.inner.write_tum(&path))?)
-    }
-
-    /// Times, seconds, shape (N,).
-    #[getter]
-    fn timestamps<'py>(&self, py: Python<'py>) -> Bound<'py, PyArray1<f64>> {
-        self.inner.timestamps.to_pyarray(py)
-    }
-
-    /// Positions, shape (N, 3).
-    #[getter]
-    fn positions<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyArray2<f64>>> {
-        to_array2(py, flat(&self.inner.positions), 3)
-    }
-
-    /// Orientations `(x, y, z, w)`, shape (N, 4), or None.
-    #[getter]
-    fn orientations<'py>(&self, py: Python<'py>) -> PyResult<Option<Bound<'py, PyArray2<f64>>>> {
-        match &self.inner.orientations {
-            None => Ok(None),
-            Some(o) => {
-                let v: Vec<f64> = o
-                    .iter()
-                    .flat_map(|q| [q.coords[0], q.coords[1], q.coords[2], q.coords[3]])
-                    .collect();
-                Ok(Some(to_array2(py, v, 4)?))
-            }
-        }
-    }
-
-    /// Poses at `times` (lerp + slerp); raises outside the covered range or
-    /// inside a gap longer than `max_gap` seconds.
-    #[pyo3(signature = (times, max_gap=0.1))]
-    fn interpolate(&self, times: &Bound<'_, PyAny>, max_gap: f64) -> PyResult<Self> {
-        let t = vec_f64(times, "times", None)?;
-        Ok(PyTrajectory {
-            inner: self.inner.interpolate(&t, max_gap)?,
-        })
-    }
-
-    /// Like `interpolate`, but skips the times it cannot answer: returns
-    /// `(trajectory, kept, missing)` with index arrays into `times`.
-    #[pyo3(signature = (times, max_gap=0.1))]
-    fn interpolate_where_covered<'py>(
-        &self,
-        py: Python<'py>,
-        times: &Bound<'py, PyAny>,
-        max_gap: f64,
-    ) -> PyResult<Bound<'py, PyTuple>> {
-        let t = vec_f64(times, "times", None)?;
-        let r = self.inner.interpolate_where_covered(&t, max_gap)?;
-        let kept: Vec<i64> = r.kept.iter().map(|&i| i as i64).collect();
-        let missing: Vec<i64> = r.missing.iter().map(|&i| i as i64).collect();
-        let traj = Bound::new(
-            py,
-            PyTrajectory {
-                inner: r.trajectory,
-            },
-        )?;
-        PyTuple::new(
-            py,
-            [
-                traj.into_any(),
-                kept.into_pyarray(py).into_any(),
-                missing.into_pyarray(py).into_any(),
-            ],
-        )
-    }
-
-    /// Poses mapped by `transform` (`T_world_slam · T_slam_cam`).
-    fn transformed(&self, transform: PyRef<'_, PySim3>) -> Self {
-        PyTrajectory {
-            inner: self.inner.transformed(&transform.inner),
-        }
-    }
-
-    fn __len__(&self) -> usize {
-        self.inner.len()
-    }
-
-    fn __repr__(&self) -> String {
-        let t = &self.inner.timestamps;
-        match (t.first(), t.last()) {
-            (Some(a), Some(b)) => format!(
-                "Trajectory({} poses, {a:.6}..{b:.6} s, orientations={})",
-                t.len(),
-                self.inner.orientations.is_some()
-            ),
-            _ => "Trajectory(0 poses)".into(),
-        }
-    }
-
-    fn __reduce__<'py>(slf: &Bound<'py, Self>) -> PyResult<Bound<'py, PyTuple>> {
-        let py = slf.py();
-        let this = slf.get();
-        let args = (
-            this.timestamps(py),
-            this.positions(py)?,
-            this.orientations(py)?,
-        );
-        PyTuple::new(
-            py,
-            [
-                slf.get_type().into_any(),
-                args.into_pyobject(py)?.into_any(),
-            ],
-        )
-    }
-}
-
-fn index_arrays<'py>(py: Python<'py>, pairs: &[(usize, usize)]) -> PyResult<Bound<'py, PyTuple>> {
-    let a: Vec<i64> = pairs.iter().map(|&(i, _)| i as i64).collect();
-    let b: Vec<i64> = pairs.iter().map(|&(_, j)| j as i64).collect();
-    PyTuple::new(py, [a.into_pyarray(py), b.into_pyarray(py)])
-}
-
-/// Indices `(idx_a, idx_b)` of poses matched by time as evo does (`offset`
-/// seconds added to `b`'s stamps; nearest stamp within `max_diff`).
-#[pyfunction(name = "associate")]
-#[pyo3(signature = (a, b, *, max_diff=0.01, offset=0.0))]
-fn associate_py<'py>(
-    py: Python<'py>,
-    a: PyRef<'py, PyTrajectory>,
-    b: PyRef<'py, PyTrajectory>,
-    max_diff: f64,
-    offset: f64,
-) -> PyResult<Bound<'py, PyTuple>> {
-    let pairs = associate(&a.inner, &b.inner, max_diff, offset);
-    index_arrays(py, &pairs)
-}
-
 /// The result of `align_trajectories`: the transform `T_world_slam`, the APE
 /// statistics over all matched pairs (metres) and the pairs.
 #[pyclass(
@@ -563,7 +331,8 @@ impl PyTrajectoryAlignment {
     fn transform(&self) -> PySim3 {
         self.transform.into()
     }
-    /// The fit itself (over the first `first_n` pairs when given).
+    /// The fit itself (over the fitted pairs: after the start-up cut, the first
+    /// `n_to_align` when given, the inliers of a robust fit).
     #[getter]
     fn alignment(&self, py: Python<'_>) -> Py<PyAlignment> {
         self.alignment.clone_ref(py)
@@ -631,8 +400,8 @@ impl PyTrajectoryAlignment {
     }
     /// The start-up stages (with `skip_init="auto"`), else None.
     #[getter]
-    fn stages(&self) -> Option<super::beyond::PyStages> {
-        self.stages.clone().map(super::beyond::PyStages::from)
+    fn stages(&self) -> Option<PyStages> {
+        self.stages.clone().map(PyStages::from)
     }
     /// Per fitted pair: inlier of the robust fit, or None.
     #[getter]
@@ -715,23 +484,34 @@ pub(crate) fn robust_arg(
     }
 }
 
-/// The keyword options beyond one fit (`align_trajectories`, `convert`) as
-/// the core's [`ExtendedOptions`]; `max_offset` (seconds) is `Some` when the
-/// time offset is to be estimated.
-pub(crate) fn extended_options(
+/// The keyword options of a trajectory fit (`align_trajectories`, `convert`)
+/// as the core's [`TrajectoryAlignOptions`].
+#[allow(clippy::too_many_arguments)]
+pub(crate) fn fit_options(
+    max_diff: f64,
+    offset: f64,
+    scale: bool,
+    n_to_align: Option<usize>,
+    method: &str,
     skip_init: Option<&Bound<'_, PyAny>>,
     robust: Option<&str>,
     inlier_threshold: Option<f64>,
     loss: &str,
     use_orientations: bool,
-    max_offset: Option<f64>,
+    estimate_offset: bool,
+    max_offset: f64,
     body_from_cam: Option<crate::geometry::Sim3>,
-) -> PyResult<ExtendedOptions> {
-    Ok(ExtendedOptions {
+) -> PyResult<TrajectoryAlignOptions> {
+    Ok(TrajectoryAlignOptions {
+        max_diff,
+        offset,
+        scale,
+        n_to_align,
+        method: method.parse()?,
         skip_init: skip_init_arg(skip_init)?,
         robust: robust_arg(robust, inlier_threshold, loss)?,
         use_orientations,
-        estimate_offset: max_offset.map(|max_offset| TimeOffsetOptions {
+        estimate_offset: estimate_offset.then(|| TimeOffsetOptions {
             max_offset,
             ..Default::default()
         }),
@@ -740,11 +520,11 @@ pub(crate) fn extended_options(
 }
 
 /// Associates by time, fits `T_world_slam` on the positions (the first
-/// `first_n` pairs when given) and reports the APE over all pairs. The
-/// keyword options beyond `method` are those of the extended fit: start-up
-/// cut (`skip_init`), robust fit, orientations, time offset, extrinsic.
+/// `n_to_align` pairs after the start-up cut when given) and reports the APE
+/// over all pairs. The keyword options beyond `method`: start-up cut
+/// (`skip_init`), robust fit, orientations, time offset, extrinsic.
 #[pyfunction(name = "align_trajectories")]
-#[pyo3(signature = (slam, reference, *, max_diff=0.01, offset=0.0, scale=true, first_n=None, method="horn", skip_init=None, robust=None, inlier_threshold=None, loss="huber", use_orientations=false, estimate_offset=false, max_offset=0.5, body_from_cam=None))]
+#[pyo3(signature = (slam, reference, *, max_diff=0.01, offset=0.0, scale=true, n_to_align=None, method="horn", skip_init=None, robust=None, inlier_threshold=None, loss="huber", use_orientations=false, estimate_offset=false, max_offset=0.5, body_from_cam=None))]
 #[allow(clippy::too_many_arguments)]
 fn align_trajectories_py(
     py: Python<'_>,
@@ -753,7 +533,7 @@ fn align_trajectories_py(
     max_diff: f64,
     offset: f64,
     scale: bool,
-    first_n: Option<usize>,
+    n_to_align: Option<usize>,
     method: &str,
     skip_init: Option<&Bound<'_, PyAny>>,
     robust: Option<&str>,
@@ -764,77 +544,289 @@ fn align_trajectories_py(
     max_offset: f64,
     body_from_cam: Option<PyRef<'_, PySim3>>,
 ) -> PyResult<PyTrajectoryAlignment> {
-    let opts = TrajectoryAlignOptions {
+    let opts = fit_options(
         max_diff,
         offset,
         scale,
-        first_n,
-        method: method.parse()?,
-    };
-    let ext = extended_options(
+        n_to_align,
+        method,
         skip_init,
         robust,
         inlier_threshold,
         loss,
         use_orientations,
-        estimate_offset.then_some(max_offset),
+        estimate_offset,
+        max_offset,
         body_from_cam.map(|b| b.inner),
     )?;
     let (s, r) = (&slam.inner, &reference.inner);
-    let out = py.detach(|| align_trajectories_extended(s, r, &opts, &ext))?;
-    PyTrajectoryAlignment::from_extended(py, out)
+    let out = py.detach(|| align_trajectories(s, r, &opts))?;
+    PyTrajectoryAlignment::new(py, out)
 }
 
 impl PyTrajectoryAlignment {
-    /// Wraps a core extended fit (also used by `convert` in `mcap.rs`).
-    pub(crate) fn from_extended(py: Python<'_>, out: ExtendedAlignment) -> PyResult<Self> {
+    /// Wraps a core trajectory fit (also used by `convert`).
+    pub(crate) fn new(py: Python<'_>, out: TrajectoryAlignment) -> PyResult<Self> {
+        let transform = out.transform();
         let TrajectoryAlignment {
             alignment,
             pairs,
             ape,
             errors,
-        } = out.trajectory;
-        let transform = alignment.transform;
-        let inliers = out.inliers;
+            offset,
+            stages,
+            fit_start,
+            skip_reason,
+            inliers,
+            covariance,
+            ..
+        } = out;
         Ok(PyTrajectoryAlignment {
             alignment: Py::new(
                 py,
-                PyAlignment::with_extras(py, alignment, inliers.clone(), out.covariance.clone()),
+                PyAlignment::with_extras(py, alignment, inliers.clone(), covariance.clone()),
             )?,
             transform,
             ape,
             pairs,
             residuals: errors.into_pyarray(py).unbind(),
-            offset: out.offset,
-            fit_start: out.fit_start,
-            skip_reason: out.skip_reason,
-            stages: out.stages,
+            offset,
+            fit_start,
+            skip_reason,
+            stages,
             inliers: inliers.map(|m| m.into_pyarray(py).unbind()),
-            covariance: out.covariance,
+            covariance,
         })
     }
 }
 
-/// The paper's frame-to-frame factors `p_k = ‖t'_{k+1} − t'_k‖² / ‖t_{k+1} − t_k‖²`
-/// (`t'` reference, `t` SLAM), shape (N−1,); about `s²`.
-#[pyfunction(name = "scale_factors")]
-fn scale_factors_py<'py>(
-    py: Python<'py>,
-    slam_positions: &Bound<'py, PyAny>,
-    reference_positions: &Bound<'py, PyAny>,
-) -> PyResult<Bound<'py, PyArray1<f64>>> {
-    let s = vectors(slam_positions, "slam_positions")?;
-    let r = vectors(reference_positions, "reference_positions")?;
-    Ok(scale_factors(&s, &r)?.into_pyarray(py))
+/// The start-up stages of a run, indices into the scale factors `p_k`.
+#[pyclass(
+    name = "Stages",
+    module = "slam2world._slam2world",
+    frozen,
+    skip_from_py_object
+)]
+#[derive(Clone)]
+pub struct PyStages {
+    inner: Stages,
+}
+
+impl From<Stages> for PyStages {
+    fn from(inner: Stages) -> Self {
+        PyStages { inner }
+    }
+}
+
+#[pymethods]
+impl PyStages {
+    /// First factor of the converging stretch.
+    #[getter]
+    fn converging_start(&self) -> usize {
+        self.inner.converging_start
+    }
+    /// First factor of the stable stage (fit from here).
+    #[getter]
+    fn stable_start(&self) -> usize {
+        self.inner.stable_start
+    }
+    /// Number of factors.
+    #[getter]
+    fn n(&self) -> usize {
+        self.inner.n
+    }
+    /// The stable level of `p_k` (≈ s²).
+    #[getter]
+    fn stable_level(&self) -> f64 {
+        self.inner.stable_level
+    }
+    /// Robust per-sample standard deviation of `ln p_k` once stable.
+    #[getter]
+    fn noise(&self) -> f64 {
+        self.inner.noise
+    }
+    /// Rolling window, factors.
+    #[getter]
+    fn window(&self) -> usize {
+        self.inner.window
+    }
+    /// One line saying what the stages are and why.
+    fn describe(&self) -> String {
+        self.inner.describe()
+    }
+    fn __repr__(&self) -> String {
+        format!(
+            "Stages(converging_start={}, stable_start={}, n={}, stable_level={:.6})",
+            self.inner.converging_start,
+            self.inner.stable_start,
+            self.inner.n,
+            self.inner.stable_level
+        )
+    }
+}
+
+/// Finds the start-up stages in the frame-to-frame scale factors `p_k` (N,).
+#[pyfunction(name = "detect_stages")]
+fn detect_stages_py(p_k: &Bound<'_, PyAny>) -> PyResult<PyStages> {
+    let p = vec_f64(p_k, "p_k", None)?;
+    Ok(detect_stages(&p)?.into())
+}
+
+/// Seconds to add to the SLAM stamps so that the motion matches the reference
+/// best (searched within ±`max_offset`).
+#[pyfunction(name = "estimate_time_offset")]
+#[pyo3(signature = (slam, reference, *, max_offset=0.5, max_gap=0.1, scale=true))]
+fn estimate_time_offset_py(
+    py: Python<'_>,
+    slam: PyRef<'_, PyTrajectory>,
+    reference: PyRef<'_, PyTrajectory>,
+    max_offset: f64,
+    max_gap: f64,
+    scale: bool,
+) -> PyResult<f64> {
+    let opts = TimeOffsetOptions {
+        max_offset,
+        max_gap,
+        scale,
+        ..Default::default()
+    };
+    let (s, r) = (&slam.inner, &reference.inner);
+    Ok(py.detach(|| estimate_time_offset(s, r, &opts))?.offset)
+}
+
+/// Per-pose `T_world_slam` of a windowed (drift-aware) alignment.
+#[pyclass(name = "WindowedAlignment", module = "slam2world._slam2world", frozen)]
+pub struct PyWindowedAlignment {
+    inner: WindowedAlignment,
+    single: Py<PyAlignment>,
+}
+
+#[pymethods]
+impl PyWindowedAlignment {
+    /// SLAM stamps (seconds) of the matched poses.
+    #[getter]
+    fn times<'py>(&self, py: Python<'py>) -> Bound<'py, PyArray1<f64>> {
+        self.inner.times.clone().into_pyarray(py)
+    }
+    /// `T_world_slam` at each of `times`.
+    #[getter]
+    fn transforms(&self) -> Vec<PySim3> {
+        self.inner.transforms.iter().map(|t| (*t).into()).collect()
+    }
+    /// Scale of each local transform, shape (N,).
+    #[getter]
+    fn scales<'py>(&self, py: Python<'py>) -> Bound<'py, PyArray1<f64>> {
+        let v: Vec<f64> = self.inner.transforms.iter().map(|t| t.scale).collect();
+        v.into_pyarray(py)
+    }
+    /// Per pose `‖p_ref − T(t)·p_slam‖`, metres.
+    #[getter]
+    fn residuals<'py>(&self, py: Python<'py>) -> Bound<'py, PyArray1<f64>> {
+        self.inner.residuals.clone().into_pyarray(py)
+    }
+    /// rms of `residuals`, metres.
+    #[getter]
+    fn rmse(&self) -> f64 {
+        self.inner.rmse
+    }
+    /// The single Sim(3) over every pair, for comparison.
+    #[getter]
+    fn single(&self, py: Python<'_>) -> Py<PyAlignment> {
+        self.single.clone_ref(py)
+    }
+    /// `T_world_slam` at SLAM time `t` (blend of the neighbouring transforms).
+    fn transform_at(&self, t: f64) -> PySim3 {
+        self.inner.transform_at(t).into()
+    }
+    /// `transform_at` for each time, as a list.
+    fn transforms_at(&self, times: &Bound<'_, PyAny>) -> PyResult<Vec<PySim3>> {
+        let t = vec_f64(times, "times", None)?;
+        Ok(t.iter()
+            .map(|&x| self.inner.transform_at(x).into())
+            .collect())
+    }
+    fn __repr__(&self) -> String {
+        format!(
+            "WindowedAlignment({} poses, rmse={:.6}, single rmse={:.6})",
+            self.inner.times.len(),
+            self.inner.rmse,
+            self.inner.global.rmse
+        )
+    }
+}
+
+/// A window given as an int (matched poses) or a float (metres of reference
+/// path); `what` names the argument in the error (`align_windowed`, `convert`).
+pub(crate) fn window_arg(w: &Bound<'_, PyAny>, what: &str) -> PyResult<Window> {
+    if w.is_instance_of::<pyo3::types::PyInt>() {
+        return Ok(Window::Poses(w.extract()?));
+    }
+    match w.extract::<f64>() {
+        Ok(d) => Ok(Window::Distance(d)),
+        Err(_) => Err(Error::invalid(what, "expected an int (poses) or a float (metres)").into()),
+    }
+}
+
+/// Windowed Sim(3) along the path: `window` an int (matched poses) or a float
+/// (metres of reference path).
+#[pyfunction(name = "align_windowed")]
+#[pyo3(signature = (slam, reference, *, window=None, max_diff=0.01, offset=0.0, scale=true))]
+fn align_windowed_py(
+    py: Python<'_>,
+    slam: PyRef<'_, PyTrajectory>,
+    reference: PyRef<'_, PyTrajectory>,
+    window: Option<&Bound<'_, PyAny>>,
+    max_diff: f64,
+    offset: f64,
+    scale: bool,
+) -> PyResult<PyWindowedAlignment> {
+    let window = match window {
+        None => Window::default(),
+        Some(w) => window_arg(w, "window")?,
+    };
+    let opts = WindowedOptions {
+        window,
+        max_diff,
+        offset,
+        scale,
+    };
+    let (s, r) = (&slam.inner, &reference.inner);
+    let inner = py.detach(|| align_windowed(s, r, &opts))?;
+    let single = Py::new(py, PyAlignment::new(py, inner.global.clone()))?;
+    Ok(PyWindowedAlignment { inner, single })
+}
+
+/// Hand-eye with scale: estimates `T_body_cam` (metres) from SLAM camera poses
+/// and reference body poses (both with orientations); returns
+/// `(body_from_cam, alignment, rotation_rmse_rad)`.
+#[pyfunction(name = "estimate_body_from_cam")]
+#[pyo3(signature = (slam, reference, *, max_diff=0.01, offset=0.0))]
+fn estimate_body_from_cam_py(
+    py: Python<'_>,
+    slam: PyRef<'_, PyTrajectory>,
+    reference: PyRef<'_, PyTrajectory>,
+    max_diff: f64,
+    offset: f64,
+) -> PyResult<(PySim3, PyAlignment, f64)> {
+    let (s, r) = (&slam.inner, &reference.inner);
+    let (he, _) = py.detach(|| estimate_body_from_cam_trajectories(s, r, max_diff, offset))?;
+    Ok((
+        he.body_from_cam.into(),
+        PyAlignment::new(py, he.alignment),
+        he.rotation_rmse,
+    ))
 }
 
 pub fn register(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_class::<PyAlignment>()?;
-    m.add_class::<PyTrajectory>()?;
     m.add_class::<PyTrajectoryAlignment>()?;
+    m.add_class::<PyStages>()?;
+    m.add_class::<PyWindowedAlignment>()?;
     m.add_function(wrap_pyfunction!(align_py, m)?)?;
-    m.add_function(wrap_pyfunction!(associate_py, m)?)?;
     m.add_function(wrap_pyfunction!(align_trajectories_py, m)?)?;
-    m.add_function(wrap_pyfunction!(scale_factors_py, m)?)?;
+    m.add_function(wrap_pyfunction!(detect_stages_py, m)?)?;
+    m.add_function(wrap_pyfunction!(estimate_time_offset_py, m)?)?;
+    m.add_function(wrap_pyfunction!(align_windowed_py, m)?)?;
+    m.add_function(wrap_pyfunction!(estimate_body_from_cam_py, m)?)?;
     Ok(())
 }

@@ -149,3 +149,46 @@ impl<'py> Points<'py> {
         Ok(p)
     }
 }
+
+/// Runs `f` on the row-major `(N, 3)` `f64` data of `obj`, borrowed without a
+/// copy when it is a C-contiguous float64 array.
+pub(crate) fn with_points<R>(
+    obj: &Bound<'_, PyAny>,
+    what: &str,
+    f: impl FnOnce(&[f64]) -> PyResult<R>,
+) -> PyResult<R> {
+    let arr: PyArrayLike2<'_, f64, AllowTypeChange> = obj.extract().map_err(|_| {
+        PyErr::from(Error::ShapeMismatch {
+            what: what.into(),
+            expected: "a 2-D array of shape (N, 3)".into(),
+            got: "something else".into(),
+        })
+    })?;
+    let shape = arr.shape();
+    if shape[1] != 3 {
+        return Err(Error::ShapeMismatch {
+            what: what.into(),
+            expected: "(N, 3)".into(),
+            got: format!("{shape:?}"),
+        }
+        .into());
+    }
+    match c_slice(&arr) {
+        Some(s) => f(s),
+        None => {
+            let v: Vec<f64> = arr.as_array().iter().copied().collect();
+            f(&v)
+        }
+    }
+}
+
+pub(crate) fn vectors(obj: &Bound<'_, PyAny>, what: &str) -> PyResult<Vec<Vector3<f64>>> {
+    let v = rows_f64(obj, what, 3)?;
+    Ok(v.chunks_exact(3)
+        .map(|r| Vector3::new(r[0], r[1], r[2]))
+        .collect())
+}
+
+pub(crate) fn flat(v: &[Vector3<f64>]) -> Vec<f64> {
+    v.iter().flat_map(|p| [p.x, p.y, p.z]).collect()
+}

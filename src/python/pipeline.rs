@@ -1,0 +1,281 @@
+//! The conversion for Python: `convert(...) -> Conversion`.
+
+use std::path::PathBuf;
+
+use pyo3::prelude::*;
+use pyo3::sync::PyOnceLock;
+
+use super::align::{fit_options, window_arg, PyTrajectoryAlignment};
+use super::cloud::{PyPointCloud, PyPointFilter};
+use super::geometry::PySim3;
+use super::imu::PyImuAlignment;
+use super::io::PyLog;
+use super::map::PyOccupancyMap;
+use super::trajectory::PyTrajectory;
+use crate::io::mcap::{ReadOptions, WorldFlavor};
+use crate::map::MapParams;
+use crate::pipeline::{self, ConvertOptions};
+
+/// The result of `convert`: the alignment, the world cloud, the report, the
+/// octree, and methods that write each output.
+#[pyclass(name = "Conversion", module = "slam2world._slam2world", frozen)]
+pub struct PyConversion {
+    /// The conversion, its octree moved into `octree`.
+    inner: pipeline::Conversion,
+    alignment: Option<Py<PyTrajectoryAlignment>>,
+    imu_alignment: Option<Py<PyImuAlignment>>,
+    octree: Option<Py<PyOccupancyMap>>,
+    cloud: PyOnceLock<Py<PyPointCloud>>,
+    report: PyOnceLock<Py<PyAny>>,
+}
+
+fn flavor_of(ros2: bool) -> WorldFlavor {
+    if ros2 {
+        WorldFlavor::Ros2
+    } else {
+        WorldFlavor::Foxglove
+    }
+}
+
+impl PyConversion {
+    /// Runs `f` with the octree (the Python object's, which is the
+    /// conversion's own) and the GIL released.
+    fn with_octree<R: Send>(
+        &self,
+        py: Python<'_>,
+        f: impl FnOnce(&pipeline::Conversion, Option<&crate::map::OccupancyMap>) -> crate::Result<R>
+            + Send,
+    ) -> PyResult<R> {
+        let guard = self.octree.as_ref().map(|m| m.borrow(py));
+        let map = guard.as_ref().map(|g| g.core());
+        let inner = &self.inner;
+        Ok(py.detach(|| f(inner, map))?)
+    }
+}
+
+#[pymethods]
+impl PyConversion {
+    /// The fit to the reference poses: `.transform` is `T_world_slam`; APE
+    /// statistics over all pairs, inliers, stages, offset, covariance. None
+    /// when `T_world_slam` came from the raw IMU (see `imu_alignment`).
+    #[getter]
+    fn alignment(&self, py: Python<'_>) -> Option<Py<PyTrajectoryAlignment>> {
+        self.alignment.as_ref().map(|a| a.clone_ref(py))
+    }
+    /// The inertial initialisation that gave `T_world_slam` (no reference
+    /// poses), else None.
+    #[getter]
+    fn imu_alignment(&self, py: Python<'_>) -> Option<Py<PyImuAlignment>> {
+        self.imu_alignment.as_ref().map(|a| a.clone_ref(py))
+    }
+    /// `T_world_slam`.
+    #[getter]
+    fn transform(&self) -> PySim3 {
+        PySim3::from(self.inner.transform())
+    }
+    /// The world cloud (metres, world frame).
+    #[getter]
+    fn cloud(&self, py: Python<'_>) -> PyResult<Py<PyPointCloud>> {
+        let c = self.cloud.get_or_try_init(py, || {
+            Py::new(py, PyPointCloud::from_core(py, self.inner.cloud.clone())?)
+        })?;
+        Ok(c.clone_ref(py))
+    }
+    /// The SLAM poses in the world frame.
+    #[getter]
+    fn slam_trajectory(&self) -> PyTrajectory {
+        PyTrajectory {
+            inner: self.inner.slam_trajectory.clone(),
+        }
+    }
+    /// The report (as `report.json` holds it) as a dict, made on first access;
+    /// the same dict each time.
+    #[getter]
+    fn report(&self, py: Python<'_>) -> PyResult<Py<PyAny>> {
+        let r = self.report.get_or_try_init(py, || -> PyResult<Py<PyAny>> {
+            let text = serde_json::to_string(&self.inner.report)
+                .map_err(|e| PyErr::from(crate::Error::invalid("report", e.to_string())))?;
+            Ok(py.import("json")?.call_method1("loads", (text,))?.unbind())
+        })?;
+        Ok(r.clone_ref(py))
+    }
+    /// The occupancy octree of the world cloud (world frame), or None when
+    /// `convert` was not given `octree_resolution`. The same object each
+    /// time, and the map `write_bt` / `write_all` write: insertions into it
+    /// show in what they write.
+    #[getter]
+    fn octree(&self, py: Python<'_>) -> Option<Py<PyOccupancyMap>> {
+        self.octree.as_ref().map(|m| m.clone_ref(py))
+    }
+    /// Writes `world.mcap` (Foxglove schemas, or ROS 2 with `ros2=True`).
+    #[pyo3(signature = (path, *, ros2=false))]
+    fn write_world_mcap(&self, py: Python<'_>, path: PathBuf, ros2: bool) -> PyResult<()> {
+        self.with_octree(py, |c, m| {
+            c.write_world_mcap_with(&path, flavor_of(ros2), m)
+        })
+    }
+    /// Writes the octree as an OctoMap `.bt` file; InvalidInputError without one.
+    fn write_bt(&self, py: Python<'_>, path: PathBuf) -> PyResult<()> {
+        self.with_octree(py, |_, m| pipeline::outputs::write_bt(m, &path))
+    }
+    /// Writes the world cloud as binary PLY.
+    fn write_ply(&self, py: Python<'_>, path: PathBuf) -> PyResult<()> {
+        py.detach(|| self.inner.write_ply(&path))?;
+        Ok(())
+    }
+    /// Writes `report.json`.
+    fn write_report(&self, py: Python<'_>, path: PathBuf) -> PyResult<()> {
+        py.detach(|| self.inner.write_report(&path))?;
+        Ok(())
+    }
+    /// Writes `world.mcap`, `cloud.ply`, `report.json` and, with an octree,
+    /// `map.bt` into `directory`.
+    #[pyo3(signature = (directory, *, ros2=false))]
+    fn write_all(&self, py: Python<'_>, directory: PathBuf, ros2: bool) -> PyResult<()> {
+        self.with_octree(py, |c, m| c.write_all_with(&directory, flavor_of(ros2), m))
+    }
+}
+
+/// Aligns a log's keyframes with its reference and builds the world cloud.
+/// `log_or_path` is a `Log` or a path (read with the topic arguments);
+/// `filter=None` means the LSD-SLAM viewer's defaults. `octree_resolution`
+/// (metres) also builds the occupancy octree, each keyframe's points inserted
+/// from its camera centre, with OctoMap's `prob_hit`, `prob_miss`,
+/// `clamp_min`, `clamp_max`; `octree_max_range` (metres) truncates its rays.
+/// Without reference poses and with raw IMU (`imu_topic`, found by schema when
+/// None), `T_world_slam` comes from the IMU (`imu_from_cam` = `T_imu_cam`,
+/// `gravity` m/s²); with both, the report's `imu` entry compares them.
+/// The fit's options are those of `align_trajectories` (start-up cut,
+/// robust fit, orientations, time offset, extrinsic `T_body_cam`);
+/// `compare_windowed` (an int: matched poses, a float: metres of path) adds a
+/// windowed fit to the report, and `windowed_cloud=True` carries each keyframe
+/// (points, camera centre, world pose) with it instead of the single Sim(3).
+/// `level` is the confidence level of the report's intervals.
+#[pyfunction(name = "convert")]
+#[pyo3(signature = (log_or_path, *, keyframe_topic=None, graph_topic=None, pose_topic=None, tf_parent=None, tf_child=None, max_diff=0.01, offset=0.0, n_to_align=None, scale=true, method="horn", filter=None, octree_resolution=None, octree_max_range=None, prob_hit=0.7, prob_miss=0.4, clamp_min=0.1192, clamp_max=0.971, skip_init=None, robust=None, inlier_threshold=None, loss="huber", use_orientations=false, estimate_offset=false, max_offset=0.5, body_from_cam=None, compare_windowed=None, windowed_cloud=false, imu_topic=None, imu_from_cam=None, gravity=9.81, level=0.95))]
+#[allow(clippy::too_many_arguments)]
+fn convert_py(
+    py: Python<'_>,
+    log_or_path: &Bound<'_, PyAny>,
+    keyframe_topic: Option<String>,
+    graph_topic: Option<String>,
+    pose_topic: Option<String>,
+    tf_parent: Option<String>,
+    tf_child: Option<String>,
+    max_diff: f64,
+    offset: f64,
+    n_to_align: Option<usize>,
+    scale: bool,
+    method: &str,
+    filter: Option<PyRef<'_, PyPointFilter>>,
+    octree_resolution: Option<f64>,
+    octree_max_range: Option<f64>,
+    prob_hit: f64,
+    prob_miss: f64,
+    clamp_min: f64,
+    clamp_max: f64,
+    skip_init: Option<&Bound<'_, PyAny>>,
+    robust: Option<&str>,
+    inlier_threshold: Option<f64>,
+    loss: &str,
+    use_orientations: bool,
+    estimate_offset: bool,
+    max_offset: f64,
+    body_from_cam: Option<PyRef<'_, PySim3>>,
+    compare_windowed: Option<&Bound<'_, PyAny>>,
+    windowed_cloud: bool,
+    imu_topic: Option<String>,
+    imu_from_cam: Option<PyRef<'_, PySim3>>,
+    gravity: f64,
+    level: f64,
+) -> PyResult<PyConversion> {
+    let align = fit_options(
+        max_diff,
+        offset,
+        scale,
+        n_to_align,
+        method,
+        skip_init,
+        robust,
+        inlier_threshold,
+        loss,
+        use_orientations,
+        estimate_offset,
+        max_offset,
+        body_from_cam.map(|b| b.inner),
+    )?;
+    let compare_windowed = match compare_windowed {
+        Some(w) if !w.is_none() => Some(window_arg(w, "compare_windowed")?),
+        _ => None,
+    };
+    let opts = ConvertOptions {
+        read: ReadOptions {
+            keyframe_topic,
+            graph_topic,
+            pose_topic,
+            imu_topic,
+            tf_parent,
+            tf_child,
+        },
+        align,
+        filter: filter.map(|f| f.inner).unwrap_or_default(),
+        compare_windowed,
+        windowed_cloud,
+        imu: crate::imu::ImuInitOptions {
+            imu_from_cam: imu_from_cam.map_or_else(crate::geometry::Sim3::identity, |t| t.inner),
+            gravity,
+            ..crate::imu::ImuInitOptions::default()
+        },
+        map: octree_resolution.map(|resolution| MapParams {
+            resolution,
+            prob_hit,
+            prob_miss,
+            clamp_min,
+            clamp_max,
+            max_range: octree_max_range,
+        }),
+        confidence: level,
+    };
+    let mut conversion = if let Ok(log) = log_or_path.cast::<PyLog>() {
+        let log = log.get();
+        py.detach(|| pipeline::convert(&log.log, &opts))?
+    } else {
+        let path: PathBuf = log_or_path.extract().map_err(|_| {
+            PyErr::from(crate::Error::invalid(
+                "log_or_path",
+                "expected a Log or a path (str or os.PathLike)",
+            ))
+        })?;
+        py.detach(|| pipeline::convert_path(&path, &opts))?
+    };
+    let alignment = match &conversion.world {
+        pipeline::WorldFrame::Poses(p) => Some(Py::new(
+            py,
+            PyTrajectoryAlignment::new(py, p.alignment.clone())?,
+        )?),
+        pipeline::WorldFrame::Imu(_) => None,
+    };
+    let imu_alignment = match &conversion.world {
+        pipeline::WorldFrame::Imu(a) => Some(Py::new(py, PyImuAlignment::from((**a).clone()))?),
+        pipeline::WorldFrame::Poses(_) => None,
+    };
+    let octree = match conversion.octree.take() {
+        Some(m) => Some(Py::new(py, PyOccupancyMap::from_core(m))?),
+        None => None,
+    };
+    Ok(PyConversion {
+        inner: conversion,
+        alignment,
+        imu_alignment,
+        octree,
+        cloud: PyOnceLock::new(),
+        report: PyOnceLock::new(),
+    })
+}
+
+/// Adds the conversion to the module.
+pub fn register(m: &Bound<'_, PyModule>) -> PyResult<()> {
+    m.add_class::<PyConversion>()?;
+    m.add_function(wrap_pyfunction!(convert_py, m)?)?;
+    Ok(())
+}
