@@ -46,22 +46,23 @@ pub fn with_capacity_advised<T>(n: usize) -> Vec<T> {
 
 /// A vector of `n` elements, all written once by `fill` (given the whole
 /// uninitialised buffer, advised to use huge pages), without a zero-fill pass.
+/// When `fill` panics, the vector is dropped without being read.
 ///
-/// `fill` must write every element: it receives `&mut [MaybeUninit<T>]` of
-/// length `n` and returns `true` once it has; on `false` (or a panic) the
-/// vector is dropped without being read.
-pub fn filled_advised<T: Copy>(
+/// # Safety
+///
+/// `fill` must initialise every element of the `&mut [MaybeUninit<T>]` of
+/// length `n` it is given before it returns: the elements are read as `T`
+/// afterwards.
+pub(crate) unsafe fn filled_advised<T: Copy>(
     n: usize,
-    fill: impl FnOnce(&mut [MaybeUninit<T>]) -> bool,
-) -> Option<Vec<T>> {
+    fill: impl FnOnce(&mut [MaybeUninit<T>]),
+) -> Vec<T> {
     let mut v = with_capacity_advised::<T>(n);
-    if !fill(&mut v.spare_capacity_mut()[..n]) {
-        return None;
-    }
-    // SAFETY: `fill` reported that it wrote each of the first `n` elements,
-    // and `T: Copy` has no drop glue to run on them.
+    fill(&mut v.spare_capacity_mut()[..n]);
+    // SAFETY: the caller guarantees that `fill` wrote each of the first `n`
+    // elements, and `T: Copy` has no drop glue to run on them.
     unsafe { v.set_len(n) };
-    Some(v)
+    v
 }
 
 /// A copy of `src` in a buffer advised to use huge pages.
@@ -87,16 +88,16 @@ mod tests {
         let n = HUGE_PAGE_MIN_BYTES / 4 + 7; // above the threshold
         let src: Vec<u32> = (0..n as u32).collect();
         assert_eq!(copy_advised(&src), src);
-        let v = filled_advised::<u32>(n, |d| {
-            for (i, x) in d.iter_mut().enumerate() {
-                x.write(2 * i as u32);
-            }
-            true
-        })
-        .unwrap();
+        // SAFETY: the closure writes every element.
+        let v = unsafe {
+            filled_advised::<u32>(n, |d| {
+                for (i, x) in d.iter_mut().enumerate() {
+                    x.write(2 * i as u32);
+                }
+            })
+        };
         assert_eq!(v.len(), n);
         assert_eq!(v[n - 1], 2 * (n as u32 - 1));
-        assert!(filled_advised::<u32>(3, |_| false).is_none());
         assert_eq!(filled_with_advised(5, 9u8), vec![9u8; 5]);
     }
 }

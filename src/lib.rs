@@ -11,10 +11,14 @@
 //! frame `a` (`p_a = s·R·p_b + t`); quaternions at public boundaries are
 //! `(x, y, z, w)`.
 
+#![warn(missing_docs)]
+
 pub mod align;
 pub mod buffer;
+#[cfg(feature = "cli")]
 pub mod cli;
 pub mod cloud;
+pub mod defaults;
 pub mod error;
 pub mod geometry;
 pub mod imu;
@@ -23,6 +27,7 @@ pub mod keyframe;
 pub mod map;
 pub mod pipeline;
 pub mod sim;
+pub mod simd;
 pub mod trajectory;
 
 #[cfg(feature = "python")]

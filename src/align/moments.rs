@@ -6,6 +6,7 @@
 //! then cancels little, since the shift lies within the spread of the data, and
 //! the residual sum of squares of the final fit follows from small terms.
 
+use crate::simd::Isa;
 use nalgebra::{Matrix3, Vector3};
 use rayon::prelude::*;
 
@@ -185,7 +186,7 @@ impl Moments {
             Some(p) => (p.m, p.m * shift_a + p.t - shift_b),
             None => (Matrix3::zeros(), Vector3::zeros()),
         };
-        let k = Kernel {
+        let k = MomentKernel {
             ca: shift_a.into(),
             cb: shift_b.into(),
             m: [
@@ -338,14 +339,14 @@ fn reduce<F: Fn(usize, usize) -> Sums + Sync>(n: usize, f: F) -> Sums {
 }
 
 /// The constants of the accumulation: shifts and the prior (shifted).
-struct Kernel {
+struct MomentKernel {
     ca: [f64; 3],
     cb: [f64; 3],
     m: [[f64; 3]; 3],
     t: [f64; 3],
 }
 
-impl Kernel {
+impl MomentKernel {
     #[inline(always)]
     fn block<A: Rows + ?Sized, B: Rows + ?Sized, W: Fn(usize) -> f64>(
         &self,
@@ -417,7 +418,7 @@ fn madd<const FMA: bool>(a: f64, b: f64, c: f64) -> f64 {
 /// `(Σ x·y_j for each j, Σ x)` over a block, in [`LANES`] independent lanes.
 ///
 /// On x86-64, `FMA = true` is only reached from the AVX2 + FMA variant of
-/// [`Kernel::flat_block`] (after the CPU was checked), and uses its intrinsics.
+/// [`MomentKernel::flat_block`] (after the CPU was checked), and uses its intrinsics.
 #[inline(always)]
 fn dots<const K: usize, const FMA: bool>(
     x: &[f64; SOA_ROWS],
@@ -473,27 +474,17 @@ fn dots_avx2<const K: usize>(x: &[f64; SOA_ROWS], ys: [&[f64; SOA_ROWS]; K]) -> 
     (acc.map(hsum), hsum(sx))
 }
 
-impl Kernel {
-    /// [`Kernel::block`] over flat row-major slices, vectorised: the CPU's
+impl MomentKernel {
+    /// [`MomentKernel::block`] over flat row-major slices, vectorised: the CPU's
     /// widest supported variant.
     fn flat_block(&self, a: &[f64], b: &[f64], w: Option<&[f64]>, lo: usize, hi: usize) -> Sums {
-        #[cfg(target_arch = "x86_64")]
-        {
-            if std::arch::is_x86_feature_detected!("avx2")
-                && std::arch::is_x86_feature_detected!("fma")
-            {
-                // SAFETY: the CPU supports AVX2 and FMA, checked just above.
-                return unsafe { self.flat_block_avx2(a, b, w, lo, hi) };
-            }
-            self.flat_sums::<false>(a, b, w, lo, hi)
-        }
-        #[cfg(target_arch = "aarch64")]
-        {
-            self.flat_sums::<true>(a, b, w, lo, hi)
-        }
-        #[cfg(not(any(target_arch = "x86_64", target_arch = "aarch64")))]
-        {
-            self.flat_sums::<false>(a, b, w, lo, hi)
+        match Isa::detect() {
+            // SAFETY: `Isa::Avx2Fma` is only detected on a CPU with AVX2 and FMA.
+            #[cfg(target_arch = "x86_64")]
+            Isa::Avx2Fma => unsafe { self.flat_block_avx2(a, b, w, lo, hi) },
+            #[cfg(target_arch = "aarch64")]
+            Isa::Neon => self.flat_sums::<true>(a, b, w, lo, hi),
+            Isa::Portable => self.flat_sums::<false>(a, b, w, lo, hi),
         }
     }
 
@@ -628,7 +619,7 @@ mod tests {
             .map(|i| ((i * 104729) % 997) as f64 * 0.02 + 1.0)
             .collect();
         let w: Vec<f64> = (0..n).map(|i| (i % 5) as f64 * 0.25).collect();
-        let k = Kernel {
+        let k = MomentKernel {
             ca: [0.1, -0.2, 0.3],
             cb: [1.0, 2.0, -3.0],
             m: [[0.9, -0.1, 0.2], [0.1, 1.1, 0.0], [-0.3, 0.2, 0.8]],

@@ -5,6 +5,7 @@
 //! `(A * B).transform_point(p) == A.transform_point(B.transform_point(p))`.
 //! Quaternions at every public boundary are `(x, y, z, w)`.
 
+use crate::simd::Isa;
 use std::mem::MaybeUninit;
 
 use nalgebra::{Matrix3, Matrix4, Quaternion, Rotation3, UnitQuaternion, Vector3};
@@ -230,11 +231,11 @@ impl Sim3 {
     /// ([`crate::buffer`]). The arithmetic is done in `f64`.
     pub fn transform_points<T: PointScalar>(&self, src: &[T]) -> Result<Vec<T>> {
         check_rows(src.len())?;
-        crate::buffer::filled_advised(src.len(), |dst| {
-            self.transform_uninit(src, dst);
-            true
+        // SAFETY: `transform_uninit` writes one output value per input value,
+        // every element of `dst` (`src.len()`, rows checked above).
+        Ok(unsafe {
+            crate::buffer::filled_advised(src.len(), |dst| self.transform_uninit(src, dst))
         })
-        .ok_or_else(|| Error::invalid("points", "output buffer not filled"))
     }
 
     /// Maps row-major `(N, 3)` points in place, in parallel.
@@ -324,16 +325,12 @@ fn transform_block<T: PointScalar>(
     src: &[T],
     dst: &mut [MaybeUninit<T>],
 ) {
-    #[cfg(target_arch = "x86_64")]
-    {
-        if std::arch::is_x86_feature_detected!("avx2") && std::arch::is_x86_feature_detected!("fma")
-        {
-            // SAFETY: the processor supports AVX2 and FMA (checked just above).
-            unsafe { transform_block_avx2(m, t, src, dst) };
-            return;
-        }
+    match Isa::detect() {
+        // SAFETY: `Isa::Avx2Fma` is only detected on a CPU with AVX2 and FMA.
+        #[cfg(target_arch = "x86_64")]
+        Isa::Avx2Fma => unsafe { transform_block_avx2(m, t, src, dst) },
+        _ => transform_block_generic(m, t, src, dst),
     }
-    transform_block_generic(m, t, src, dst);
 }
 
 #[cfg(target_arch = "x86_64")]
@@ -376,16 +373,12 @@ fn transform_block_generic<T: PointScalar>(
 /// [`transform_block`] in place: each group is read whole before it is written.
 #[inline]
 fn in_place_block<T: PointScalar>(m: &[[f64; 3]; 3], t: &[f64; 3], pts: &mut [T]) {
-    #[cfg(target_arch = "x86_64")]
-    {
-        if std::arch::is_x86_feature_detected!("avx2") && std::arch::is_x86_feature_detected!("fma")
-        {
-            // SAFETY: the processor supports AVX2 and FMA (checked just above).
-            unsafe { in_place_block_avx2(m, t, pts) };
-            return;
-        }
+    match Isa::detect() {
+        // SAFETY: `Isa::Avx2Fma` is only detected on a CPU with AVX2 and FMA.
+        #[cfg(target_arch = "x86_64")]
+        Isa::Avx2Fma => unsafe { in_place_block_avx2(m, t, pts) },
+        _ => in_place_block_generic(m, t, pts),
     }
-    in_place_block_generic(m, t, pts);
 }
 
 #[cfg(target_arch = "x86_64")]
