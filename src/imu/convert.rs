@@ -182,6 +182,7 @@ pub fn convert_imu(log: &Log, imu: &ImuSamples, opts: &ConvertOptions) -> Result
                 singular_values: [nan; 3],
                 source_spread: nan,
                 target_spread: nan,
+                dof: None,
             },
         },
         pairs: Vec::new(),
