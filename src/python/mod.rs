@@ -3,6 +3,7 @@
 
 use pyo3::prelude::*;
 
+mod align_dof;
 mod beyond;
 mod cli;
 mod cloud;
@@ -23,6 +24,7 @@ fn _slam2world(m: &Bound<'_, PyModule>) -> PyResult<()> {
     sim::register(m)?;
     map::register(m)?;
     core::register(m)?;
+    align_dof::register(m)?;
     beyond::register(m)?;
     cloud::register(m)?;
     cli::register(m)?;
