@@ -24,7 +24,7 @@
 //! tr(H⁻¹GᵀG)) / w₀)` is unbiased under that model (`n`, `Σwᵢ` over the
 //! other pairs with positive weight).
 
-use nalgebra::{DMatrix, Vector3};
+use nalgebra::{DMatrix, Matrix3, SMatrix, Vector3};
 
 use super::{Anchor, Dof};
 use crate::align::covariance::{Covariance, Matrix7, LOG_SCALE};
@@ -43,6 +43,15 @@ enum Param {
 }
 
 impl Param {
+    /// Its index among the Sim(3) parameters `(δθ ×3, δt ×3, ln s)`.
+    fn index(self) -> usize {
+        match self {
+            Param::Rotation(j) => j,
+            Param::Translation(j) => 3 + j,
+            Param::LogScale => LOG_SCALE,
+        }
+    }
+
     fn name(self, dof: Dof) -> &'static str {
         match self {
             Param::Rotation(2) if dof.yaw_only() => "yaw",
@@ -194,10 +203,13 @@ pub fn covariance_dof(
         Anchor::None => Vector3::zeros(),
         Anchor::First => source[0],
     };
-    let mut h = DMatrix::<f64>::zeros(k, k);
-    let mut g = DMatrix::<f64>::zeros(3, k);
+    // The dof's Jacobian columns are a selection of the Sim(3) Jacobian
+    // J = [−[v]ₓ, I, v] (without anchor v = s·R·a: the Jacobian of
+    // crate::align::covariance), whose sums need only Σw, Σw·v and Σw·v·vᵀ:
+    // JᵀJ = [[|v|²I − vvᵀ, [v]ₓ, 0], [−[v]ₓ, I, v], [0, vᵀ, |v|²]].
     let (mut sse, mut wsum) = (0.0, 0.0);
-    let mut columns = vec![Vector3::zeros(); k];
+    let mut m = Vector3::zeros();
+    let mut outer = Matrix3::zeros();
     for i in first..n {
         let wi = w(i);
         if wi <= 0.0 {
@@ -207,26 +219,31 @@ pub fn covariance_dof(
         sse += wi * r.norm_squared();
         wsum += wi;
         let v = sr * (source[i] - centre);
-        for (c, p) in columns.iter_mut().zip(&ps) {
-            *c = match *p {
-                Param::Rotation(j) => Vector3::ith(j, 1.0).cross(&v),
-                Param::Translation(j) => Vector3::ith(j, 1.0),
-                Param::LogScale => v,
-            };
-        }
-        for a in 0..k {
-            for ax in 0..3 {
-                g[(ax, a)] += wi * columns[a][ax];
-            }
-            for b in a..k {
-                let x = wi * columns[a].dot(&columns[b]);
-                h[(a, b)] += x;
-                if a != b {
-                    h[(b, a)] += x;
-                }
-            }
-        }
+        m += v * wi;
+        outer += v * v.transpose() * wi;
     }
+    let q = outer.trace();
+    let mut h7 = Matrix7::zeros();
+    h7.fixed_view_mut::<3, 3>(0, 0)
+        .copy_from(&(Matrix3::identity() * q - outer));
+    h7.fixed_view_mut::<3, 3>(0, 3).copy_from(&m.cross_matrix());
+    h7.fixed_view_mut::<3, 3>(3, 0)
+        .copy_from(&(-m.cross_matrix()));
+    h7.fixed_view_mut::<3, 3>(3, 3)
+        .copy_from(&(Matrix3::identity() * wsum));
+    h7.fixed_view_mut::<3, 1>(3, LOG_SCALE).copy_from(&m);
+    h7.fixed_view_mut::<1, 3>(LOG_SCALE, 3)
+        .copy_from(&m.transpose());
+    h7[(LOG_SCALE, LOG_SCALE)] = q;
+    let mut g7 = SMatrix::<f64, 3, 7>::zeros();
+    g7.fixed_view_mut::<3, 3>(0, 0)
+        .copy_from(&(-m.cross_matrix()));
+    g7.fixed_view_mut::<3, 3>(0, 3)
+        .copy_from(&(Matrix3::identity() * wsum));
+    g7.fixed_view_mut::<3, 1>(0, LOG_SCALE).copy_from(&m);
+    let index: Vec<usize> = ps.iter().map(|p| p.index()).collect();
+    let h = DMatrix::from_fn(k, k, |a, b| h7[(index[a], index[b])]);
+    let g = DMatrix::from_fn(3, k, |ax, b| g7[(ax, index[b])]);
     let largest = h.diagonal().amax();
     let hinv = h
         .cholesky()
