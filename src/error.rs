@@ -45,6 +45,23 @@ pub enum Error {
         /// The diagnostic value that was below its threshold.
         value: f64,
     },
+    /// A yaw-only fit (`4dof`, `scale+4dof`) of an estimate whose z axis is
+    /// visibly not along gravity: the full-rotation Sim(3) fit of the same
+    /// pairs tilts the estimate's z axis by `angle_deg` from the reference
+    /// vertical, more than `threshold_deg`.
+    #[error(
+        "the estimate's gravity is tilted: the Sim(3) fit turns its z axis {angle_deg:.3} deg \
+         from the reference vertical, above the {threshold_deg} deg a {dof} fit allows \
+         (it assumes both frames have z along gravity); use dof=\"sim3\""
+    )]
+    GravityTilted {
+        /// The degrees of freedom that were asked for (`"4dof"`, `"scale+4dof"`).
+        dof: String,
+        /// Angle between the estimate's z axis, mapped by the Sim(3) fit, and the reference z axis, degrees.
+        angle_deg: f64,
+        /// The largest angle accepted, degrees.
+        threshold_deg: f64,
+    },
     /// An argument value outside its domain (negative resolution, unknown method, …).
     #[error("invalid {what}: {reason}")]
     InvalidArgument {

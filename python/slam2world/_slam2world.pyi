@@ -219,6 +219,19 @@ def align(
     inlier_threshold: float | None = None,
     loss: str = "huber",
 ) -> Alignment: ...
+def align_dof(
+    source: _ArrayLike,
+    target: _ArrayLike,
+    *,
+    dof: str = "4dof",
+    anchor: str | None = None,
+    weights: _ArrayLike | None = None,
+    method: str = "horn",
+    max_tilt_deg: float | None = 2.0,
+    robust: str | None = None,
+    inlier_threshold: float | None = None,
+    loss: str = "huber",
+) -> Alignment: ...
 
 @final
 class Trajectory:

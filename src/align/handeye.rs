@@ -237,6 +237,7 @@ pub fn align_with_orientations(
             singular_values: umeyama::singular_values(&(cov / nf)),
             source_spread: (var_a / nf).sqrt(),
             target_spread: (var_b / nf).sqrt(),
+            dof: None,
         });
     }
     let Some(diagnostics) = diag else {

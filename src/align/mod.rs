@@ -13,7 +13,7 @@
 //! the target points, which yields `1/s`.)
 
 pub mod covariance;
-
+pub mod dof;
 pub mod handeye;
 mod horn;
 mod moments;
@@ -120,6 +120,10 @@ pub struct AlignDiagnostics {
     pub source_spread: f64,
     /// Weighted rms distance of the target points to their centroid (target units).
     pub target_spread: f64,
+    /// What a fit with other degrees of freedom or an anchor ([`dof::align_dof`])
+    /// adds (the spreads above are then about the anchor when there is one);
+    /// `None` for the plain Sim(3) / SE(3) fit.
+    pub dof: Option<dof::DofDiagnostics>,
 }
 
 /// The result of [`align`].
@@ -412,6 +416,7 @@ fn solve(m: &Moments, opts: &AlignOptions) -> Result<(Sim3, AlignDiagnostics)> {
         singular_values,
         source_spread,
         target_spread,
+        dof: None,
     };
 
     let rms_a = source_spread + mean_a.norm();

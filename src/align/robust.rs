@@ -117,6 +117,21 @@ pub fn align_robust(
     opts: &AlignOptions,
     robust: &RobustOptions,
 ) -> Result<RobustAlignment> {
+    check_robust(opts.weights.is_some(), robust)?;
+    let fitter = Sim3Refit {
+        source,
+        target,
+        opts: AlignOptions {
+            weights: None,
+            ..opts.clone()
+        },
+    };
+    robust_refit(&fitter, source, target, robust)
+}
+
+/// Refuses a threshold that is not finite and positive, and given weights
+/// (the robust fit chooses its own).
+pub(crate) fn check_robust(has_weights: bool, robust: &RobustOptions) -> Result<()> {
     if let Some(th) = robust.inlier_threshold {
         if !(th.is_finite() && th > 0.0) {
             return Err(Error::invalid(
@@ -125,19 +140,70 @@ pub fn align_robust(
             ));
         }
     }
-    if opts.weights.is_some() {
+    if has_weights {
         return Err(Error::invalid(
             "weights",
             "robust alignment chooses its own weights; pass none",
         ));
     }
+    Ok(())
+}
+
+/// The least-squares fits the robust loop drives: the Sim(3) / SE(3) of
+/// [`align`] here, the other degrees of freedom in [`super::dof`].
+pub(crate) trait Refit {
+    /// Pairs drawn for one hypothesis.
+    fn minimal(&self) -> usize;
+    /// Fewest inliers the final fit accepts.
+    fn min_inliers(&self) -> usize {
+        self.minimal()
+    }
+    /// The hypothesis fitted to the pairs `idx` alone.
+    fn sample(&self, idx: &[usize]) -> Result<crate::geometry::Sim3>;
+    /// The fit over every pair with these weights (`None`: the plain fit,
+    /// which also checks the input once for all).
+    fn weighted(&self, weights: Option<Vec<f64>>) -> Result<Alignment>;
+}
+
+struct Sim3Refit<'a> {
+    source: &'a [Vector3<f64>],
+    target: &'a [Vector3<f64>],
+    /// Without weights.
+    opts: AlignOptions,
+}
+
+impl Refit for Sim3Refit<'_> {
+    fn minimal(&self) -> usize {
+        3
+    }
+    fn sample(&self, idx: &[usize]) -> Result<crate::geometry::Sim3> {
+        let a: Vec<_> = idx.iter().map(|&i| self.source[i]).collect();
+        let b: Vec<_> = idx.iter().map(|&i| self.target[i]).collect();
+        Ok(align(&a, &b, &self.opts)?.transform)
+    }
+    fn weighted(&self, weights: Option<Vec<f64>>) -> Result<Alignment> {
+        align(
+            self.source,
+            self.target,
+            &AlignOptions {
+                weights,
+                ..self.opts.clone()
+            },
+        )
+    }
+}
+
+/// RANSAC / LMedS over the fitter's minimal samples, IRLS, and the
+/// least-squares fit over the inliers (the module doc), for any [`Refit`].
+pub(crate) fn robust_refit<F: Refit>(
+    fitter: &F,
+    source: &[Vector3<f64>],
+    target: &[Vector3<f64>],
+    robust: &RobustOptions,
+) -> Result<RobustAlignment> {
     // The plain fit checks shapes, finiteness and degeneracy once for all.
-    let plain = align(source, target, opts)?;
+    let plain = fitter.weighted(None)?;
     let n = source.len();
-    let minimal = AlignOptions {
-        weights: None,
-        ..opts.clone()
-    };
 
     // RANSAC / LMedS over minimal samples; the plain fit is hypothesis zero.
     let mut rng = ChaCha8Rng::seed_from_u64(robust.seed);
@@ -151,19 +217,18 @@ pub fn align_robust(
     let mut best_t = plain.transform;
     let mut best_r = plain.residuals.clone();
     let mut best_score = score(&best_r);
-    if n > 3 {
+    let m = fitter.minimal();
+    if n > m {
         for _ in 0..robust.iterations {
-            let idx = sample(&mut rng, n, 3);
-            let a: Vec<_> = idx.iter().map(|i| source[i]).collect();
-            let b: Vec<_> = idx.iter().map(|i| target[i]).collect();
-            let Ok(h) = align(&a, &b, &minimal) else {
+            let idx = sample(&mut rng, n, m).into_vec();
+            let Ok(h) = fitter.sample(&idx) else {
                 continue;
             };
-            let r = residuals(&h.transform, source, target);
+            let r = residuals(&h, source, target);
             let s = score(&r);
             if s < best_score {
                 best_score = s;
-                best_t = h.transform;
+                best_t = h;
                 best_r = r;
             }
         }
@@ -202,11 +267,7 @@ pub fn align_robust(
                 }
             })
             .collect();
-        let wopts = AlignOptions {
-            weights: Some(w),
-            ..minimal.clone()
-        };
-        let Ok(fit) = align(source, target, &wopts) else {
+        let Ok(fit) = fitter.weighted(Some(w)) else {
             break;
         };
         let moved = (fit.transform.matrix() - t.matrix()).amax();
@@ -222,7 +283,7 @@ pub fn align_robust(
     let mut result = None;
     for _ in 0..10 {
         let count = inliers.iter().filter(|&&b| b).count();
-        if count < 3 {
+        if count < fitter.min_inliers() {
             return Err(Error::Degenerate {
                 reason: format!(
                     "only {count} of {n} pairs lie within the inlier threshold {threshold:.3e} \
@@ -235,14 +296,7 @@ pub fn align_robust(
             plain.clone()
         } else {
             let w = inliers.iter().map(|&b| f64::from(u8::from(b))).collect();
-            align(
-                source,
-                target,
-                &AlignOptions {
-                    weights: Some(w),
-                    ..minimal.clone()
-                },
-            )?
+            fitter.weighted(Some(w))?
         };
         let next: Vec<bool> = fit.residuals.iter().map(|&e| e <= threshold).collect();
         let stable = next == inliers;

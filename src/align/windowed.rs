@@ -147,6 +147,29 @@ pub fn windowed_fits(
     opts: &AlignOptions,
     global: &Sim3,
 ) -> Vec<Sim3> {
+    windowed_fits_with(src, dst, coord, half, global, |a, b, w| {
+        let o = AlignOptions {
+            weights: Some(w),
+            ..opts.clone()
+        };
+        align(a, b, &o).map(|fit| fit.transform)
+    })
+}
+
+/// [`windowed_fits`] with another fit per window: `fit(source, target,
+/// weights)` over the window's pairs and tricube weights (e.g.
+/// [`super::dof::fit_window`] for other degrees of freedom).
+pub fn windowed_fits_with<F>(
+    src: &[Vector3<f64>],
+    dst: &[Vector3<f64>],
+    coord: &[f64],
+    half: f64,
+    global: &Sim3,
+    fit: F,
+) -> Vec<Sim3>
+where
+    F: Fn(&[Vector3<f64>], &[Vector3<f64>], Vec<f64>) -> Result<Sim3>,
+{
     let n = src.len();
     let total = coord.last().copied().unwrap_or(0.0) - coord.first().copied().unwrap_or(0.0);
     (0..n)
@@ -159,12 +182,8 @@ pub fn windowed_fits(
                     .iter()
                     .map(|&c| tricube(c - coord[i], h * (1.0 + 1e-9)))
                     .collect();
-                let o = AlignOptions {
-                    weights: Some(w),
-                    ..opts.clone()
-                };
-                if let Ok(fit) = align(&src[lo..hi], &dst[lo..hi], &o) {
-                    return fit.transform;
+                if let Ok(t) = fit(&src[lo..hi], &dst[lo..hi], w) {
+                    return t;
                 }
                 if h > total {
                     return *global;

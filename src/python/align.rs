@@ -34,6 +34,9 @@ fn diagnostics_dict<'py>(py: Python<'py>, d: &AlignDiagnostics) -> PyResult<Boun
     dict.set_item("singular_values", d.singular_values.to_vec())?;
     dict.set_item("source_spread", d.source_spread)?;
     dict.set_item("target_spread", d.target_spread)?;
+    if let Some(x) = &d.dof {
+        dict.set_item("dof", super::align_dof::dof_diagnostics_dict(py, x)?)?;
+    }
     Ok(dict)
 }
 
@@ -196,7 +199,8 @@ impl PyAlignment {
 
     /// Conditioning: `n`, `weight_sum`, `eigenvalues` (Horn's N, largest first),
     /// `relative_eigen_gap`, `singular_values` (cross-covariance), `source_spread`,
-    /// `target_spread` (rms distance to the centroid).
+    /// `target_spread` (rms distance to the centroid); `dof` (a dict) for the
+    /// fits of `align_dof` with a yaw or an anchor.
     #[getter]
     fn diagnostics<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyDict>> {
         diagnostics_dict(py, &self.diagnostics)

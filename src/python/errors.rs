@@ -107,7 +107,8 @@ impl From<Error> for PyErr {
                 | Error::TooFew { .. }
                 | Error::Unmatched { .. }
                 | Error::InvalidArgument { .. }
-                | Error::OutOfRange { .. } => &c.invalid,
+                | Error::OutOfRange { .. }
+                | Error::GravityTilted { .. } => &c.invalid,
                 Error::Degenerate { .. } => &c.degenerate,
                 Error::Parse { .. } | Error::Mcap { .. } | Error::Decode { .. } => &c.format,
                 Error::Io { source, .. } => {

@@ -6,6 +6,7 @@
 use pyo3::prelude::*;
 
 mod align;
+mod align_dof;
 mod arrays;
 mod cli;
 mod cloud;
@@ -28,6 +29,7 @@ fn _slam2world(m: &Bound<'_, PyModule>) -> PyResult<()> {
     map::register(m)?;
     trajectory::register(m)?;
     align::register(m)?;
+    align_dof::register(m)?;
     cloud::register(m)?;
     cli::register(m)?;
     io::register(m)?;
