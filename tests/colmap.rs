@@ -308,7 +308,7 @@ fn names_that_are_stamps_give_a_trajectory() {
     let traj = one_cam.trajectory_by_name_time().unwrap();
     assert_eq!(traj.len(), 5);
     assert!((traj.timestamps[1] - traj.timestamps[0] - 0.05).abs() < 1e-6);
-    assert!((traj.timestamps[0] - 1403636579.763555584).abs() < 1e-6);
+    assert!((traj.timestamps[0] - 1_403_636_579.763_555_5).abs() < 1e-6);
     assert!((traj.positions[2] - one_cam.images[2].centre()).norm() < 1e-12);
     assert_eq!(
         image_name_time(&one_cam.images[0].name),

@@ -214,7 +214,7 @@ fn bad_folders_are_typed_errors() {
         &dir.path().join("poses.npy"),
         "<f4",
         &[N, 6],
-        &vec![0; N * 6 * 4],
+        &[0; N * 6 * 4],
     );
     match read_droid(dir.path()) {
         Err(Error::Reconstruction { path, reason }) => {
@@ -231,7 +231,7 @@ fn bad_folders_are_typed_errors() {
         &dir.path().join("images.npy"),
         "<f4",
         &[N, 3, 1, 1],
-        &vec![0; N * 3 * 4],
+        &[0; N * 3 * 4],
     );
     assert!(matches!(
         read_droid(dir.path()),
@@ -243,7 +243,7 @@ fn bad_folders_are_typed_errors() {
         &dir.path().join("disps.npy"),
         "<f4",
         &[N, 7, 9],
-        &vec![0; N * 63 * 4],
+        &[0; N * 63 * 4],
     );
     match read_droid(dir.path()) {
         Err(Error::Reconstruction { reason, .. }) => {
@@ -285,7 +285,7 @@ fn bad_folders_are_typed_errors() {
         &dir.path().join("poses.npy"),
         "<f4",
         &[N, 7],
-        &vec![0; N * 7 * 4],
+        &[0; N * 7 * 4],
     );
     match read_droid(dir.path()) {
         Err(Error::Reconstruction { reason, .. }) => assert!(reason.contains("pose 0"), "{reason}"),

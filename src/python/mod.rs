@@ -6,14 +6,17 @@ use pyo3::prelude::*;
 mod beyond;
 mod cli;
 mod cloud;
+mod colmap;
 mod convert;
 mod core;
+mod droid;
 mod errors;
 mod geometry;
 mod imu;
 mod map;
 mod mcap;
 mod sim;
+mod text;
 
 #[pymodule]
 fn _slam2world(m: &Bound<'_, PyModule>) -> PyResult<()> {
@@ -28,5 +31,8 @@ fn _slam2world(m: &Bound<'_, PyModule>) -> PyResult<()> {
     cli::register(m)?;
     mcap::register(m)?;
     imu::register(m)?;
+    colmap::register(m)?;
+    droid::register(m)?;
+    text::register(m)?;
     Ok(())
 }

@@ -458,14 +458,14 @@ pub fn read_colmap(dir: &Path, format: Option<ColmapFormat>) -> Result<ColmapMod
         },
         ColmapFormat::Text => ColmapModel {
             format,
-            cameras: text::read_cameras(&cam_p, &text::utf8(&cam_p, &cam_b)?)?,
-            images: text::read_images(&img_p, &text::utf8(&img_p, &img_b)?)?,
-            points3d: text::read_points3d(&pts_p, &text::utf8(&pts_p, &pts_b)?)?,
+            cameras: text::read_cameras(&cam_p, text::utf8(&cam_p, &cam_b)?)?,
+            images: text::read_images(&img_p, text::utf8(&img_p, &img_b)?)?,
+            points3d: text::read_points3d(&pts_p, text::utf8(&pts_p, &pts_b)?)?,
             rigs: rigs
-                .map(|(p, b)| text::read_rigs(&p, &text::utf8(&p, &b)?))
+                .map(|(p, b)| text::read_rigs(&p, text::utf8(&p, &b)?))
                 .transpose()?,
             frames: frames
-                .map(|(p, b)| text::read_frames(&p, &text::utf8(&p, &b)?))
+                .map(|(p, b)| text::read_frames(&p, text::utf8(&p, &b)?))
                 .transpose()?,
         },
     };

@@ -132,7 +132,7 @@ mod tests {
     #[test]
     fn names_that_are_stamps() {
         let t = image_name_time("cam0/data/1403636579763555584.png").unwrap();
-        assert!((t - 1403636579.763555584).abs() < 1e-6);
+        assert!((t - 1_403_636_579.763_555_5).abs() < 1e-6);
         assert_eq!(
             image_name_time("1305031102.175304.png"),
             Some(1305031102.175304)
