@@ -29,7 +29,12 @@ def cam_to_world(i: int) -> tuple[np.ndarray, np.ndarray]:
 def quat_xyzw(r: np.ndarray) -> np.ndarray:
     w = np.sqrt(max(0.0, 1 + np.trace(r))) / 2
     return np.array(
-        [(r[2, 1] - r[1, 2]) / (4 * w), (r[0, 2] - r[2, 0]) / (4 * w), (r[1, 0] - r[0, 1]) / (4 * w), w]
+        [
+            (r[2, 1] - r[1, 2]) / (4 * w),
+            (r[0, 2] - r[2, 0]) / (4 * w),
+            (r[1, 0] - r[0, 1]) / (4 * w),
+            w,
+        ]
     )
 
 
