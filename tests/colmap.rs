@@ -524,3 +524,36 @@ fn a_failed_write_leaves_the_folder_as_it_was() {
         before[0]
     );
 }
+
+#[test]
+fn every_truncation_and_byte_flip_is_an_error_or_a_model_never_a_panic() {
+    use rand::{Rng, SeedableRng};
+    let model = synthetic(1, false);
+    let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(15);
+    for format in [ColmapFormat::Binary, ColmapFormat::Text] {
+        let dir = tempfile::tempdir().unwrap();
+        model.write(dir.path(), Some(format)).unwrap();
+        for stem in ["cameras", "rigs", "frames", "images", "points3D"] {
+            let p = dir.path().join(format!("{stem}.{}", format.extension()));
+            let good = std::fs::read(&p).unwrap();
+            let step = (good.len() / 120).max(1);
+            for cut in (0..good.len()).step_by(step) {
+                std::fs::write(&p, &good[..cut]).unwrap();
+                // Text files cut between records are still models; binary ones never are.
+                let r = read_colmap(dir.path(), None);
+                if format == ColmapFormat::Binary {
+                    assert!(r.is_err(), "{stem} cut at {cut}");
+                }
+            }
+            for _ in 0..120 {
+                let mut bad = good.clone();
+                let i = rng.random_range(0..bad.len());
+                bad[i] = rng.random();
+                std::fs::write(&p, &bad).unwrap();
+                let _ = read_colmap(dir.path(), None);
+            }
+            std::fs::write(&p, &good).unwrap();
+        }
+        assert_eq!(read_colmap(dir.path(), None).unwrap().images, model.images);
+    }
+}

@@ -512,6 +512,22 @@ mod tests {
     }
 
     #[test]
+    fn every_truncation_is_an_error() {
+        let data: Vec<u8> = (0..24).collect();
+        let good = file(
+            "{'descr': '<f8', 'fortran_order': False, 'shape': (3,), }",
+            &data,
+        );
+        assert!(parse_npy(Path::new("t.npy"), &good).is_ok());
+        for cut in 0..good.len() {
+            assert!(
+                parse_npy(Path::new("t.npy"), &good[..cut]).is_err(),
+                "cut at {cut}"
+            );
+        }
+    }
+
+    #[test]
     fn refuses_lying_shapes_dtypes_and_headers() {
         let p = Path::new("x.npy");
         let cases: Vec<(Vec<u8>, &str)> = vec![

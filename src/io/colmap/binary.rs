@@ -387,7 +387,11 @@ pub fn write_cameras(cameras: &[ColmapCamera]) -> Vec<u8> {
 
 /// `images.bin` bytes.
 pub fn write_images(images: &[ColmapImage]) -> Vec<u8> {
-    let mut out = Vec::new();
+    let size: usize = images
+        .iter()
+        .map(|im| IMAGE_MIN + im.name.len() + POINT2D_BYTES * im.points2d.len())
+        .sum();
+    let mut out = Vec::with_capacity(8 + size);
     out.extend((images.len() as u64).to_le_bytes());
     for im in images {
         out.extend(im.id.to_le_bytes());
@@ -407,7 +411,11 @@ pub fn write_images(images: &[ColmapImage]) -> Vec<u8> {
 
 /// `points3D.bin` bytes.
 pub fn write_points3d(points: &[ColmapPoint3D]) -> Vec<u8> {
-    let mut out = Vec::new();
+    let size: usize = points
+        .iter()
+        .map(|p| POINT_MIN + TRACK_BYTES * p.track.len())
+        .sum();
+    let mut out = Vec::with_capacity(8 + size);
     out.extend((points.len() as u64).to_le_bytes());
     for p in points {
         out.extend(p.id.to_le_bytes());

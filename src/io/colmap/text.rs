@@ -148,8 +148,10 @@ pub fn read_cameras(path: &Path, text: &str) -> Result<Vec<ColmapCamera>> {
 }
 
 /// Reads `images.txt`: `IMAGE_ID QW QX QY QZ TX TY TZ CAMERA_ID NAME`, then a
-/// line of `X Y POINT3D_ID` triples (`-1` for none). As in COLMAP the name is
-/// one word; a missing last `POINTS2D` line means no points.
+/// line of `X Y POINT3D_ID` triples (`-1` for none). The name is one word, as
+/// COLMAP writes it; a pose line with more fields (a name with a space, which
+/// COLMAP would cut at the space) is refused. A missing last `POINTS2D` line
+/// means no points (as `read_write_model.py` reads it).
 pub fn read_images(path: &Path, text: &str) -> Result<Vec<ColmapImage>> {
     let mut out = Vec::new();
     let mut lines = text.lines().enumerate().map(|(i, l)| (i + 1, l.trim()));
