@@ -136,6 +136,32 @@ pub enum Error {
         #[source]
         source: WireError,
     },
+    /// A binary file (COLMAP `.bin`, NumPy `.npy`) whose bytes at `offset` do
+    /// not hold what the format requires there: a record cut short, a count
+    /// larger than the bytes left, an unknown enumeration value.
+    #[error("{}: byte {offset}: {what}: expected {expected}, found {found}", path.display())]
+    BinaryFormat {
+        /// The file.
+        path: PathBuf,
+        /// Byte offset from the start of the file where the bad field starts.
+        offset: u64,
+        /// Which field (e.g. `image 3 num_points2D`).
+        what: String,
+        /// What the format allows there.
+        expected: String,
+        /// What the file holds.
+        found: String,
+    },
+    /// A reconstruction folder (COLMAP model, DROID-SLAM arrays) whose files do
+    /// not make one consistent model: files missing, two flavours side by side,
+    /// arrays whose lengths disagree, records that refer to missing records.
+    #[error("{}: {reason}", path.display())]
+    Reconstruction {
+        /// The folder, or the file the inconsistency was found in.
+        path: PathBuf,
+        /// What is missing or inconsistent, with the ids and counts involved.
+        reason: String,
+    },
     /// An MCAP log that cannot be read or decoded.
     #[error("{}: {reason}", path.display())]
     Mcap {

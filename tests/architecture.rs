@@ -31,30 +31,86 @@ fn rust_files(dir: &Path, out: &mut Vec<PathBuf>) {
     }
 }
 
-/// The code of a file without its test module, comments and string literals
-/// (a path inside a doc comment or a message is not an import).
+/// The code of a file without its test module, comments, string and char
+/// literals (a path inside a doc comment or a message is not an import).
 fn code_of(text: &str) -> String {
     let text = match text.find("#[cfg(test)]") {
         Some(i) => &text[..i],
         None => text,
     };
+    let c: Vec<char> = text.chars().collect();
     let mut out = String::with_capacity(text.len());
-    for line in text.lines() {
-        let line = match line.find("//") {
-            Some(i) => &line[..i],
-            None => line,
-        };
-        let mut in_str = false;
-        let mut prev = ' ';
-        for c in line.chars() {
-            if c == '"' && prev != '\\' {
-                in_str = !in_str;
-            } else if !in_str {
-                out.push(c);
+    let mut i = 0;
+    while i < c.len() {
+        match c[i] {
+            '/' if c.get(i + 1) == Some(&'/') => {
+                while i < c.len() && c[i] != '\n' {
+                    i += 1;
+                }
             }
-            prev = c;
+            '/' if c.get(i + 1) == Some(&'*') => {
+                i += 2;
+                while i + 1 < c.len() && !(c[i] == '*' && c[i + 1] == '/') {
+                    i += 1;
+                }
+                i += 2;
+            }
+            'r' if c.get(i + 1).is_some_and(|&x| x == '"' || x == '#')
+                && !c
+                    .get(i.wrapping_sub(1))
+                    .is_some_and(|x| x.is_alphanumeric() || *x == '_') =>
+            {
+                // r"..." or r#"..."#
+                let mut j = i + 1;
+                let mut hashes = 0;
+                while c.get(j) == Some(&'#') {
+                    hashes += 1;
+                    j += 1;
+                }
+                if c.get(j) != Some(&'"') {
+                    out.push(c[i]);
+                    i += 1;
+                    continue;
+                }
+                j += 1;
+                loop {
+                    if j >= c.len() {
+                        break;
+                    }
+                    if c[j] == '"' && (0..hashes).all(|k| c.get(j + 1 + k) == Some(&'#')) {
+                        j += 1 + hashes;
+                        break;
+                    }
+                    j += 1;
+                }
+                i = j;
+            }
+            '"' => {
+                i += 1;
+                while i < c.len() && c[i] != '"' {
+                    if c[i] == '\\' {
+                        i += 1;
+                    }
+                    i += 1;
+                }
+                i += 1;
+            }
+            '\'' => {
+                // A char literal ('x', '\n', '\u{..}') or a lifetime ('a).
+                let close = (i + 2..(i + 12).min(c.len())).find(|&k| c[k] == '\'');
+                match close {
+                    Some(k) if c[i + 1] == '\\' || k == i + 2 => i = k + 1,
+                    _ => {
+                        out.push(c[i]);
+                        i += 1;
+                    }
+                }
+            }
+            ch => {
+                out.push(ch);
+                i += 1;
+            }
         }
-        out.push('\n');
     }
     out
 }

@@ -10,7 +10,7 @@ use super::args::{fit_text, print, print_json, FitArgs};
 use crate::align::handeye::estimate_body_from_cam_trajectories;
 use crate::align::trajectories::align_trajectories;
 use crate::error::Result;
-use crate::io::text::{read_trajectory, TrajectoryFormat};
+use crate::io::text::TrajectoryFormat;
 use crate::pipeline::report::{AlignReport, ApeReport, FitReport, HandEyeReport};
 
 /// clap parser of a trajectory format.
@@ -49,8 +49,11 @@ pub struct AlignArgs {
 pub fn run(args: AlignArgs) -> Result<()> {
     let opts = args.fit.options();
     opts.check()?;
-    let est = read_trajectory(&args.est, args.format)?;
-    let reference = read_trajectory(&args.reference, args.ref_format.unwrap_or(args.format))?;
+    let est = args.format.read(&args.est)?;
+    let reference = args
+        .ref_format
+        .unwrap_or(args.format)
+        .read(&args.reference)?;
     let r = align_trajectories(&est, &reference, &opts)?;
     // The extrinsic at the offset the fit used (given plus estimated).
     let hand_eye = if args.estimate_body_from_cam {

@@ -15,7 +15,7 @@ use crate::defaults;
 use crate::error::Result;
 use crate::geometry::Sim3;
 use crate::imu::{imu_initialize, ImuAlignment, ImuInitOptions};
-use crate::io::text::{read_euroc_imu, read_trajectory, TrajectoryFormat};
+use crate::io::text::{read_euroc_imu, TrajectoryFormat};
 use crate::pipeline::report::{ImuInitReport, ReferenceCheck};
 use crate::trajectory::Trajectory;
 
@@ -125,11 +125,7 @@ pub fn run(args: ImuInitArgs) -> Result<()> {
         Some(s) => parse_transform("--imu-from-cam", s)?,
         None => Sim3::identity(),
     };
-    let keyframes = cut(
-        &read_trajectory(&args.keyframes, args.format)?,
-        args.start,
-        args.window,
-    )?;
+    let keyframes = cut(&args.format.read(&args.keyframes)?, args.start, args.window)?;
     let imu = read_euroc_imu(&args.imu)?;
     let opts = ImuInitOptions {
         imu_from_cam,
@@ -145,7 +141,7 @@ pub fn run(args: ImuInitArgs) -> Result<()> {
     let chk = match &args.reference {
         Some(p) => Some(check(
             &keyframes,
-            &read_trajectory(p, args.ref_format)?,
+            &args.ref_format.read(p)?,
             &a,
             args.max_diff,
         )?),

@@ -45,12 +45,13 @@ impl std::str::FromStr for TrajectoryFormat {
     }
 }
 
-/// Reads a trajectory file in `format`.
-pub fn read_trajectory(path: impl AsRef<Path>, format: TrajectoryFormat) -> Result<Trajectory> {
-    let path = path.as_ref();
-    match format {
-        TrajectoryFormat::Tum => read_tum(path),
-        TrajectoryFormat::Euroc => read_euroc(path),
+impl TrajectoryFormat {
+    /// Reads a trajectory file in this format ([`read_tum`], [`read_euroc`]).
+    pub fn read(self, path: impl AsRef<Path>) -> Result<Trajectory> {
+        match self {
+            TrajectoryFormat::Tum => read_tum(path),
+            TrajectoryFormat::Euroc => read_euroc(path),
+        }
     }
 }
 
@@ -259,4 +260,282 @@ pub fn read_euroc_imu(path: impl AsRef<Path>) -> Result<ImuSamples> {
         accel.push(Vector3::new(v[3], v[4], v[5]));
     }
     ImuSamples::try_new(timestamps, gyro, accel)
+}
+
+/// Longest line [`read_trajectory`] accepts, bytes: far above any real pose
+/// line, so that a file without line breaks (`/dev/zero`) is refused at once.
+pub const MAX_LINE_BYTES: usize = 64 * 1024;
+
+/// The unit of the time stamps of a trajectory file.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum TimeUnit {
+    /// Seconds.
+    Seconds,
+    /// Milliseconds.
+    Milliseconds,
+    /// Microseconds.
+    Microseconds,
+    /// Nanoseconds (ORB-SLAM3's EuRoC runs write them as floats).
+    Nanoseconds,
+}
+
+impl TimeUnit {
+    /// Seconds per unit.
+    pub fn seconds(self) -> f64 {
+        match self {
+            TimeUnit::Seconds => 1.0,
+            TimeUnit::Milliseconds => 1e-3,
+            TimeUnit::Microseconds => 1e-6,
+            TimeUnit::Nanoseconds => 1e-9,
+        }
+    }
+
+    /// Units per second (1, 1e3, 1e6, 1e9).
+    pub fn per_second(self) -> f64 {
+        match self {
+            TimeUnit::Seconds => 1.0,
+            TimeUnit::Milliseconds => 1e3,
+            TimeUnit::Microseconds => 1e6,
+            TimeUnit::Nanoseconds => 1e9,
+        }
+    }
+
+    /// `"s"`, `"ms"`, `"us"`, `"ns"`.
+    pub fn symbol(self) -> &'static str {
+        match self {
+            TimeUnit::Seconds => "s",
+            TimeUnit::Milliseconds => "ms",
+            TimeUnit::Microseconds => "us",
+            TimeUnit::Nanoseconds => "ns",
+        }
+    }
+
+    /// From `"s"`, `"ms"`, `"us"` (or `"µs"`), `"ns"`.
+    pub fn parse(s: &str) -> Result<Self> {
+        match s {
+            "s" => Ok(TimeUnit::Seconds),
+            "ms" => Ok(TimeUnit::Milliseconds),
+            "us" | "µs" => Ok(TimeUnit::Microseconds),
+            "ns" => Ok(TimeUnit::Nanoseconds),
+            _ => Err(Error::invalid(
+                "time_unit",
+                format!("expected \"s\", \"ms\", \"us\" or \"ns\", got {s:?}"),
+            )),
+        }
+    }
+
+    const ALL: [TimeUnit; 4] = [
+        TimeUnit::Seconds,
+        TimeUnit::Milliseconds,
+        TimeUnit::Microseconds,
+        TimeUnit::Nanoseconds,
+    ];
+}
+
+/// How the fields of a trajectory file are separated.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Delimiter {
+    /// Spaces or tabs (TUM).
+    Whitespace,
+    /// Commas (CSV), spaces around them allowed.
+    Comma,
+}
+
+/// What [`read_trajectory`] found out about a file.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct TextInfo {
+    /// The unit the stamps were read in (converted to seconds).
+    pub unit: TimeUnit,
+    /// True when the unit was detected ([`detect_time_unit`]), false when the
+    /// caller gave it.
+    pub unit_detected: bool,
+    /// The field separator, decided by the first record.
+    pub delimiter: Delimiter,
+    /// True when a header line (a first record that is not numbers) was skipped.
+    pub header: bool,
+    /// Rows whose stamp equals the previous row's: dropped, the first row of
+    /// each stamp is kept.
+    pub repeated_stamps: usize,
+}
+
+/// The unit of a file's stamps, from their magnitude and spacing.
+///
+/// Read in a unit, the stamps have *camera-like spacing* when their median
+/// positive step is between 10 µs and 10 s (100 kHz to 0.1 Hz) and the
+/// largest is at most 4.2e9 s; they *look like Unix time* when the largest is
+/// between 1e8 and 4.2e9 s (1973 to 2103; at most one unit can). The first
+/// rule that picks a unit decides: (1) camera-like spacing and Unix time;
+/// (2) camera-like spacing, the coarsest such unit (seconds first); (3) Unix
+/// time; (4) seconds. With one stamp there is no spacing and (1) is Unix time
+/// alone. Examples: EuRoC ORB-SLAM3 `1.4036e18` → ns; TUM `1.3e9` → s; frame
+/// indices `0, 1, 2, …` → s; `0, 33, 66, …` → ms; stamps since boot
+/// `3e11, 3e11 + 3.3e7, …` → ns. Relative stamps more than 10 s apart read
+/// as a finer unit: give the unit for those.
+pub fn detect_time_unit(stamps: &[f64]) -> TimeUnit {
+    let max = stamps.iter().fold(0.0f64, |m, t| m.max(t.abs()));
+    let mut dt: Vec<f64> = stamps
+        .windows(2)
+        .map(|w| w[1] - w[0])
+        .filter(|d| *d > 0.0)
+        .collect();
+    let median = if dt.is_empty() {
+        None
+    } else {
+        let mid = dt.len() / 2;
+        dt.select_nth_unstable_by(mid, f64::total_cmp);
+        Some(dt[mid])
+    };
+    let spacing = |u: TimeUnit| {
+        let s = u.seconds();
+        max * s <= 4.2e9 && median.is_none_or(|d| (1e-5..=10.0).contains(&(d * s)))
+    };
+    let epoch = |u: TimeUnit| (1e8..=4.2e9).contains(&(max * u.seconds()));
+    let pick = |rule: &dyn Fn(TimeUnit) -> bool| TimeUnit::ALL.into_iter().find(|&u| rule(u));
+    pick(&|u| spacing(u) && epoch(u))
+        .or_else(|| pick(&spacing))
+        .or_else(|| pick(&epoch))
+        .unwrap_or(TimeUnit::Seconds)
+}
+
+/// Lines of at most [`MAX_LINE_BYTES`], read without holding more than one.
+fn bounded_lines(
+    path: &Path,
+    mut r: impl std::io::BufRead,
+    mut f: impl FnMut(usize, &str) -> Result<()>,
+) -> Result<()> {
+    let mut buf = Vec::new();
+    let mut line = 0usize;
+    loop {
+        buf.clear();
+        line += 1;
+        loop {
+            let chunk = r.fill_buf().map_err(|e| Error::io(path, e))?;
+            if chunk.is_empty() {
+                break;
+            }
+            let (take, done) = match chunk.iter().position(|&b| b == b'\n') {
+                Some(i) => (i + 1, true),
+                None => (chunk.len(), false),
+            };
+            if buf.len() + take > MAX_LINE_BYTES + 1 {
+                return Err(Error::parse(
+                    path,
+                    line,
+                    format!("line longer than {MAX_LINE_BYTES} bytes: not a trajectory file"),
+                ));
+            }
+            buf.extend_from_slice(&chunk[..take]);
+            r.consume(take);
+            if done {
+                break;
+            }
+        }
+        if buf.is_empty() {
+            return Ok(());
+        }
+        let mut bytes = buf.as_slice();
+        if line == 1 {
+            bytes = bytes.strip_prefix(b"\xEF\xBB\xBF").unwrap_or(bytes);
+        }
+        let text =
+            std::str::from_utf8(bytes).map_err(|_| Error::parse(path, line, "not UTF-8 text"))?;
+        f(line, text)?;
+    }
+}
+
+/// Reads a trajectory in TUM column order (`timestamp tx ty tz qx qy qz qw`)
+/// as the SLAM systems write it — DPVO `--save_trajectory`, MASt3R-SLAM
+/// `logs/*.txt`, DSO `result.txt`, ORB-SLAM3 `f_*.txt` / `kf_*.txt` — with
+/// what those files vary in found out and reported in [`TextInfo`]:
+/// - the time unit ([`detect_time_unit`], or `time_unit` when given); stamps
+///   are converted to seconds;
+/// - commas instead of white space (decided by the first record);
+/// - one header line (a first record whose fields are not numbers);
+/// - repeated stamps: the first row of each stamp is kept, the rest dropped
+///   and counted. Stamps that go back in time are an error naming the line.
+///
+/// Lines longer than [`MAX_LINE_BYTES`] are a format error. `#` lines and
+/// blank lines are skipped. For files [`read_tum`] reads, the poses are the
+/// same (the unit then detected as seconds).
+pub fn read_trajectory(path: &Path, time_unit: Option<TimeUnit>) -> Result<(Trajectory, TextInfo)> {
+    let file = std::fs::File::open(path).map_err(|e| Error::io(path, e))?;
+    let meta = file.metadata().map_err(|e| Error::io(path, e))?;
+    if !meta.is_file() {
+        return Err(Error::parse(path, 0, "not a regular file"));
+    }
+    let reader = std::io::BufReader::new(file);
+    let mut delimiter = None;
+    let mut header = false;
+    let mut first = true;
+    let mut rows: Vec<(usize, [f64; 8])> = Vec::new();
+    bounded_lines(path, reader, |k, raw| {
+        let line = raw.trim();
+        if line.is_empty() || line.starts_with('#') {
+            return Ok(());
+        }
+        let delim = *delimiter.get_or_insert(if line.contains(',') {
+            Delimiter::Comma
+        } else {
+            Delimiter::Whitespace
+        });
+        let fields: Vec<&str> = match delim {
+            Delimiter::Comma => line.split(',').map(str::trim).collect(),
+            Delimiter::Whitespace => line.split_whitespace().collect(),
+        };
+        if std::mem::replace(&mut first, false) && fields[0].parse::<f64>().is_err() {
+            header = true;
+            return Ok(());
+        }
+        if fields.len() != 8 {
+            return Err(Error::parse(
+                path,
+                k,
+                format!(
+                    "expected 8 values (timestamp tx ty tz qx qy qz qw), got {}",
+                    fields.len()
+                ),
+            ));
+        }
+        let v = parse_fields(path, k, &fields)?;
+        rows.push((k, [v[0], v[1], v[2], v[3], v[4], v[5], v[6], v[7]]));
+        Ok(())
+    })?;
+    let stamps: Vec<f64> = rows.iter().map(|r| r.1[0]).collect();
+    let (unit, unit_detected) = match time_unit {
+        Some(u) => (u, false),
+        None => (detect_time_unit(&stamps), true),
+    };
+    let mut b = Builder::new(path);
+    let mut repeated = 0;
+    let mut last = None;
+    for (k, v) in &rows {
+        if last == Some(v[0]) {
+            repeated += 1;
+            continue;
+        }
+        if let Some(prev) = last {
+            if v[0] < prev {
+                return Err(Error::parse(
+                    path,
+                    *k,
+                    format!(
+                        "timestamp {} is earlier than the previous one ({prev})",
+                        v[0]
+                    ),
+                ));
+            }
+        }
+        last = Some(v[0]);
+        // Divided by units per second (exact for 1e3, 1e6, 1e9), as evo does for ns.
+        let t = v[0] / unit.per_second();
+        b.push(*k, t, [v[1], v[2], v[3]], [v[4], v[5], v[6], v[7]])?;
+    }
+    let info = TextInfo {
+        unit,
+        unit_detected,
+        delimiter: delimiter.unwrap_or(Delimiter::Whitespace),
+        header,
+        repeated_stamps: repeated,
+    };
+    Ok((b.finish()?, info))
 }

@@ -40,7 +40,7 @@ use crate::cloud::PointCloud;
 use crate::error::{Error, Result};
 use crate::imu::ImuSamples;
 use crate::io::mcap::{read_mcap, Log, ReadOptions, TopicInfo};
-use crate::io::text::{read_trajectory, TrajectoryFormat};
+use crate::io::text::TrajectoryFormat;
 use crate::keyframe::Keyframe;
 use crate::trajectory::Trajectory;
 
@@ -159,9 +159,9 @@ pub struct TrajectoryFiles {
 
 impl Source for TrajectoryFiles {
     fn read(&self) -> Result<Recording> {
-        let frames = read_trajectory(&self.slam, self.slam_format)?;
+        let frames = self.slam_format.read(&self.slam)?;
         let reference = match &self.reference {
-            Some((p, f)) => Some(read_trajectory(p, *f)?),
+            Some((p, f)) => Some(f.read(p)?),
             None => None,
         };
         let cloud = match &self.cloud {

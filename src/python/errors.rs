@@ -110,7 +110,11 @@ impl From<Error> for PyErr {
                 | Error::OutOfRange { .. }
                 | Error::GravityTilted { .. } => &c.invalid,
                 Error::Degenerate { .. } => &c.degenerate,
-                Error::Parse { .. } | Error::Mcap { .. } | Error::Decode { .. } => &c.format,
+                Error::Parse { .. }
+                | Error::Mcap { .. }
+                | Error::Decode { .. }
+                | Error::BinaryFormat { .. }
+                | Error::Reconstruction { .. } => &c.format,
                 Error::Io { source, .. } => {
                     // OSError(errno, strerror, filename) keeps .errno/.filename usable.
                     let errno = source.raw_os_error();

@@ -6,11 +6,12 @@
 use pyo3::prelude::*;
 
 mod align;
-mod align_dof;
 mod arrays;
 mod cli;
 mod cloud;
+mod colmap;
 mod defaults;
+mod droid;
 mod errors;
 mod geometry;
 mod imu;
@@ -18,6 +19,7 @@ mod io;
 mod map;
 mod pipeline;
 mod sim;
+mod text;
 mod trajectory;
 
 #[pymodule]
@@ -29,12 +31,14 @@ fn _slam2world(m: &Bound<'_, PyModule>) -> PyResult<()> {
     map::register(m)?;
     trajectory::register(m)?;
     align::register(m)?;
-    align_dof::register(m)?;
     cloud::register(m)?;
     cli::register(m)?;
     io::register(m)?;
     pipeline::register(m)?;
     imu::register(m)?;
     defaults::register(m)?;
+    colmap::register(m)?;
+    droid::register(m)?;
+    text::register(m)?;
     Ok(())
 }
