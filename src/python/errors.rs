@@ -108,7 +108,10 @@ impl From<Error> for PyErr {
                 | Error::InvalidArgument { .. }
                 | Error::OutOfRange { .. } => &c.invalid,
                 Error::Degenerate { .. } => &c.degenerate,
-                Error::Parse { .. } | Error::Mcap { .. } => &c.format,
+                Error::Parse { .. }
+                | Error::Mcap { .. }
+                | Error::Bag { .. }
+                | Error::Container { .. } => &c.format,
                 Error::Io { source, .. } => {
                     // OSError(errno, strerror, filename) keeps .errno/.filename usable.
                     let errno = source.raw_os_error();
