@@ -13,8 +13,6 @@
 //! correctness tests read bags written by `rosbags`). `cargo test` runs each
 //! bench once on small sizes.
 
-mod common;
-
 use std::collections::BTreeMap;
 use std::hint::black_box;
 use std::io::{Read, Write};
@@ -51,6 +49,9 @@ fn time(ns: u64) -> [u8; 8] {
     t
 }
 
+/// (chunk offset, first and last time in ns, (connection, messages) in the chunk).
+type ChunkInfo = (u64, u64, u64, Vec<(u32, u32)>);
+
 /// A minimal ROS 1 bag writer (bag header, chunks, index data, connections,
 /// chunk infos), enough for the benches.
 struct BagWriter {
@@ -61,7 +62,7 @@ struct BagWriter {
     chunk: Vec<u8>,
     index: BTreeMap<u32, Vec<(u64, u32)>>,
     range: (u64, u64),
-    infos: Vec<(u64, u64, u64, Vec<(u32, u32)>)>,
+    infos: Vec<ChunkInfo>,
     /// (compressed chunk data, uncompressed size), for the plain-decompression peer.
     chunks: Vec<(Vec<u8>, usize)>,
 }
@@ -311,7 +312,9 @@ fn decompress(compression: &str, data: &[u8], size: usize) -> usize {
 }
 
 fn bench(c: &mut Criterion) {
-    let full = common::benchmarking();
+    // Full sizes under `cargo bench` (criterion gets `--bench`), small ones
+    // when `cargo test --all-targets` runs the bench once.
+    let full = std::env::args().any(|a| a == "--bench");
     let data_dir = Path::new(env!("CARGO_MANIFEST_DIR")).join("target/bench-data");
     std::fs::create_dir_all(&data_dir).expect("bench data folder");
 

@@ -519,6 +519,67 @@ fn damaged_ros1_bags_are_refused_with_their_place() {
     );
 }
 
+/// Offset of the value of field `name` in the header of the first record of
+/// the uncompressed chunk at `chunk` whose op is `op`.
+fn field_in_chunk(bytes: &[u8], chunk: usize, op: u8, name: &[u8]) -> usize {
+    let (_, data) = data_of(bytes, chunk);
+    let mut pos = data;
+    loop {
+        let hl = u32::from_le_bytes(bytes[pos..pos + 4].try_into().unwrap()) as usize;
+        let header = &bytes[pos + 4..pos + 4 + hl];
+        let mut f = 0;
+        let (mut found_op, mut at) = (None, None);
+        while f < header.len() {
+            let len = u32::from_le_bytes(header[f..f + 4].try_into().unwrap()) as usize;
+            let field = &header[f + 4..f + 4 + len];
+            let eq = field.iter().position(|&b| b == b'=').unwrap();
+            if &field[..eq] == b"op" {
+                found_op = Some(field[eq + 1]);
+            }
+            if &field[..eq] == name {
+                at = Some(pos + 4 + f + 4 + eq + 1);
+            }
+            f += 4 + len;
+        }
+        if found_op == Some(op) {
+            return at.unwrap();
+        }
+        let dl = u32::from_le_bytes(bytes[pos + 4 + hl..pos + 8 + hl].try_into().unwrap());
+        pos += 8 + hl + dl as usize;
+    }
+}
+
+#[test]
+fn ros1_connection_ids_are_checked() {
+    let dir = tempfile::tempdir().unwrap();
+    let none = std::fs::read(fixture("ros1_none.bag")).unwrap();
+    let chunk = first_chunk(&none);
+    // A connection id beyond the 16-bit channel ids (here and in the index).
+    let mut b = none.clone();
+    let at = field_in_chunk(&b, chunk, 7, b"conn");
+    b[at..at + 4].copy_from_slice(&70_000u32.to_le_bytes());
+    let p = write_tmp(&dir, "conn.bag", &b);
+    let e = open_err(&p);
+    assert!(
+        matches!(reason(&e), BagError::TooManyConnections { conn: 70_000 }),
+        "{e}"
+    );
+    // A message of a connection that nothing defines.
+    let mut b = none.clone();
+    let at = field_in_chunk(&b, chunk, 2, b"conn");
+    b[at..at + 4].copy_from_slice(&9u32.to_le_bytes());
+    let p = write_tmp(&dir, "orphan.bag", &b);
+    let e = open_err(&p);
+    assert!(
+        matches!(
+            reason(&e),
+            BagError::UnknownConnection { conn: 9, index: 0 }
+        ),
+        "{e}"
+    );
+    assert!(matches!(e, Error::Bag { offset: Some(o), .. } if o == chunk as u64));
+}
+
 /// Copies a fixture folder into `dir`.
 fn copy_folder(name: &str, dir: &tempfile::TempDir) -> PathBuf {
     let to = dir.path().join(name);

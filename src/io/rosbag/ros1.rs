@@ -218,11 +218,13 @@ fn fixed<const N: usize>(
     })
 }
 
-fn field_u32(v: Option<&[u8]>, record: &'static str, field: &'static str) -> Result32 {
+fn field_u32(
+    v: Option<&[u8]>,
+    record: &'static str,
+    field: &'static str,
+) -> std::result::Result<u32, BagError> {
     fixed::<4>(v, record, field).map(u32::from_le_bytes)
 }
-
-type Result32 = std::result::Result<u32, BagError>;
 
 fn field_u64(
     v: Option<&[u8]>,
