@@ -6,8 +6,10 @@
 //!   `target/bench-data/poses_1e6_lz4.bag` for `benches/rosbag_peer.py`, which
 //!   times the Python `rosbags` reader + deserialiser on it and prints the ratio.
 //! - `rosbag_keyframes_{lz4,bz2}`: bags of 640×480 LSD-SLAM keyframes scanned
-//!   with the keyframe decoder keeping each point cloud (decompressed bytes/s),
-//!   beside plain parallel decompression of the same chunks (the limit).
+//!   with the keyframe decoder, keeping a copy of each point cloud (`scan_decode`)
+//!   or only looking at it (`scan_decode_borrow`: the container's own cost),
+//!   beside plain parallel decompression of the same chunks (the limit), in
+//!   decompressed bytes/s.
 //!
 //! The bags are written here by a small ROS 1 writer (test support only: the
 //! correctness tests read bags written by `rosbags`). `cargo test` runs each
@@ -382,6 +384,19 @@ fn bench(c: &mut Criterion) {
                     .scan_map(
                         |_| true,
                         |_, m| keyframe_ros1(m.data).map(|kf| kf.pointcloud.to_vec()).ok(),
+                    )
+                    .expect("scan");
+                assert!(scan.messages.iter().all(|m| m.value.is_some()));
+                black_box(scan.messages.len())
+            })
+        });
+        g.bench_function(format!("scan_decode_borrow_{k}_keyframes_640x480"), |b| {
+            b.iter(|| {
+                let bag = Ros1Bag::open(black_box(&kf_path)).expect("open");
+                let scan = bag
+                    .scan_map(
+                        |_| true,
+                        |_, m| keyframe_ros1(m.data).map(|kf| kf.pointcloud.len()).ok(),
                     )
                     .expect("scan");
                 assert!(scan.messages.iter().all(|m| m.value.is_some()));

@@ -548,20 +548,26 @@ impl Ros1Bag {
                     }
                     w
                 };
-                let chunks: Vec<usize> = index
+                // (offset, wanted messages the chunk info announces)
+                let chunks: Vec<(usize, usize)> = index
                     .chunks
                     .iter()
-                    .filter(|ci| {
-                        ci.counts
+                    .map(|ci| {
+                        let n: u64 = ci
+                            .counts
                             .iter()
-                            .any(|&(conn, n)| n > 0 && wanted[conn as usize & 0xffff])
+                            .filter(|&&(conn, _)| wanted[conn as usize & 0xffff])
+                            .map(|&(_, n)| n as u64)
+                            .sum();
+                        (ci.pos, n as usize)
                     })
-                    .map(|ci| ci.pos)
+                    .filter(|&(_, n)| n > 0)
                     .collect();
                 (chunks, index.channels.clone(), ReadMode::Indexed)
             }
             None => {
                 let (chunks, defs) = self.linear_plan().map_err(|f| self.err(f))?;
+                let chunks = chunks.into_iter().map(|pos| (pos, 0)).collect();
                 let mut known = BTreeMap::new();
                 for d in defs {
                     known.entry(d.id).or_insert(d);
@@ -582,8 +588,8 @@ impl Ros1Bag {
                 let table = table_of(&known, &want);
                 batch
                     .par_iter()
-                    .map_init(Vec::new, |buf, &pos| {
-                        self.map_chunk(pos, &table, buf, &want, &map)
+                    .map_init(Vec::new, |buf, &(pos, hint)| {
+                        self.map_chunk(pos, hint, &table, buf, &want, &map)
                     })
                     .collect()
             };
@@ -653,10 +659,12 @@ impl Ros1Bag {
     }
 
     /// Decompresses the chunk at `pos` into `buf` (or borrows it from the map
-    /// when uncompressed) and maps its wanted messages.
+    /// when uncompressed) and maps its wanted messages (`hint`: how many the
+    /// index announces, 0 when unknown).
     fn map_chunk<T: Default>(
         &self,
         pos: usize,
+        hint: usize,
         table: &Table<'_>,
         buf: &mut Vec<u8>,
         want: &(impl Fn(&ChannelInfo) -> bool + Sync),
@@ -668,6 +676,9 @@ impl Ros1Bag {
             msgs: Vec::new(),
             deferred: Vec::new(),
         };
+        // The count the index announces, as far as the chunk's size makes it
+        // plausible (a message record takes at least 30 bytes).
+        let _ = part.msgs.try_reserve(hint.min(data.len() / 30));
         let mut local: BTreeMap<u16, (ChannelInfo, bool)> = BTreeMap::new();
         let mut at = 0;
         let mut index = 0u64;
