@@ -46,11 +46,12 @@ bench:
 compare: install
 	$(PY) benches/compare.py
 
-# cargo-fuzz on the MCAP decoders and reader, FUZZ_SECONDS per target (nightly + cargo-fuzz).
+# cargo-fuzz on the MCAP decoders and reader and the ROS 1 bag reader, FUZZ_SECONDS per target (nightly + cargo-fuzz).
 FUZZ_SECONDS ?= 60
 fuzz:
 	cd fuzz && cargo +nightly fuzz run decoders -- -max_total_time=$(FUZZ_SECONDS)
 	cd fuzz && cargo +nightly fuzz run mcap_file -- -max_total_time=$(FUZZ_SECONDS)
+	cd fuzz && mkdir -p corpus/ros1_bag && cargo +nightly fuzz run ros1_bag corpus/ros1_bag ../tests/data/rosbag -- -max_total_time=$(FUZZ_SECONDS)
 
 clean:
 	cargo clean

@@ -170,6 +170,24 @@ pub enum Error {
         /// Topic, channel or record the problem was found in, when known.
         reason: String,
     },
+    /// A ROS 1 bag, a rosbag2 folder or a rosbag2 `.db3` file that cannot be read.
+    #[error("{}{}: {reason}", path.display(), crate::io::rosbag::at_offset(*offset))]
+    Bag {
+        /// The bag file (or the rosbag2 folder, or the file of the folder at fault).
+        path: PathBuf,
+        /// Byte offset in `path` of the record at fault, when the format has offsets.
+        offset: Option<u64>,
+        /// What was expected and what was found.
+        reason: crate::io::rosbag::BagError,
+    },
+    /// A path that is no log slam2world reads (see [`crate::io::container::detect`]).
+    #[error("{}: {reason}", path.display())]
+    Container {
+        /// The path given.
+        path: PathBuf,
+        /// What was found there.
+        reason: crate::io::container::ContainerError,
+    },
 }
 
 /// What was wrong with a message's bytes (offsets are bytes from the start of

@@ -114,7 +114,9 @@ impl From<Error> for PyErr {
                 | Error::Mcap { .. }
                 | Error::Decode { .. }
                 | Error::BinaryFormat { .. }
-                | Error::Reconstruction { .. } => &c.format,
+                | Error::Reconstruction { .. }
+                | Error::Bag { .. }
+                | Error::Container { .. } => &c.format,
                 Error::Io { source, .. } => {
                     // OSError(errno, strerror, filename) keeps .errno/.filename usable.
                     let errno = source.raw_os_error();

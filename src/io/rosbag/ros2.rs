@@ -1,0 +1,781 @@
+//! rosbag2 bags: a folder (`metadata.yaml` beside `.db3` or `.mcap` files) or
+//! a single `.db3` / `.mcap` file.
+//!
+//! - `metadata.yaml` gives the storage (`sqlite3` or `mcap`), the files
+//!   (relative to the folder) and the compression: none, zstd per file
+//!   (`FILE`: each file is `*.db3.zstd` / `*.mcap.zstd`, decompressed to a
+//!   temporary file while it is read) or zstd per message (`MESSAGE`: each
+//!   message's bytes are one zstd frame). Offered QoS profiles are ignored.
+//! - A `.db3` is read through SQLite: `topics(id, name, type,
+//!   serialization_format, …)` and `messages(id, topic_id, timestamp, data)`.
+//!   It has type names but no definitions: channels get `schema_encoding`
+//!   `ros2msg` and empty `schema_data`.
+//! - An `.mcap` is read with [`McapFile`] (its channels keep their schemas).
+//!
+//! Channel ids are the `topics.id` of a `.db3` (the MCAP channel ids of an
+//! `.mcap`); in a folder of several files, a topic keeps the id it had in the
+//! first file that has it. Messages come in time order (`timestamp`, ns), ties
+//! in file order, as `ros2 bag play` gives them.
+
+use std::cell::RefCell;
+use std::collections::{BTreeMap, HashMap};
+use std::io::Read;
+use std::path::{Path, PathBuf};
+
+use rayon::prelude::*;
+use rusqlite::{Connection, OpenFlags};
+use serde::Deserialize;
+
+use super::{sort_by_time, BagError};
+use crate::error::{Error, Result};
+use crate::io::container::{
+    classify, folder_of, ChannelCount, Container, Inventory, MessageSource,
+};
+use crate::io::mcap::{ChannelInfo, MappedMessage, MappedScan, McapFile, RawMessage, ReadMode};
+
+/// The largest decompressed message accepted in `MESSAGE` mode (1 GiB).
+pub const MAX_MESSAGE: u64 = 1 << 30;
+
+/// Where a rosbag2 bag keeps its messages.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Ros2Storage {
+    /// SQLite databases (`.db3`).
+    Sqlite3,
+    /// MCAP files.
+    Mcap,
+}
+
+/// How a rosbag2 bag is compressed (zstd is the only format rosbag2 has).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Ros2Compression {
+    /// Not compressed.
+    None,
+    /// Each file compressed whole (`*.db3.zstd`, `*.mcap.zstd`).
+    File,
+    /// Each message's bytes compressed on their own.
+    Message,
+}
+
+#[derive(Deserialize)]
+struct MetadataFile {
+    rosbag2_bagfile_information: Metadata,
+}
+
+#[derive(Deserialize)]
+struct Metadata {
+    storage_identifier: String,
+    #[serde(default)]
+    relative_file_paths: Vec<String>,
+    #[serde(default)]
+    files: Vec<FileEntry>,
+    #[serde(default)]
+    compression_format: Option<String>,
+    #[serde(default)]
+    compression_mode: Option<String>,
+}
+
+#[derive(Deserialize)]
+struct FileEntry {
+    path: String,
+}
+
+/// A rosbag2 bag, opened (`metadata.yaml` read, the files found).
+#[derive(Debug)]
+pub struct Ros2Bag {
+    path: PathBuf,
+    folder: bool,
+    storage: Ros2Storage,
+    compression: Ros2Compression,
+    files: Vec<PathBuf>,
+}
+
+/// The channels of every file, by id, with one id per (topic, type).
+#[derive(Default)]
+struct ChannelTable {
+    channels: BTreeMap<u16, ChannelInfo>,
+    by_topic: HashMap<(String, String), u16>,
+}
+
+impl ChannelTable {
+    /// The id `info` gets: that of its (topic, type) when known, else its own id
+    /// when free, else the smallest free one.
+    fn intern(&mut self, mut info: ChannelInfo) -> std::result::Result<u16, BagError> {
+        let key = (info.topic.clone(), info.schema_name.clone());
+        if let Some(&id) = self.by_topic.get(&key) {
+            return Ok(id);
+        }
+        let id = if self.channels.contains_key(&info.id) {
+            (0..=u16::MAX)
+                .find(|i| !self.channels.contains_key(i))
+                .ok_or(BagError::TooManyConnections { conn: 1 << 16 })?
+        } else {
+            info.id
+        };
+        info.id = id;
+        self.channels.insert(id, info);
+        self.by_topic.insert(key, id);
+        Ok(id)
+    }
+}
+
+impl Ros2Bag {
+    /// Opens a rosbag2 folder (or its `metadata.yaml`), or a single `.db3` or
+    /// `.mcap` file (told apart by their first bytes). Reads `metadata.yaml` and
+    /// checks that every file it names exists.
+    pub fn open(path: impl AsRef<Path>) -> Result<Self> {
+        let given = path.as_ref();
+        let meta = std::fs::metadata(given).map_err(|e| Error::io(given, e))?;
+        let is_yaml = given.file_name().is_some_and(|n| n == "metadata.yaml");
+        if meta.is_dir() || is_yaml {
+            let folder = folder_of(given);
+            return Self::open_folder(&folder);
+        }
+        let mut head = Vec::with_capacity(32);
+        std::fs::File::open(given)
+            .and_then(|f| f.take(32).read_to_end(&mut head))
+            .map_err(|e| Error::io(given, e))?;
+        let storage = match classify(&head) {
+            Ok(Container::Ros2Sqlite) => Ros2Storage::Sqlite3,
+            Ok(Container::Mcap) => Ros2Storage::Mcap,
+            Ok(other) => {
+                return Err(bag_err(
+                    given,
+                    BagError::UnsupportedStorage {
+                        found: format!("{other:?}"),
+                    },
+                ))
+            }
+            Err(reason) => {
+                return Err(Error::Container {
+                    path: given.to_path_buf(),
+                    reason,
+                })
+            }
+        };
+        Ok(Ros2Bag {
+            path: given.to_path_buf(),
+            folder: false,
+            storage,
+            compression: Ros2Compression::None,
+            files: vec![given.to_path_buf()],
+        })
+    }
+
+    fn open_folder(folder: &Path) -> Result<Self> {
+        let yaml = folder.join("metadata.yaml");
+        let text = match std::fs::read_to_string(&yaml) {
+            Ok(t) => t,
+            Err(e) if e.kind() == std::io::ErrorKind::NotFound => {
+                return Err(bag_err(folder, BagError::NoMetadata))
+            }
+            Err(e) => return Err(Error::io(&yaml, e)),
+        };
+        let meta = parse_metadata(&text).map_err(|r| bag_err(&yaml, r))?;
+        let storage = match meta.storage_identifier.as_str() {
+            "sqlite3" => Ros2Storage::Sqlite3,
+            "mcap" => Ros2Storage::Mcap,
+            other => {
+                return Err(bag_err(
+                    &yaml,
+                    BagError::UnsupportedStorage {
+                        found: other.to_string(),
+                    },
+                ))
+            }
+        };
+        let format = meta.compression_format.unwrap_or_default();
+        let mode = meta.compression_mode.unwrap_or_default();
+        let compression = match (format.as_str(), mode.to_ascii_uppercase().as_str()) {
+            (_, "" | "NONE") => Ros2Compression::None,
+            ("zstd", "FILE") => Ros2Compression::File,
+            ("zstd", "MESSAGE") => Ros2Compression::Message,
+            _ => {
+                return Err(bag_err(
+                    &yaml,
+                    BagError::UnsupportedCompression { format, mode },
+                ))
+            }
+        };
+        let names: Vec<String> = if meta.relative_file_paths.is_empty() {
+            meta.files.into_iter().map(|f| f.path).collect()
+        } else {
+            meta.relative_file_paths
+        };
+        let mut files = Vec::with_capacity(names.len());
+        for name in names {
+            let file = folder.join(&name);
+            if !file.is_file() {
+                return Err(bag_err(&yaml, BagError::MissingFile { file }));
+            }
+            files.push(file);
+        }
+        Ok(Ros2Bag {
+            path: folder.to_path_buf(),
+            folder: true,
+            storage,
+            compression,
+            files,
+        })
+    }
+
+    /// The folder (or the single file) given.
+    pub fn path(&self) -> &Path {
+        &self.path
+    }
+
+    /// True for a folder with `metadata.yaml`, false for a single file.
+    pub fn is_folder(&self) -> bool {
+        self.folder
+    }
+
+    /// SQLite or MCAP.
+    pub fn storage(&self) -> Ros2Storage {
+        self.storage
+    }
+
+    /// None, per file or per message.
+    pub fn compression(&self) -> Ros2Compression {
+        self.compression
+    }
+
+    /// The data files, in the order `metadata.yaml` lists them.
+    pub fn files(&self) -> &[PathBuf] {
+        &self.files
+    }
+
+    /// Runs `f` on each data file as a plain file: a `FILE`-compressed one is
+    /// decompressed to a temporary file first (removed after `f`).
+    fn each_file(&self, mut f: impl FnMut(&Path, &Path) -> Result<()>) -> Result<()> {
+        for file in &self.files {
+            if self.compression == Ros2Compression::File {
+                let tmp = decompress_file(file)?;
+                f(tmp.path(), file)?;
+            } else {
+                f(file, file)?;
+            }
+        }
+        Ok(())
+    }
+
+    /// The topics as channels, by id.
+    pub fn channels(&self) -> Result<BTreeMap<u16, ChannelInfo>> {
+        let mut table = ChannelTable::default();
+        self.each_file(|plain, label| {
+            match self.storage {
+                Ros2Storage::Sqlite3 => {
+                    let db = open_db(plain, label)?;
+                    for (_, info) in topics(&db).map_err(|r| bag_err(label, r))? {
+                        table.intern(info).map_err(|r| bag_err(label, r))?;
+                    }
+                }
+                Ros2Storage::Mcap => {
+                    for info in McapFile::open(plain)?.channels()?.into_values() {
+                        table.intern(info).map_err(|r| bag_err(label, r))?;
+                    }
+                }
+            }
+            Ok(())
+        })?;
+        Ok(table.channels)
+    }
+
+    /// Every message of a topic `want` keeps, passed to `map` in parallel
+    /// (batches of rows of a `.db3`, chunk tasks of an `.mcap`); only the mapped
+    /// values are kept. In `MESSAGE` mode `map` sees the decompressed bytes.
+    /// `log_time` and `publish_time` are the stored timestamp (ns), `sequence` 0.
+    pub fn scan_map<T: Send + Default>(
+        &self,
+        want: impl Fn(&ChannelInfo) -> bool + Sync,
+        map: impl Fn(&ChannelInfo, &RawMessage<'_>) -> T + Sync,
+    ) -> Result<MappedScan<T>> {
+        let mut table = ChannelTable::default();
+        let mut messages = Vec::new();
+        let mut mode = ReadMode::Indexed;
+        let zstd_messages = self.compression == Ros2Compression::Message;
+        self.each_file(|plain, label| {
+            let got = match self.storage {
+                Ros2Storage::Sqlite3 => {
+                    sqlite_scan(plain, label, &mut table, zstd_messages, &want, &map)?
+                }
+                Ros2Storage::Mcap => {
+                    let (got, m) = mcap_scan(plain, label, &mut table, zstd_messages, &want, &map)?;
+                    if m == ReadMode::Linear {
+                        mode = ReadMode::Linear;
+                    }
+                    got
+                }
+            };
+            messages.extend(got);
+            Ok(())
+        })?;
+        sort_by_time(&mut messages);
+        Ok(MappedScan {
+            channels: table.channels,
+            messages,
+            mode,
+            profile: "ros2".into(),
+        })
+    }
+
+    /// Counts and time ranges per topic: SQL counts of each `.db3` (no message
+    /// read), a scan of each `.mcap`. A `.db3` row of a topic that the topics
+    /// table does not list is an error here ([`BagError::UnknownTopic`]);
+    /// `scan_map` only queries the rows of the wanted topics.
+    pub fn inventory(&self) -> Result<Inventory> {
+        if self.storage == Ros2Storage::Mcap {
+            return Ok(Inventory::of_scan(&self.scan_map(|_| true, |_, _| ())?));
+        }
+        let mut table = ChannelTable::default();
+        let mut stats: BTreeMap<u16, (u64, u64, u64)> = BTreeMap::new();
+        self.each_file(|plain, label| {
+            let db = open_db(plain, label)?;
+            let at = |r: BagError| bag_err(label, r);
+            let mut ids = HashMap::new();
+            for (topic_id, info) in topics(&db).map_err(at)? {
+                ids.insert(topic_id, table.intern(info).map_err(at)?);
+            }
+            let mut stmt = db
+                .prepare(
+                    "SELECT topic_id, COUNT(*), MIN(timestamp), MAX(timestamp), MIN(id) \
+                     FROM messages GROUP BY topic_id",
+                )
+                .map_err(|e| at(e.into()))?;
+            let mut rows = stmt.query([]).map_err(|e| at(e.into()))?;
+            while let Some(row) = rows.next().map_err(|e| at(e.into()))? {
+                let topic_id: i64 = row.get(0).map_err(|e| at(e.into()))?;
+                let n: i64 = row.get(1).map_err(|e| at(e.into()))?;
+                let lo: i64 = row.get(2).map_err(|e| at(e.into()))?;
+                let hi: i64 = row.get(3).map_err(|e| at(e.into()))?;
+                let Some(&id) = ids.get(&topic_id) else {
+                    let row: i64 = row.get(4).map_err(|e| at(e.into()))?;
+                    return Err(at(BagError::UnknownTopic { topic_id, row }));
+                };
+                let s = stats.entry(id).or_insert((0, u64::MAX, 0));
+                s.0 += n.max(0) as u64;
+                s.1 = s.1.min(lo.max(0) as u64);
+                s.2 = s.2.max(hi.max(0) as u64);
+            }
+            Ok(())
+        })?;
+        let channels = table
+            .channels
+            .into_values()
+            .map(|c| {
+                let (count, lo, hi) = stats.get(&c.id).copied().unwrap_or((0, 0, 0));
+                ChannelCount {
+                    channel: c,
+                    count,
+                    time_range: (count > 0).then_some((lo, hi)),
+                }
+            })
+            .collect();
+        Ok(Inventory {
+            channels,
+            mode: ReadMode::Indexed,
+            from_index: self.compression != Ros2Compression::File,
+        })
+    }
+}
+
+fn bag_err(path: &Path, reason: BagError) -> Error {
+    Error::Bag {
+        path: path.to_path_buf(),
+        offset: None,
+        reason,
+    }
+}
+
+fn parse_metadata(text: &str) -> std::result::Result<Metadata, BagError> {
+    serde_yaml_ng::from_str::<MetadataFile>(text)
+        .map(|m| m.rosbag2_bagfile_information)
+        .map_err(|e| {
+            let (line, column) = e.location().map_or((0, 0), |l| (l.line(), l.column()));
+            BagError::Metadata {
+                line,
+                column,
+                message: e.to_string(),
+            }
+        })
+}
+
+/// Decompresses a `FILE`-mode file (a zstd stream) into a temporary file.
+fn decompress_file(file: &Path) -> Result<tempfile::NamedTempFile> {
+    let input = std::fs::File::open(file).map_err(|e| Error::io(file, e))?;
+    let mut tmp = tempfile::NamedTempFile::new().map_err(|e| Error::io(file, e))?;
+    zstd::stream::copy_decode(std::io::BufReader::new(input), tmp.as_file_mut()).map_err(|e| {
+        bag_err(
+            file,
+            BagError::Decompress {
+                compression: "zstd",
+                message: e.to_string(),
+            },
+        )
+    })?;
+    Ok(tmp)
+}
+
+/// Opens a `.db3` read-only and checks that it has the rosbag2 tables.
+fn open_db(path: &Path, label: &Path) -> Result<Connection> {
+    let at = |e: rusqlite::Error| bag_err(label, e.into());
+    let db = Connection::open_with_flags(
+        path,
+        OpenFlags::SQLITE_OPEN_READ_ONLY | OpenFlags::SQLITE_OPEN_NO_MUTEX,
+    )
+    .map_err(at)?;
+    let tables: Vec<String> = {
+        let mut stmt = db
+            .prepare("SELECT name FROM sqlite_master WHERE type = 'table' ORDER BY name")
+            .map_err(at)?;
+        let names = stmt
+            .query_map([], |r| r.get::<_, String>(0))
+            .map_err(at)?
+            .collect::<std::result::Result<_, _>>()
+            .map_err(at)?;
+        names
+    };
+    for missing in ["topics", "messages"] {
+        if !tables.iter().any(|t| t == missing) {
+            return Err(bag_err(
+                label,
+                BagError::MissingTable {
+                    missing,
+                    found: tables,
+                },
+            ));
+        }
+    }
+    Ok(db)
+}
+
+/// The `topics` table: `(topics.id, channel)`, the channel id = `topics.id`.
+fn topics(db: &Connection) -> std::result::Result<Vec<(i64, ChannelInfo)>, BagError> {
+    let mut stmt =
+        db.prepare("SELECT id, name, type, serialization_format FROM topics ORDER BY id")?;
+    let mut rows = stmt.query([])?;
+    let mut out = Vec::new();
+    while let Some(row) = rows.next()? {
+        let topic_id: i64 = row.get(0)?;
+        let topic: String = row.get(1)?;
+        let id = u16::try_from(topic_id).map_err(|_| BagError::TopicId {
+            topic_id,
+            topic: topic.clone(),
+        })?;
+        out.push((
+            topic_id,
+            ChannelInfo {
+                id,
+                topic,
+                message_encoding: row.get(3)?,
+                schema_id: 0,
+                schema_name: row.get(2)?,
+                schema_encoding: "ros2msg".into(),
+                schema_data: Vec::new(),
+                metadata: BTreeMap::new(),
+            },
+        ));
+    }
+    Ok(out)
+}
+
+thread_local! {
+    /// Per-thread buffer for `MESSAGE`-mode decompression.
+    static ZBUF: RefCell<Vec<u8>> = const { RefCell::new(Vec::new()) };
+}
+
+/// Calls `f` on a message's bytes, zstd-decompressed first when `zstd`;
+/// decompression is bounded by [`MAX_MESSAGE`].
+fn with_bytes<T>(
+    data: &[u8],
+    zstd: bool,
+    f: impl FnOnce(&[u8]) -> T,
+) -> std::result::Result<T, String> {
+    if !zstd {
+        return Ok(f(data));
+    }
+    ZBUF.with(|cell| {
+        let mut buf = cell.borrow_mut();
+        buf.clear();
+        match zstd::zstd_safe::get_frame_content_size(data) {
+            Ok(Some(n)) if n <= MAX_MESSAGE => {
+                buf.try_reserve_exact(n as usize)
+                    .map_err(|_| format!("cannot allocate {n} bytes"))?;
+                zstd::bulk::Decompressor::new()
+                    .and_then(|mut d| d.decompress_to_buffer(data, &mut *buf))
+                    .map_err(|e| e.to_string())?;
+            }
+            Ok(Some(n)) => return Err(format!("declares {n} bytes, beyond {MAX_MESSAGE}")),
+            Ok(None) => {
+                let d =
+                    zstd::stream::read::Decoder::with_buffer(data).map_err(|e| e.to_string())?;
+                d.take(MAX_MESSAGE + 1)
+                    .read_to_end(&mut buf)
+                    .map_err(|e| e.to_string())?;
+                if buf.len() as u64 > MAX_MESSAGE {
+                    return Err(format!("decompresses beyond {MAX_MESSAGE} bytes"));
+                }
+            }
+            Err(_) => return Err("not a zstd frame".into()),
+        }
+        Ok(f(&buf))
+    })
+}
+
+/// Rows gathered before they are mapped in parallel.
+const BATCH_ROWS: usize = 1 << 14;
+/// Bytes gathered before they are mapped in parallel.
+const BATCH_BYTES: usize = 16 << 20;
+
+/// The wanted messages of one `.db3`, mapped in parallel batches of rows.
+fn sqlite_scan<T: Send + Default>(
+    plain: &Path,
+    label: &Path,
+    table: &mut ChannelTable,
+    zstd_messages: bool,
+    want: &(impl Fn(&ChannelInfo) -> bool + Sync),
+    map: &(impl Fn(&ChannelInfo, &RawMessage<'_>) -> T + Sync),
+) -> Result<Vec<MappedMessage<T>>> {
+    let at = |r: BagError| bag_err(label, r);
+    let db = open_db(plain, label)?;
+    let mut ids: HashMap<i64, u16> = HashMap::new();
+    for (topic_id, info) in topics(&db).map_err(at)? {
+        ids.insert(topic_id, table.intern(info).map_err(at)?);
+    }
+    let wanted: Vec<i64> = ids
+        .iter()
+        .filter(|(_, id)| table.channels.get(id).is_some_and(want))
+        .map(|(t, _)| *t)
+        .collect();
+    let mut out = Vec::new();
+    if wanted.is_empty() {
+        return Ok(out);
+    }
+    let list: Vec<String> = wanted.iter().map(i64::to_string).collect();
+    let sql = format!(
+        "SELECT id, topic_id, timestamp, data FROM messages WHERE topic_id IN ({}) \
+         ORDER BY timestamp, id",
+        list.join(",")
+    );
+    let mut stmt = db.prepare(&sql).map_err(|e| at(e.into()))?;
+    let mut rows = stmt.query([]).map_err(|e| at(e.into()))?;
+    let mut arena: Vec<u8> = Vec::new();
+    // (channel id, time, start, end) of each gathered row
+    let mut heads: Vec<(u16, u64, usize, usize)> = Vec::new();
+    let channels = &table.channels;
+    let flush = |arena: &mut Vec<u8>,
+                 heads: &mut Vec<(u16, u64, usize, usize)>,
+                 out: &mut Vec<MappedMessage<T>>|
+     -> Result<()> {
+        let base = out.len() as u64;
+        let mapped: Vec<std::result::Result<MappedMessage<T>, BagError>> = heads
+            .par_iter()
+            .enumerate()
+            .map(|(k, &(id, time, s, e))| {
+                let c = &channels[&id];
+                let value = with_bytes(&arena[s..e], zstd_messages, |data| {
+                    map(
+                        c,
+                        &RawMessage {
+                            channel_id: id,
+                            sequence: 0,
+                            log_time: time,
+                            publish_time: time,
+                            data,
+                        },
+                    )
+                })
+                .map_err(|message| BagError::MessageData {
+                    index: base + k as u64,
+                    topic: c.topic.clone(),
+                    message,
+                })?;
+                Ok(MappedMessage {
+                    channel_id: id,
+                    sequence: 0,
+                    log_time: time,
+                    publish_time: time,
+                    value,
+                })
+            })
+            .collect();
+        out.reserve(mapped.len());
+        for m in mapped {
+            out.push(m.map_err(|r| bag_err(label, r))?);
+        }
+        arena.clear();
+        heads.clear();
+        Ok(())
+    };
+    while let Some(row) = rows.next().map_err(|e| at(e.into()))? {
+        let row_id: i64 = row.get(0).map_err(|e| at(e.into()))?;
+        let topic_id: i64 = row.get(1).map_err(|e| at(e.into()))?;
+        let stamp: i64 = row.get(2).map_err(|e| at(e.into()))?;
+        let data = row
+            .get_ref(3)
+            .map_err(|e| at(e.into()))?
+            .as_blob()
+            .map_err(|e| at(rusqlite::Error::from(e).into()))?;
+        let Some(&id) = ids.get(&topic_id) else {
+            return Err(at(BagError::UnknownTopic {
+                topic_id,
+                row: row_id,
+            }));
+        };
+        let start = arena.len();
+        arena.extend_from_slice(data);
+        heads.push((id, stamp.max(0) as u64, start, arena.len()));
+        if heads.len() >= BATCH_ROWS || arena.len() >= BATCH_BYTES {
+            flush(&mut arena, &mut heads, &mut out)?;
+        }
+    }
+    flush(&mut arena, &mut heads, &mut out)?;
+    Ok(out)
+}
+
+/// What the map of an `.mcap` in `MESSAGE` mode gives: the value, or why the
+/// message did not decompress.
+enum Slot<T> {
+    Value(T),
+    Failed(String),
+}
+
+impl<T: Default> Default for Slot<T> {
+    fn default() -> Self {
+        Slot::Value(T::default())
+    }
+}
+
+/// The wanted messages of one `.mcap`, with channel ids made those of `table`.
+fn mcap_scan<T: Send + Default>(
+    plain: &Path,
+    label: &Path,
+    table: &mut ChannelTable,
+    zstd_messages: bool,
+    want: &(impl Fn(&ChannelInfo) -> bool + Sync),
+    map: &(impl Fn(&ChannelInfo, &RawMessage<'_>) -> T + Sync),
+) -> Result<(Vec<MappedMessage<T>>, ReadMode)> {
+    let file = McapFile::open(plain)?;
+    // The file's channel id -> the table's channel.
+    let mut remap: Vec<Option<u16>> = vec![None; 1 << 16];
+    for info in file.channels()?.into_values() {
+        let own = info.id;
+        remap[own as usize] = Some(table.intern(info).map_err(|r| bag_err(label, r))?);
+    }
+    let channels = &table.channels;
+    let of = |c: &ChannelInfo| remap[c.id as usize].and_then(|id| channels.get(&id));
+    let scan = file.scan_map(
+        |c| of(c).is_some_and(want),
+        |c, m| {
+            let Some(info) = of(c) else {
+                return Slot::Value(T::default());
+            };
+            match with_bytes(m.data, zstd_messages, |data| {
+                map(
+                    info,
+                    &RawMessage {
+                        channel_id: info.id,
+                        data,
+                        ..*m
+                    },
+                )
+            }) {
+                Ok(v) => Slot::Value(v),
+                Err(e) => Slot::Failed(e),
+            }
+        },
+    )?;
+    let mut out = Vec::with_capacity(scan.messages.len());
+    for (index, m) in scan.messages.into_iter().enumerate() {
+        let Some(id) = remap[m.channel_id as usize] else {
+            continue;
+        };
+        let value = match m.value {
+            Slot::Value(v) => v,
+            Slot::Failed(message) => {
+                return Err(bag_err(
+                    label,
+                    BagError::MessageData {
+                        index: index as u64,
+                        topic: channels[&id].topic.clone(),
+                        message,
+                    },
+                ))
+            }
+        };
+        out.push(MappedMessage {
+            channel_id: id,
+            sequence: m.sequence,
+            log_time: m.log_time,
+            publish_time: m.publish_time,
+            value,
+        });
+    }
+    Ok((out, scan.mode))
+}
+
+impl MessageSource for Ros2Bag {
+    fn path(&self) -> &Path {
+        &self.path
+    }
+
+    fn channels(&self) -> Result<BTreeMap<u16, ChannelInfo>> {
+        Ros2Bag::channels(self)
+    }
+
+    fn scan_map<T: Send + Default>(
+        &self,
+        want: impl Fn(&ChannelInfo) -> bool + Sync,
+        map: impl Fn(&ChannelInfo, &RawMessage<'_>) -> T + Sync,
+    ) -> Result<MappedScan<T>> {
+        Ros2Bag::scan_map(self, want, map)
+    }
+
+    fn inventory(&self) -> Result<Inventory> {
+        Ros2Bag::inventory(self)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn metadata_errors_name_the_place() {
+        assert!(matches!(
+            parse_metadata("rosbag2_bagfile_information: [1, 2"),
+            Err(BagError::Metadata { line, .. }) if line >= 1
+        ));
+        assert!(matches!(
+            parse_metadata("something_else: 1"),
+            Err(BagError::Metadata { .. })
+        ));
+        let m = parse_metadata(
+            "rosbag2_bagfile_information:\n  storage_identifier: mcap\n  relative_file_paths: [a.mcap]\n  custom_data: ~\n",
+        )
+        .unwrap();
+        assert_eq!(m.storage_identifier, "mcap");
+        assert_eq!(m.relative_file_paths, ["a.mcap"]);
+    }
+
+    #[test]
+    fn channel_ids_are_kept_per_topic() {
+        let mut t = ChannelTable::default();
+        let info = |id: u16, topic: &str| ChannelInfo {
+            id,
+            topic: topic.into(),
+            schema_name: "x/msg/Y".into(),
+            ..ChannelInfo::default()
+        };
+        assert_eq!(t.intern(info(1, "/a")).unwrap(), 1);
+        assert_eq!(t.intern(info(1, "/b")).unwrap(), 0);
+        assert_eq!(t.intern(info(7, "/a")).unwrap(), 1);
+        assert_eq!(t.intern(info(7, "/c")).unwrap(), 7);
+    }
+
+    #[test]
+    fn message_decompression_is_checked() {
+        let frame = zstd::bulk::compress(b"hello", 3).unwrap();
+        assert_eq!(with_bytes(&frame, true, |d| d.to_vec()).unwrap(), b"hello");
+        assert!(with_bytes(b"garbage!", true, |d| d.len()).is_err());
+        assert_eq!(with_bytes(b"raw", false, |d| d.len()).unwrap(), 3);
+    }
+}
