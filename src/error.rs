@@ -180,13 +180,23 @@ pub enum Error {
         /// What was expected and what was found.
         reason: crate::io::rosbag::BagError,
     },
+    /// A log whose topics cannot give what was asked (any container): a
+    /// named topic that is missing, of a type slam2world does not decode or
+    /// cannot read in that role, samples that make no trajectory.
+    #[error("{}: {reason}", path.display())]
+    Log {
+        /// The log file (or rosbag2 folder).
+        path: PathBuf,
+        /// The topic, its type and what was expected.
+        reason: crate::io::errors::LogError,
+    },
     /// A path that is no log slam2world reads (see [`crate::io::container::detect`]).
     #[error("{}: {reason}", path.display())]
     Container {
         /// The path given.
         path: PathBuf,
         /// What was found there.
-        reason: crate::io::container::ContainerError,
+        reason: crate::io::errors::ContainerError,
     },
 }
 

@@ -1,13 +1,23 @@
 //! File formats: trajectories as text (TUM, EuRoC ground truth), point clouds
 //! (PLY, x y z text), MCAP logs, ROS bags (ROS 1 `.bag`, rosbag2), reconstructions
 //! (COLMAP models, DROID-SLAM arrays).
+//!
+//! Logs of every container are read through one door, [`read_log`]
+//! ([`log`]): the container is found from the bytes ([`container`]), its
+//! reader ([`mcap`], [`rosbag`]) gives [`messages`], and one set of decoders
+//! and one assembly make the [`Log`].
 
 pub mod atomic;
 pub mod colmap;
 pub mod container;
 pub mod droid;
+pub mod errors;
+pub mod log;
 pub mod mcap;
+pub mod messages;
 pub mod npy;
 pub mod ply;
 pub mod rosbag;
 pub mod text;
+
+pub use log::{inspect_log, read_log, Inspection, Log, LogError, ReadOptions, TopicInfo};
