@@ -116,6 +116,7 @@ impl From<Error> for PyErr {
                 | Error::BinaryFormat { .. }
                 | Error::Reconstruction { .. }
                 | Error::Bag { .. }
+                | Error::Log { .. }
                 | Error::Container { .. } => &c.format,
                 Error::Io { source, .. } => {
                     // OSError(errno, strerror, filename) keeps .errno/.filename usable.
