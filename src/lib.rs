@@ -16,6 +16,7 @@ pub mod buffer;
 pub mod cli;
 pub mod cloud;
 pub mod error;
+pub mod geo;
 pub mod geometry;
 pub mod imu;
 pub mod io;
