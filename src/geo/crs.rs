@@ -29,8 +29,14 @@ impl GeoCrs {
         match name.to_ascii_lowercase().as_str() {
             "utm" => Ok(GeoCrs::Utm(zone)),
             "ecef" if zone.is_none() => Ok(GeoCrs::Ecef),
-            "ecef" => Err(Error::invalid("zone", "a UTM zone makes no sense with crs=\"ecef\"")),
-            _ => Err(Error::invalid("crs", format!("{name:?}: expected \"utm\" or \"ecef\""))),
+            "ecef" => Err(Error::invalid(
+                "zone",
+                "a UTM zone makes no sense with crs=\"ecef\"",
+            )),
+            _ => Err(Error::invalid(
+                "crs",
+                format!("{name:?}: expected \"utm\" or \"ecef\""),
+            )),
         }
     }
 }

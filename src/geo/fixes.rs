@@ -410,8 +410,9 @@ mod tests {
             (fix(-1.0, 48.0, FixStatus::Single), "time"),
         ];
         for (bad, want) in cases {
-            let e = GnssFixes::from_fixes([fix(0.0, 48.0, FixStatus::Single), bad], TimeBase::Source)
-                .unwrap_err();
+            let e =
+                GnssFixes::from_fixes([fix(0.0, 48.0, FixStatus::Single), bad], TimeBase::Source)
+                    .unwrap_err();
             match e {
                 Error::InvalidFix { index, field, .. } => {
                     assert_eq!((index, field.as_str()), (1, want))
@@ -428,7 +429,10 @@ mod tests {
             .map(|i| fix(i as f64, 48.0 + (i % 3) as f64 * 3e-6, FixStatus::Single))
             .collect();
         let s = GnssFixes::from_fixes(still, TimeBase::Source).unwrap();
-        assert!(matches!(s.to_enu(&Origin::First), Err(Error::Degenerate { .. })));
+        assert!(matches!(
+            s.to_enu(&Origin::First),
+            Err(Error::Degenerate { .. })
+        ));
         // 100 m north.
         let moving: Vec<GnssFix> = (0..20)
             .map(|i| fix(i as f64, 48.0 + i as f64 * 5e-5, FixStatus::Single))
@@ -437,7 +441,10 @@ mod tests {
         let t = m.to_enu(&Origin::First).unwrap();
         assert_eq!(t.trajectory.positions[0], Vector3::zeros());
         let last = t.trajectory.positions[19];
-        assert!(last.y > 100.0 && last.y < 110.0 && last.x.abs() < 1e-6, "{last}");
+        assert!(
+            last.y > 100.0 && last.y < 110.0 && last.x.abs() < 1e-6,
+            "{last}"
+        );
         assert!(t.trajectory.orientations.is_none());
     }
 }

@@ -67,7 +67,12 @@ pub(crate) fn check_geodetic(what: &str, index: usize, lat: f64, lon: f64, alt: 
 
 /// Geodetic (degrees, metres above the ellipsoid) to ECEF (metres).
 pub fn geodetic_to_ecef(g: &Geodetic) -> Vector3<f64> {
-    let (x, y, z) = map_3d::geodetic2ecef(g.lat.to_radians(), g.lon.to_radians(), g.alt, map_3d::Ellipsoid::WGS84);
+    let (x, y, z) = map_3d::geodetic2ecef(
+        g.lat.to_radians(),
+        g.lon.to_radians(),
+        g.alt,
+        map_3d::Ellipsoid::WGS84,
+    );
     Vector3::new(x, y, z)
 }
 
@@ -100,17 +105,7 @@ pub fn ecef_to_geodetic(p: &Vector3<f64>) -> Result<Geodetic> {
 pub fn rotation_enu_ecef(lat: f64, lon: f64) -> Matrix3<f64> {
     let (sp, cp) = lat.to_radians().sin_cos();
     let (sl, cl) = lon.to_radians().sin_cos();
-    Matrix3::new(
-        -sl,
-        cl,
-        0.0,
-        -sp * cl,
-        -sp * sl,
-        cp,
-        cp * cl,
-        cp * sl,
-        sp,
-    )
+    Matrix3::new(-sl, cl, 0.0, -sp * cl, -sp * sl, cp, cp * cl, cp * sl, sp)
 }
 
 /// A local east-north-up frame at a geodetic origin: x east, y north, z up
@@ -244,9 +239,15 @@ mod tests {
             o.alt,
             map_3d::Ellipsoid::WGS84,
         );
-        assert!((ours - Vector3::new(e, n, u)).norm() < 1e-6, "{ours} vs {e} {n} {u}");
+        assert!(
+            (ours - Vector3::new(e, n, u)).norm() < 1e-6,
+            "{ours} vs {e} {n} {u}"
+        );
         // Up really is up: a point 100 m above the origin.
-        let above = Geodetic { alt: o.alt + 100.0, ..o };
+        let above = Geodetic {
+            alt: o.alt + 100.0,
+            ..o
+        };
         assert!((f.geodetic_to_enu(&above) - Vector3::new(0.0, 0.0, 100.0)).norm() < 1e-6);
     }
 

@@ -184,9 +184,8 @@ impl UtmProjection {
         check_geodetic("position", index, g.lat, g.lon, g.alt)?;
         let lon = normalize_lon(g.lon);
         let mut p = (lon.to_radians(), g.lat.to_radians(), g.alt);
-        proj4rs::transform::transform(&self.geographic, &self.projected, &mut p).map_err(|e| {
-            self.out_of_zone(index, format!("({}, {}): {e}", g.lat, g.lon))
-        })?;
+        proj4rs::transform::transform(&self.geographic, &self.projected, &mut p)
+            .map_err(|e| self.out_of_zone(index, format!("({}, {}): {e}", g.lat, g.lon)))?;
         let v = Vector3::new(p.0, p.1, p.2);
         if v.iter().any(|c| !c.is_finite()) {
             return Err(self.out_of_zone(index, format!("({}, {})", g.lat, g.lon)));
@@ -204,9 +203,8 @@ impl UtmProjection {
             });
         }
         let mut q = (p.x, p.y, p.z);
-        proj4rs::transform::transform(&self.projected, &self.geographic, &mut q).map_err(|e| {
-            self.out_of_zone(index, format!("({}, {}): {e}", p.x, p.y))
-        })?;
+        proj4rs::transform::transform(&self.projected, &self.geographic, &mut q)
+            .map_err(|e| self.out_of_zone(index, format!("({}, {}): {e}", p.x, p.y)))?;
         let g = Geodetic {
             lat: q.1.to_degrees(),
             lon: q.0.to_degrees(),
@@ -300,7 +298,10 @@ mod tests {
             alt: 12.5,
         };
         let v = p.forward(&g, 0).unwrap();
-        assert!((v - Vector3::new(500_000.0, 0.0, 12.5)).norm() < 1e-6, "{v}");
+        assert!(
+            (v - Vector3::new(500_000.0, 0.0, 12.5)).norm() < 1e-6,
+            "{v}"
+        );
         let back = p.inverse(&v, 0).unwrap();
         assert!((back.lat - g.lat).abs() < 1e-12 && (back.lon - g.lon).abs() < 1e-12);
         let south = UtmProjection::new(UtmZone::try_new(32, Hemisphere::South).unwrap()).unwrap();

@@ -75,9 +75,7 @@ impl GnssFormat {
         let nmea = head.split(|&b| b == b'\n').any(|line| {
             line.iter().position(|&b| b == b'$').is_some_and(|i| {
                 let rest = &line[i + 1..];
-                rest.len() > 6
-                    && rest[..5].iter().all(u8::is_ascii_alphanumeric)
-                    && rest[5] == b','
+                rest.len() > 6 && rest[..5].iter().all(u8::is_ascii_alphanumeric) && rest[5] == b','
             })
         });
         Ok(if nmea {
@@ -153,10 +151,17 @@ fn open(path: &Path) -> Result<BufReader<File>> {
 /// is added to altitudes given above the geoid: every CSV altitude, and NMEA
 /// GGA altitudes whose sentence leaves its own geoid separation empty. MCAP
 /// altitudes are taken as they are (`NavSatFix` altitudes are ellipsoidal).
-pub fn read_gnss(path: impl AsRef<Path>, format: Option<GnssFormat>, geoid_offset: f64) -> Result<GnssFixes> {
+pub fn read_gnss(
+    path: impl AsRef<Path>,
+    format: Option<GnssFormat>,
+    geoid_offset: f64,
+) -> Result<GnssFixes> {
     let path = path.as_ref();
     if !geoid_offset.is_finite() {
-        return Err(Error::invalid("geoid_offset", format!("{geoid_offset}: expected finite metres")));
+        return Err(Error::invalid(
+            "geoid_offset",
+            format!("{geoid_offset}: expected finite metres"),
+        ));
     }
     let format = match format {
         Some(f) => f,
@@ -215,7 +220,10 @@ pub fn parse_gnss_csv(reader: impl BufRead, path: &Path, geoid_offset: f64) -> R
         for (k, (tok, val)) in tokens.iter().zip(&values).enumerate() {
             v[k] = val.ok_or_else(|| {
                 let name = NAMES.get(k).copied().unwrap_or("covariance");
-                lines.err(format!("column {} ({name}): {tok:?} is not a number", k + 1))
+                lines.err(format!(
+                    "column {} ({name}): {tok:?} is not a number",
+                    k + 1
+                ))
             })?;
         }
         let covariance = match n {
@@ -340,10 +348,10 @@ pub fn parse_nmea(reader: impl BufRead, path: &Path, geoid_offset: f64) -> Resul
         let sentence = line[start..].trim_end();
         let f = checked_fields(sentence, &lines)?;
         let name = f[0];
-        if name.len() < 5 {
+        // Talker (2 letters, `P` + maker for proprietary ones) then the type.
+        let Some(kind) = name.len().checked_sub(3).and_then(|k| name.get(k..)) else {
             continue;
-        }
-        let kind = &name[name.len() - 3..];
+        };
         if !matches!(kind, "GGA" | "GST" | "RMC" | "ZDA") {
             continue;
         }
@@ -366,11 +374,7 @@ pub fn parse_nmea(reader: impl BufRead, path: &Path, geoid_offset: f64) -> Resul
                 });
                 continue;
             }
-            None => {
-                return Err(lines.err(format!(
-                    "{name}: time {tod_field:?} is not hhmmss.ss"
-                )))
-            }
+            None => return Err(lines.err(format!("{name}: time {tod_field:?} is not hhmmss.ss"))),
         };
         if let Some(prev) = last_tod {
             if tod + 43_200.0 < prev {
@@ -469,7 +473,9 @@ pub fn parse_nmea(reader: impl BufRead, path: &Path, geoid_offset: f64) -> Resul
             fix.covariance = sigmas
                 .get(&epoch_key(g.day, g.tod))
                 .filter(|s| s.iter().all(|&v| v > 0.0 && v.is_finite()))
-                .map(|s| Matrix3::from_diagonal(&Vector3::new(s[0] * s[0], s[1] * s[1], s[2] * s[2])));
+                .map(|s| {
+                    Matrix3::from_diagonal(&Vector3::new(s[0] * s[0], s[1] * s[1], s[2] * s[2]))
+                });
         }
         fix
     });

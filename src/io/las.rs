@@ -57,7 +57,13 @@ pub fn write_las(
     origin: &Geodetic,
     crs: GeoCrs,
 ) -> Result<LasInfo> {
-    write_las_parts(path.as_ref(), &cloud.points, cloud.colors.as_deref(), origin, crs)
+    write_las_parts(
+        path.as_ref(),
+        &cloud.points,
+        cloud.colors.as_deref(),
+        origin,
+        crs,
+    )
 }
 
 /// [`write_las`] from the raw buffers: `points` `(N, 3)` f32 ENU metres,
@@ -90,7 +96,9 @@ pub fn write_las_parts(
             .iter()
             .skip(k)
             .step_by(3)
-            .fold((f64::INFINITY, f64::NEG_INFINITY), |(lo, hi), &v| (lo.min(v), hi.max(v)));
+            .fold((f64::INFINITY, f64::NEG_INFINITY), |(lo, hi), &v| {
+                (lo.min(v), hi.max(v))
+            });
         if n == 0 {
             continue;
         }
@@ -150,7 +158,10 @@ pub fn write_las_parts(
         las::Writer::new(Cursor::new(Vec::new()), header).map_err(|e| las_err(path, e))?;
     const BATCH: usize = 1 << 16;
     for start in (0..n).step_by(BATCH) {
-        let batch: Vec<las::Point> = (start..(start + BATCH).min(n)).into_par_iter().map(make).collect();
+        let batch: Vec<las::Point> = (start..(start + BATCH).min(n))
+            .into_par_iter()
+            .map(make)
+            .collect();
         for p in batch {
             writer.write_point(p).map_err(|e| las_err(path, e))?;
         }

@@ -88,12 +88,19 @@ mod tests {
     fn header_and_records() {
         let dir = tempfile::tempdir().unwrap();
         let path = dir.path().join("c.pcd");
-        let cloud =
-            PointCloud::try_new(vec![1.0, 2.0, 3.0, -4.0, 5.5, 6.0], Some(vec![255, 128, 1, 0, 0, 9]), None)
-                .unwrap();
+        let cloud = PointCloud::try_new(
+            vec![1.0, 2.0, 3.0, -4.0, 5.5, 6.0],
+            Some(vec![255, 128, 1, 0, 0, 9]),
+            None,
+        )
+        .unwrap();
         write_pcd(&path, &cloud).unwrap();
         let bytes = std::fs::read(&path).unwrap();
-        let text_end = bytes.windows(12).position(|w| w == b"DATA binary\n").unwrap() + 12;
+        let text_end = bytes
+            .windows(12)
+            .position(|w| w == b"DATA binary\n")
+            .unwrap()
+            + 12;
         let header = std::str::from_utf8(&bytes[..text_end]).unwrap();
         assert!(header.contains("FIELDS x y z rgb\n") && header.contains("POINTS 2\n"));
         let data = &bytes[text_end..];

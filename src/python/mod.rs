@@ -9,6 +9,7 @@ mod cloud;
 mod convert;
 mod core;
 mod errors;
+mod geo;
 mod geometry;
 mod imu;
 mod map;
@@ -28,5 +29,6 @@ fn _slam2world(m: &Bound<'_, PyModule>) -> PyResult<()> {
     cli::register(m)?;
     mcap::register(m)?;
     imu::register(m)?;
+    geo::register(m)?;
     Ok(())
 }

@@ -89,7 +89,9 @@ impl MessageKind {
             MessageKind::Keyframe => "SLAM keyframes (pose, camera, inverse depth)",
             MessageKind::KeyframeGraph => "SLAM keyframe pose updates",
             MessageKind::Imu => "raw IMU samples",
-            MessageKind::NavSatFix | MessageKind::LocationFix => "GNSS fixes (latitude, longitude, altitude)",
+            MessageKind::NavSatFix | MessageKind::LocationFix => {
+                "GNSS fixes (latitude, longitude, altitude)"
+            }
             MessageKind::Tf => "reference poses (one parent/child pair)",
             _ => "reference poses",
         }

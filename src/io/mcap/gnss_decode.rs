@@ -194,8 +194,9 @@ fn location_fix_protobuf(data: &[u8]) -> WireResult<LocationFixMsg> {
                     ));
                 }
                 cov.extend(
-                    b.chunks_exact(8)
-                        .map(|c| f64::from_le_bytes([c[0], c[1], c[2], c[3], c[4], c[5], c[6], c[7]])),
+                    b.chunks_exact(8).map(|c| {
+                        f64::from_le_bytes([c[0], c[1], c[2], c[3], c[4], c[5], c[6], c[7]])
+                    }),
                 );
             }
             (4, v) => {
@@ -275,11 +276,19 @@ fn location_fix_json(data: &[u8]) -> WireResult<LocationFixMsg> {
             "APPROXIMATED" => 1,
             "DIAGONAL_KNOWN" => 2,
             "KNOWN" => 3,
-            other => return Err(format!("position_covariance_type {other:?} is not a known name")),
+            other => {
+                return Err(format!(
+                    "position_covariance_type {other:?} is not a known name"
+                ))
+            }
         },
     };
     let mut position_covariance = [0.0; 9];
-    set_covariance(&mut position_covariance, &j.position_covariance, covariance_type)?;
+    set_covariance(
+        &mut position_covariance,
+        &j.position_covariance,
+        covariance_type,
+    )?;
     let time = j
         .timestamp
         .map_or(0.0, |t| t.sec as f64 + t.nsec as f64 * 1e-9);
@@ -353,6 +362,7 @@ pub fn read_gnss_mcap(path: impl AsRef<Path>, topic: Option<&str>) -> Result<Gns
         None => {
             let c: Vec<&ChannelInfo> = channels.values().filter(|c| is_gnss(c)).collect();
             let mut topics: Vec<&str> = c.iter().map(|c| c.topic.as_str()).collect();
+            topics.sort_unstable();
             topics.dedup();
             match topics.len() {
                 0 => {
@@ -378,7 +388,10 @@ pub fn read_gnss_mcap(path: impl AsRef<Path>, topic: Option<&str>) -> Result<Gns
             continue;
         };
         let kind = MessageKind::from_schema(&c.schema_name).ok_or_else(|| {
-            err(format!("topic {}: schema {:?} is not GNSS", c.topic, c.schema_name))
+            err(format!(
+                "topic {}: schema {:?} is not GNSS",
+                c.topic, c.schema_name
+            ))
         })?;
         let fix = gnss_fix(kind, &c.message_encoding, m.data).map_err(|e| {
             err(format!(
@@ -405,7 +418,9 @@ mod tests {
         m.extend_from_slice(b"/gps");
         m.push(status as u8);
         m.extend_from_slice(&1u16.to_le_bytes());
-        for v in [42.5, -71.1, 12.0, 0.81, 0.0, 0.0, 0.0, 0.81, 0.0, 0.0, 0.0, 3.24] {
+        for v in [
+            42.5, -71.1, 12.0, 0.81, 0.0, 0.0, 0.0, 0.81, 0.0, 0.0, 0.0, 3.24,
+        ] {
             m.extend_from_slice(&f64::to_le_bytes(v));
         }
         m.push(cov_type);
@@ -422,9 +437,16 @@ mod tests {
         let f = m.to_fix();
         assert_eq!(f.status, FixStatus::Differential);
         assert_eq!(f.covariance.unwrap()[(2, 2)], 3.24);
-        assert!(navsatfix("ros1", &ros1_navsatfix(0, 0)).unwrap().to_fix().covariance.is_none());
+        assert!(navsatfix("ros1", &ros1_navsatfix(0, 0))
+            .unwrap()
+            .to_fix()
+            .covariance
+            .is_none());
         assert_eq!(
-            navsatfix("ros1", &ros1_navsatfix(-1, 0)).unwrap().to_fix().status,
+            navsatfix("ros1", &ros1_navsatfix(-1, 0))
+                .unwrap()
+                .to_fix()
+                .status,
             FixStatus::NoFix
         );
         let full = ros1_navsatfix(0, 2);
