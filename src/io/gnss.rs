@@ -204,9 +204,9 @@ pub fn parse_gnss_csv(reader: impl BufRead, path: &Path, geoid_offset: f64) -> R
         }
         seen_row = true;
         let n = tokens.len();
-        if !matches!(n, 4 | 7 | 10) {
+        if !matches!(n, 4 | 7 | 13) {
             return Err(lines.err(format!(
-                "{n} columns: expected time, lat, lon, alt and optionally 3 variances or 9 covariance values (4, 7 or 10)"
+                "{n} columns: expected time, lat, lon, alt and optionally 3 variances or 9 covariance values (4, 7 or 13)"
             )));
         }
         match columns {
@@ -216,7 +216,7 @@ pub fn parse_gnss_csv(reader: impl BufRead, path: &Path, geoid_offset: f64) -> R
             }
             _ => {}
         }
-        let mut v = [0.0; 10];
+        let mut v = [0.0; 13];
         for (k, (tok, val)) in tokens.iter().zip(&values).enumerate() {
             v[k] = val.ok_or_else(|| {
                 let name = NAMES.get(k).copied().unwrap_or("covariance");
@@ -228,7 +228,7 @@ pub fn parse_gnss_csv(reader: impl BufRead, path: &Path, geoid_offset: f64) -> R
         }
         let covariance = match n {
             7 => Some(Matrix3::from_diagonal(&Vector3::new(v[4], v[5], v[6]))),
-            10 => Some(Matrix3::from_row_slice(&v[4..10])),
+            13 => Some(Matrix3::from_row_slice(&v[4..13])),
             _ => None,
         };
         fixes.push(GnssFix {
@@ -338,10 +338,7 @@ pub fn parse_nmea(reader: impl BufRead, path: &Path, geoid_offset: f64) -> Resul
     let mut date: Option<(u32, i64)> = None;
     let mut day = 0u32;
     let mut last_tod: Option<f64> = None;
-    loop {
-        let Some(line) = lines.next_line()? else {
-            break;
-        };
+    while let Some(line) = lines.next_line()? {
         let Some(start) = line.find('$') else {
             continue;
         };

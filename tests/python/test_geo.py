@@ -304,6 +304,13 @@ def test_csv_written_by_numpy(tmp_path: Path) -> None:
     g = s2w.read_gnss(txt, format="csv", geoid_offset=-33.0)
     np.testing.assert_allclose(g.alt, alt - 33.0)
     assert g.covariance is None
+    full = tmp_path / "full.csv"
+    cov = np.array([[4.0, 1.0, 0.0], [1.0, 4.0, 0.5], [0.0, 0.5, 9.0]])
+    np.savetxt(full, np.column_stack([t, lat, lon, alt, np.tile(cov.ravel(), (6, 1))]), fmt="%.10g")
+    h = s2w.read_gnss(full)
+    c = h.covariance
+    assert c is not None
+    np.testing.assert_array_equal(c, np.broadcast_to(cov, (6, 3, 3)))
     with pytest.raises(s2w.InvalidInputError, match="format"):
         s2w.read_gnss(txt, format="gpx")
 
