@@ -12,6 +12,7 @@ use numpy::{
     PyReadonlyArray2, PyUntypedArrayMethods,
 };
 use pyo3::prelude::*;
+use rayon::prelude::*;
 
 use super::convert::{rows_f64, to_array2};
 use super::core::PyTrajectory;
@@ -375,7 +376,7 @@ fn geodetic_to_enu_py<'py>(
     let origin = origin_arg(origin)?;
     let out = py.detach(|| -> crate::Result<Vec<Vector3<f64>>> {
         let frame = EnuFrame::new(origin.resolve(&g)?)?;
-        Ok(g.iter().map(|p| frame.geodetic_to_enu(p)).collect())
+        Ok(g.par_iter().map(|p| frame.geodetic_to_enu(p)).collect())
     })?;
     rows_out(py, &out)
 }
@@ -390,7 +391,7 @@ fn enu_to_geodetic_py<'py>(
     let p = vectors(enu, "enu")?;
     let frame = EnuFrame::new(position(origin, "origin")?)?;
     let g = py.detach(|| {
-        p.iter()
+        p.par_iter()
             .map(|v| frame.enu_to_geodetic(v))
             .collect::<crate::Result<Vec<_>>>()
     })?;
@@ -406,7 +407,7 @@ fn geodetic_to_ecef_py<'py>(
     alt: &Bound<'py, PyAny>,
 ) -> PyResult<Bound<'py, PyArray2<f64>>> {
     let g = geodetic_columns(lat, lon, alt)?;
-    let out: Vec<Vector3<f64>> = py.detach(|| g.iter().map(geo::geodetic_to_ecef).collect());
+    let out: Vec<Vector3<f64>> = py.detach(|| g.par_iter().map(geo::geodetic_to_ecef).collect());
     rows_out(py, &out)
 }
 
@@ -415,7 +416,7 @@ fn geodetic_to_ecef_py<'py>(
 fn ecef_to_geodetic_py<'py>(py: Python<'py>, ecef: &Bound<'py, PyAny>) -> PyResult<Columns<'py>> {
     let p = vectors(ecef, "ecef")?;
     let g = py.detach(|| {
-        p.iter()
+        p.par_iter()
             .map(geo::ecef_to_geodetic)
             .collect::<crate::Result<Vec<_>>>()
     })?;
