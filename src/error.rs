@@ -162,6 +162,22 @@ pub enum Error {
         /// What is missing or inconsistent, with the ids and counts involved.
         reason: String,
     },
+    /// A GNSS fix or geodetic position with a field outside its domain (NaN
+    /// latitude, latitude beyond ±90°, non-finite or decreasing time, a
+    /// covariance that is not one).
+    #[error("{what} {index}: {field} = {value}, expected {expected}")]
+    InvalidFix {
+        /// What holds the value (`fix`, `origin`, `position`).
+        what: String,
+        /// Index of the fix or position (0 for a single value).
+        index: usize,
+        /// The field (`time`, `latitude`, `longitude`, `altitude`, `covariance`).
+        field: String,
+        /// The value found.
+        value: f64,
+        /// What was expected.
+        expected: String,
+    },
     /// An MCAP log that cannot be read or decoded.
     #[error("{}: {reason}", path.display())]
     Mcap {

@@ -3,7 +3,7 @@
 import os
 import pathlib
 from collections.abc import Iterable, Sequence
-from typing import Any, final, overload
+from typing import Any, Literal, final, overload
 
 import numpy as np
 import numpy.typing as npt
@@ -486,6 +486,16 @@ class PointCloud:
     def __len__(self) -> int: ...
     def transformed(self, transform: Sim3) -> PointCloud: ...
     def write_ply(self, path: _Path) -> None: ...
+    def write_las(
+        self,
+        path: _Path,
+        *,
+        origin: tuple[float, float, float],
+        crs: Literal["utm", "ecef"] | str = "utm",
+        zone: int | None = None,
+        hemisphere: Literal["north", "south"] | None = None,
+    ) -> int: ...
+    def write_pcd(self, path: _Path) -> None: ...
 
 def backproject(
     keyframes: Iterable[Keyframe],
@@ -784,3 +794,68 @@ class TextInfo:
 def read_trajectory(
     path: _Path, *, time_unit: str | None = None
 ) -> tuple[Trajectory, TextInfo]: ...
+# ---------------------------------------------------------------- geodesy and GNSS
+
+_Origin = Literal["first", "mean"] | tuple[float, float, float] | Sequence[float]
+_Columns = tuple[npt.NDArray[np.float64], npt.NDArray[np.float64], npt.NDArray[np.float64]]
+
+@final
+class GnssFixes:
+    def __new__(
+        cls,
+        times: _ArrayLike,
+        lat: _ArrayLike,
+        lon: _ArrayLike,
+        alt: _ArrayLike,
+        covariance: _ArrayLike | None = None,
+        status: Sequence[str] | None = None,
+    ) -> GnssFixes: ...
+    @property
+    def times(self) -> npt.NDArray[np.float64]: ...
+    @property
+    def lat(self) -> npt.NDArray[np.float64]: ...
+    @property
+    def lon(self) -> npt.NDArray[np.float64]: ...
+    @property
+    def alt(self) -> npt.NDArray[np.float64]: ...
+    @property
+    def covariance(self) -> npt.NDArray[np.float64] | None: ...
+    @property
+    def status(self) -> list[str]: ...
+    @property
+    def dropped_no_fix(self) -> int: ...
+    @property
+    def time_base(self) -> str: ...
+    def __len__(self) -> int: ...
+    def weights(self) -> npt.NDArray[np.float64] | None: ...
+    def to_enu(
+        self, origin: _Origin | None = None
+    ) -> tuple[Trajectory, npt.NDArray[np.float64] | None, tuple[float, float, float]]: ...
+
+def read_gnss(
+    path: _Path,
+    *,
+    format: Literal["nmea", "csv", "txt", "mcap"] | str | None = None,
+    geoid_offset: float = 0.0,
+) -> GnssFixes: ...
+def geodetic_to_enu(
+    lat: _ArrayLike, lon: _ArrayLike, alt: _ArrayLike, origin: _Origin
+) -> npt.NDArray[np.float64]: ...
+def enu_to_geodetic(
+    enu: _ArrayLike, origin: tuple[float, float, float] | Sequence[float]
+) -> _Columns: ...
+def geodetic_to_ecef(
+    lat: _ArrayLike, lon: _ArrayLike, alt: _ArrayLike
+) -> npt.NDArray[np.float64]: ...
+def ecef_to_geodetic(ecef: _ArrayLike) -> _Columns: ...
+def geodetic_to_utm(
+    lat: _ArrayLike,
+    lon: _ArrayLike,
+    alt: _ArrayLike,
+    zone: int | None = None,
+    *,
+    hemisphere: Literal["north", "south"] | None = None,
+) -> tuple[npt.NDArray[np.float64], int, str, int]: ...
+def utm_to_geodetic(
+    xyz: _ArrayLike, zone: int, hemisphere: Literal["north", "south"] | str = "north"
+) -> _Columns: ...

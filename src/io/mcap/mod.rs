@@ -3,6 +3,7 @@
 //! - [`reader`]: the container, over a memory map (indexed or linear, chunks
 //!   decompressed in parallel);
 //! - [`decode`] / [`wire`]: message decoders (ROS 1, ROS 2 CDR, protobuf, JSON);
+//!   [`gnss_decode`]: `NavSatFix` / `LocationFix` into GNSS fixes;
 //! - [`log`]: [`read_mcap`] into [`Log`] (keyframes, reference, IMU, topics);
 //! - [`write`]: `world.mcap` ([`write_world_mcap`]) and the SLAM-side log
 //!   ([`write_slam_log`]).
@@ -10,6 +11,7 @@
 //! MCAP times are `u64` nanoseconds; everything else is seconds and metres.
 
 pub mod decode;
+pub mod gnss_decode;
 pub mod log;
 pub mod reader;
 pub mod schemas;
