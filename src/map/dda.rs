@@ -53,7 +53,12 @@ pub(crate) fn ray_keys(
         return true;
     }
     visit(ko);
-    let (dir, length) = direction(origin, end);
+    // OctoMap's f32 direction, widened exactly; in f64 where its f32
+    // arithmetic breaks down (see `direction`).
+    let (dir, length) = match direction(origin, end) {
+        Some((d, l)) => (d.map(f64::from), l),
+        None => direction_f64(origin, end),
+    };
     let mut step = [0i32; 3];
     let mut t_max = [f64::MAX; 3];
     let mut t_delta = [f64::MAX; 3];
@@ -77,6 +82,11 @@ pub(crate) fn ray_keys(
         } else {
             2
         };
+        if step[dim] == 0 {
+            // Every axis the ray moves along is beyond f64::MAX: no crossing
+            // left (only reachable through overflow; OctoMap would spin).
+            return true;
+        }
         cur[dim] += step[dim];
         t_max[dim] += t_delta[dim];
         if cur == end_k {
@@ -91,19 +101,39 @@ pub(crate) fn ray_keys(
 }
 
 /// OctoMap's normalised `f32` direction of `end − origin` and the segment's
-/// length (the `f32` norm, widened to `f64`).
+/// length (the `f32` norm, widened to `f64`), or `None` where that `f32`
+/// arithmetic breaks down: a squared length that underflows to zero (a
+/// segment shorter than about 1e-19 m, e.g. from `(0, 0, 0)` to
+/// `(-1e-30, 1e-30, 0)`, which still crosses a voxel face) or overflows, or
+/// a squared length below `f32::MIN_POSITIVE`, whose root is too coarse to
+/// normalise with. OctoMap divides by the zero or infinite length there and
+/// steps a NaN direction forever.
 #[inline]
-fn direction(origin: [f32; 3], end: [f32; 3]) -> ([f32; 3], f64) {
+fn direction(origin: [f32; 3], end: [f32; 3]) -> Option<([f32; 3], f64)> {
     let mut dir = [end[0] - origin[0], end[1] - origin[1], end[2] - origin[2]];
+    let sq = dir[0] * dir[0] + dir[1] * dir[1] + dir[2] * dir[2];
+    if !(sq >= f32::MIN_POSITIVE && sq.is_finite()) {
+        return None;
+    }
     let length = f32_norm(dir) as f32;
     for d in &mut dir {
         *d /= length;
     }
-    (dir, length as f64)
+    Some((dir, length as f64))
+}
+
+/// The direction and length of `end − origin` in `f64`, where the `f32`
+/// arithmetic of [`direction`] breaks down: exact differences of the `f32`
+/// points, whose squares neither underflow nor overflow in `f64`. Finite,
+/// and non-zero along every axis where the points differ.
+fn direction_f64(origin: [f32; 3], end: [f32; 3]) -> ([f64; 3], f64) {
+    let d = [0, 1, 2].map(|i| f64::from(end[i]) - f64::from(origin[i]));
+    let length = (d[0] * d[0] + d[1] * d[1] + d[2] * d[2]).sqrt();
+    (d.map(|v| v / length), length)
 }
 
 #[inline]
-fn step_sign(d: f32) -> i32 {
+fn step_sign(d: f64) -> i32 {
     if d > 0.0 {
         1
     } else if d < 0.0 {
@@ -116,13 +146,10 @@ fn step_sign(d: f32) -> i32 {
 /// Distance to the first crossing of axis `i` and between crossings
 /// (OctoMap's `tMax` / `tDelta`) for a ray leaving voxel key `k`.
 #[inline]
-fn crossings(k: u16, origin: f32, dir: f32, step: i32, resolution: f64) -> (f64, f64) {
+fn crossings(k: u16, origin: f32, dir: f64, step: i32, resolution: f64) -> (f64, f64) {
     let mut border = key_to_coord(k, resolution);
     border += (step as f64 * resolution * 0.5) as f32 as f64;
-    (
-        (border - origin as f64) / dir as f64,
-        resolution / (dir as f64).abs(),
-    )
+    ((border - origin as f64) / dir, resolution / dir.abs())
 }
 
 /// A box of keys laid out as a bitset: x fastest, each x row padded to whole
@@ -262,7 +289,10 @@ impl Lane {
         if ko == ke {
             return Prepared::Empty;
         }
-        let (dir, len) = direction(origin, end);
+        // Rays whose f32 direction breaks down go through `ray_keys`.
+        let Some((dir, len)) = direction(origin, end) else {
+            return Prepared::Slow;
+        };
         if len > MAX_BATCHED_VOXELS * resolution
             || !len.is_finite()
             || !layout.holds_around(ko, LAYOUT_MARGIN)
@@ -283,7 +313,7 @@ impl Lane {
             len,
         };
         // `crossings` for the three axes, its six divisions side by side.
-        let step = dir.map(step_sign);
+        let step = dir.map(|d| step_sign(f64::from(d)));
         let mut num = [resolution; 6];
         let mut den = [1.0f64; 6];
         for i in 0..3 {

@@ -66,10 +66,15 @@ fn ray_end(p: [f32; 3], origin: [f32; 3], max_range: Option<f64>) -> ([f32; 3], 
             // OctoMap: direction = (p - origin).normalized(); origin + direction * (float) maxrange
             let len = f32_norm(d);
             let l = len as f32;
-            let dir = if len > 0.0 {
+            let dir = if l > 0.0 && l.is_finite() {
                 [d[0] / l, d[1] / l, d[2] / l]
             } else {
-                d
+                // The f32 squared length overflowed (|d| > 1.8e19): OctoMap's
+                // direction would be zero. Normalise in f64 instead (exact
+                // differences of the f32 points).
+                let d64 = [0, 1, 2].map(|i| f64::from(p[i]) - f64::from(origin[i]));
+                let n = (d64[0] * d64[0] + d64[1] * d64[1] + d64[2] * d64[2]).sqrt();
+                d64.map(|v| (v / n) as f32)
             };
             let m = m as f32;
             (
