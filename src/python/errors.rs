@@ -106,7 +106,8 @@ impl From<Error> for PyErr {
                 | Error::NonFinite { .. }
                 | Error::TooFew { .. }
                 | Error::InvalidArgument { .. }
-                | Error::OutOfRange { .. } => &c.invalid,
+                | Error::OutOfRange { .. }
+                | Error::TooLarge { .. } => &c.invalid,
                 Error::Degenerate { .. } => &c.degenerate,
                 Error::Parse { .. } | Error::Mcap { .. } => &c.format,
                 Error::Io { source, .. } => {
