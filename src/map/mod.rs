@@ -93,6 +93,13 @@ impl OccupancyMap {
                 format!("{r} is not a positive length"),
             ));
         }
+        // Keys need a finite 1/r, voxel centres a finite extent of the tree.
+        if !((1.0 / r).is_finite() && (r * 65536.0).is_finite()) {
+            return Err(Error::invalid(
+                "resolution",
+                format!("{r} m gives no finite octree (keys or extent overflow)"),
+            ));
+        }
         let open = |what: &str, p: f64| -> Result<()> {
             if p > 0.0 && p < 1.0 {
                 Ok(())
