@@ -11,6 +11,7 @@
 //! converted cloud); sensor origins are camera centres in that frame.
 
 mod dda;
+pub mod grid;
 mod insert;
 mod io;
 pub mod key;
@@ -20,6 +21,7 @@ mod tree;
 use crate::error::{Error, Result};
 use tree::{LogOdds, Tree};
 
+pub use grid::{CellState, Grid2d, MAX_GRID_CELLS};
 pub use query::VoxelState;
 
 /// Parameters of the sensor model (probabilities in `(0, 1)`).
