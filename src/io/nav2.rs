@@ -94,11 +94,12 @@ fn check_threshold(threshold: f64) -> Result<()> {
     }
 }
 
-/// The trinary pixel of a cell of probability `p` (NaN unknown).
-fn pixel(p: f32, threshold: f64) -> u8 {
+/// The trinary pixel of a cell of probability `p` (NaN unknown), compared
+/// with the threshold in `f32` as [`Grid2d::states`] does.
+fn pixel(p: f32, threshold: f32) -> u8 {
     if p.is_nan() {
         PIXEL_UNKNOWN
-    } else if f64::from(p) >= threshold {
+    } else if p >= threshold {
         PIXEL_OCCUPIED
     } else {
         PIXEL_FREE
@@ -114,7 +115,7 @@ pub fn pgm_bytes(grid: &Grid2d, occupied_threshold: f64) -> Result<Vec<u8>> {
     let mut out = Vec::with_capacity(header.len() + grid.width * grid.height);
     out.extend_from_slice(header.as_bytes());
     for row in grid.probability.chunks_exact(grid.width).rev() {
-        out.extend(row.iter().map(|&p| pixel(p, occupied_threshold)));
+        out.extend(row.iter().map(|&p| pixel(p, occupied_threshold as f32)));
     }
     Ok(out)
 }

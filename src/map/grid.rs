@@ -104,15 +104,18 @@ impl Grid2d {
     }
 
     /// State of every cell: occupied where the probability is at least
-    /// `threshold`, free where known and below, unknown where NaN. The map's
-    /// own rule (and that of its `.bt` files and `state()`) is 0.5.
+    /// `threshold` (compared in `f32`, the cells' type, so that 0.7 takes a
+    /// voxel hit once with `prob_hit` 0.7), free where known and below,
+    /// unknown where NaN. The map's own rule (and that of its `.bt` files and
+    /// `state()`) is 0.5.
     pub fn states(&self, threshold: f64) -> Vec<CellState> {
+        let t = threshold as f32;
         self.probability
             .iter()
             .map(|&p| {
                 if p.is_nan() {
                     CellState::Unknown
-                } else if f64::from(p) >= threshold {
+                } else if p >= t {
                     CellState::Occupied
                 } else {
                     CellState::Free

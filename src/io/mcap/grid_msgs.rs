@@ -76,7 +76,8 @@ pub enum CellValues {
     /// The occupancy probability in percent, rounded (`0..=100`), as the
     /// message documents; `-1` unknown.
     Probability,
-    /// `100` where the probability is at least `occupied`, `0` elsewhere
+    /// `100` where the probability is at least `occupied` (compared in `f32`),
+    /// `0` elsewhere
     /// known, `-1` unknown (what `map_server` publishes; nav2's costmap with
     /// `trinary_costmap: true` treats every value below its
     /// `lethal_cost_threshold`, 100 by default, as free).
@@ -99,7 +100,7 @@ pub fn occupancy_grid_data(grid: &Grid2d, values: CellValues) -> Vec<i8> {
                         (f64::from(p) * 100.0).round().clamp(0.0, 100.0) as i8
                     }
                     CellValues::Trinary { occupied } => {
-                        if f64::from(p) >= occupied {
+                        if p >= occupied as f32 {
                             100
                         } else {
                             0
