@@ -71,10 +71,12 @@ fn tiny_rays_return_through_insert_keyframes() {
     assert_eq!(m.state([-0.05, 0.05, 0.05]), VoxelState::Occupied);
 }
 
+/// A ray case: origin, point, resolution, max range.
+type Case = ([f32; 3], [f32; 3], f64, Option<f64>);
+
 #[test]
 fn zero_denormal_and_huge_rays_return() {
-    // (origin, point, resolution, max range)
-    let cases: Vec<([f32; 3], [f32; 3], f64, Option<f64>)> = vec![
+    let cases: Vec<Case> = vec![
         ([0.0; 3], [0.0; 3], 0.1, None),                    // zero length
         ([0.0; 3], [-0.0, 0.0, -0.0], 0.1, Some(1.0)),      // signed zeros
         ([-1e-45, 0.0, 0.0], [1e-45, 0.0, 0.0], 0.1, None), // denormal, across x = 0

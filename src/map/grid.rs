@@ -234,7 +234,7 @@ fn frontier(t: &Tree, band: (u32, u32), want: usize) -> Vec<(Node, [u32; 3], u32
             let half = 1u32 << (TREE_DEPTH - depth - 1);
             for (i, c) in t.children(node).iter().enumerate() {
                 let k = child_base(base, i, half);
-                if c.exists() && k[2] <= band.1 && k[2] + 2 * half - 1 >= band.0 {
+                if c.exists() && k[2] <= band.1 && k[2] + 2 * half > band.0 {
                     next.push((*c, k, depth + 1));
                 }
             }

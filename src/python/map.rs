@@ -530,7 +530,7 @@ impl PyGrid {
             .collect();
         let shape = r.shape().to_vec();
         let a = v.into_pyarray(py);
-        Ok(a.reshape([shape[0], shape[1]])?)
+        a.reshape([shape[0], shape[1]])
     }
 }
 
