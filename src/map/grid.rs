@@ -309,14 +309,12 @@ impl OccupancyMap {
         if leaves.is_empty() {
             return Ok(empty);
         }
-        // Cell index of a key along x or y (cells aligned to world multiples).
-        let f = i64::from(factor);
-        let cell_of = |k: u32| (i64::from(k) - i64::from(TREE_MAX_VAL)).div_euclid(f);
+        let cells_of = CellIndex::new(factor);
         let (mut lo, mut hi) = ([i64::MAX; 2], [i64::MIN; 2]);
         for l in &leaves {
             for (a, k) in [l.x, l.y].into_iter().enumerate() {
-                lo[a] = lo[a].min(cell_of(k));
-                hi[a] = hi[a].max(cell_of(k + l.n - 1));
+                lo[a] = lo[a].min(cells_of.of(k));
+                hi[a] = hi[a].max(cells_of.of(k + l.n - 1));
             }
         }
         let width = (hi[0] - lo[0] + 1) as u64;
@@ -336,36 +334,10 @@ impl OccupancyMap {
         // converted to probability and metres at the end.
         let mut prob = vec![f32::NEG_INFINITY; width * height];
         let mut top = vec![-1.0f32; width * height];
-        let span = |l: &BandLeaf, a: usize| {
-            let k = if a == 0 { l.x } else { l.y };
-            (
-                (cell_of(k) - lo[a]) as usize,
-                (cell_of(k + l.n - 1) - lo[a]) as usize,
-            )
-        };
-        let fill = |rows: std::ops::Range<usize>,
-                    prob: &mut [f32],
-                    top: &mut [f32],
-                    leaves: &mut dyn Iterator<Item = &BandLeaf>| {
-            for l in leaves {
-                let (c0, c1) = span(l, 0);
-                let (r0, r1) = span(l, 1);
-                for r in r0.max(rows.start)..=r1.min(rows.end - 1) {
-                    let row = (r - rows.start) * width;
-                    for c in c0..=c1 {
-                        let i = row + c;
-                        if l.value > prob[i] {
-                            prob[i] = l.value;
-                        }
-                        if let Some(t) = l.top {
-                            let t = t as f32;
-                            if t > top[i] {
-                                top[i] = t;
-                            }
-                        }
-                    }
-                }
-            }
+        let fill = Fill {
+            cells: cells_of,
+            lo,
+            width,
         };
         if leaves.len() >= PAR_MIN_LEAVES && threads > 1 && height > 1 {
             // Row stripes, each with the leaves that reach into it.
@@ -373,7 +345,7 @@ impl OccupancyMap {
             let n_stripes = height.div_ceil(stripe);
             let mut buckets: Vec<Vec<u32>> = vec![Vec::new(); n_stripes];
             for (i, l) in leaves.iter().enumerate() {
-                let (r0, r1) = span(l, 1);
+                let (r0, r1) = fill.span(l.y, l.n, 1);
                 for b in &mut buckets[r0 / stripe..=r1 / stripe] {
                     b.push(i as u32);
                 }
@@ -384,10 +356,10 @@ impl OccupancyMap {
                 .enumerate()
                 .for_each(|(s, ((p, t), b))| {
                     let rows = s * stripe..(s * stripe + p.len() / width);
-                    fill(rows, p, t, &mut b.iter().map(|&i| &leaves[i as usize]));
+                    fill.run(rows, p, t, b.iter().map(|&i| &leaves[i as usize]));
                 });
         } else {
-            fill(0..height, &mut prob, &mut top, &mut leaves.iter());
+            fill.run(0..height, &mut prob, &mut top, leaves.iter());
         }
         let to_out = |(p, t): (&mut f32, &mut f32)| {
             *p = if *p == f32::NEG_INFINITY {
@@ -415,6 +387,87 @@ impl OccupancyMap {
             probability: prob,
             top_z: top,
         })
+    }
+}
+
+/// Cell index along x or y of a key: `floor((k − 32768) / f)` for cells of
+/// `f` voxels aligned to world multiples; a shift where `f` is a power of two.
+#[derive(Clone, Copy, Debug)]
+struct CellIndex {
+    f: i64,
+    shift: Option<u32>,
+}
+
+impl CellIndex {
+    fn new(f: u32) -> Self {
+        CellIndex {
+            f: i64::from(f),
+            shift: f.is_power_of_two().then(|| f.trailing_zeros()),
+        }
+    }
+
+    #[inline]
+    fn of(&self, k: u32) -> i64 {
+        let v = i64::from(k) - i64::from(TREE_MAX_VAL);
+        match self.shift {
+            Some(s) => v >> s,
+            None => v.div_euclid(self.f),
+        }
+    }
+}
+
+/// The fill of the cell layers from band leaves.
+#[derive(Clone, Copy, Debug)]
+struct Fill {
+    cells: CellIndex,
+    /// Cell index of column 0 and row 0.
+    lo: [i64; 2],
+    width: usize,
+}
+
+impl Fill {
+    /// First and last column (`axis` 0) or row (1) of a leaf from key `k`, `n` keys wide.
+    #[inline]
+    fn span(&self, k: u32, n: u32, axis: usize) -> (usize, usize) {
+        (
+            (self.cells.of(k) - self.lo[axis]) as usize,
+            (self.cells.of(k + n - 1) - self.lo[axis]) as usize,
+        )
+    }
+
+    /// Fills rows `rows` (`prob` and `top` hold exactly those rows) with the
+    /// leaves' log-odds (maximum) and top z keys (maximum).
+    fn run<'a>(
+        &self,
+        rows: std::ops::Range<usize>,
+        prob: &mut [f32],
+        top: &mut [f32],
+        leaves: impl Iterator<Item = &'a BandLeaf>,
+    ) {
+        let w = self.width;
+        for l in leaves {
+            let t = l.top.map_or(-1.0, |t| t as f32);
+            if l.n == 1 {
+                // A voxel: one cell (the common case).
+                let (c, _) = self.span(l.x, 1, 0);
+                let (r, _) = self.span(l.y, 1, 1);
+                if rows.contains(&r) {
+                    let i = (r - rows.start) * w + c;
+                    prob[i] = prob[i].max(l.value);
+                    top[i] = top[i].max(t);
+                }
+                continue;
+            }
+            let (c0, c1) = self.span(l.x, l.n, 0);
+            let (r0, r1) = self.span(l.y, l.n, 1);
+            for r in r0.max(rows.start)..=r1.min(rows.end - 1) {
+                let row = (r - rows.start) * w;
+                for i in row + c0..=row + c1 {
+                    prob[i] = prob[i].max(l.value);
+                    top[i] = top[i].max(t);
+                }
+            }
+        }
     }
 }
 
