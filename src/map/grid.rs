@@ -380,7 +380,9 @@ impl OccupancyMap {
         }
         Ok(Grid2d {
             resolution: cell,
-            origin: [lo[0] as f64 * cell, lo[1] as f64 * cell],
+            // The corner key's boundary as the key rule has it (x · (1/r)
+            // crossing an integer): -2.4, not -24 · 0.1 = -2.4000000000000004.
+            origin: lo.map(|c| (c * i64::from(factor)) as f64 / self.resolution_factor),
             width,
             height,
             z_band: [z_min, z_max],
