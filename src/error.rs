@@ -178,6 +178,18 @@ pub enum Error {
         /// What was expected.
         expected: String,
     },
+    /// A result that would hold more items than a bound allows (a pruned
+    /// octree leaf expanded voxel by voxel, a grid over a huge extent);
+    /// refused before anything is allocated.
+    #[error("{what}: {count} items exceed the limit of {limit}")]
+    TooLarge {
+        /// What would have been built.
+        what: String,
+        /// How many items it would hold.
+        count: u64,
+        /// The bound.
+        limit: u64,
+    },
     /// An MCAP log that cannot be read or decoded.
     #[error("{}: {reason}", path.display())]
     Mcap {

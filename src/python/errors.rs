@@ -109,7 +109,8 @@ impl From<Error> for PyErr {
                 | Error::InvalidArgument { .. }
                 | Error::OutOfRange { .. }
                 | Error::GravityTilted { .. }
-                | Error::InvalidFix { .. } => &c.invalid,
+                | Error::InvalidFix { .. }
+                | Error::TooLarge { .. } => &c.invalid,
                 Error::Degenerate { .. } => &c.degenerate,
                 Error::Parse { .. }
                 | Error::Mcap { .. }
