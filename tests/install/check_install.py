@@ -41,6 +41,8 @@ REPO = Path(__file__).resolve().parents[2]
 VERSION_RE = re.compile(r'^version\s*=\s*"([^"]+)"', re.MULTILINE)
 # The oldest glibc the wheel may require: manylinux2014 (see the Makefile's MANYLINUX).
 MAX_GLIBC = (2, 17)
+# No file of the sdist is larger (the biggest today: Cargo.lock, 45 kB).
+SDIST_FILE_MAX = 1 << 20
 # Reduced sizes: the full demo is the job of `make demo`, not of this check.
 DEMO_ARGS = ["demo", "-o", "demo", "--reduced", "8", "--no-plots"]
 
@@ -482,9 +484,14 @@ def check_sdist(
         for f in ("Cargo.toml", "Cargo.lock", "pyproject.toml", "LICENSE-MIT", "LICENSE-APACHE"):
             if not (top / f).is_file():
                 raise CheckFailed(f"{f} missing from {sdist.name}")
-        data = [p for p in top.rglob("*") if p.suffix in {".mcap", ".bag", ".db3", ".bt", ".ply"}]
-        if data:
-            raise CheckFailed(f"data files in the sdist: {data[:5]}")
+        # The repository's own small fixtures may ride along (tests/data); real data sets, build
+        # outputs or a virtual environment may not.
+        big = [p for p in top.rglob("*") if p.is_file() and p.stat().st_size > SDIST_FILE_MAX]
+        if big:
+            raise CheckFailed(f"files over {SDIST_FILE_MAX} bytes in the sdist: {big[:5]}")
+        stray = [d for d in ("target", ".venv", "dist") if (top / d).exists()]
+        if stray:
+            raise CheckFailed(f"build folders in the sdist: {stray}")
     env = dict(os.environ)
     env.pop("VIRTUAL_ENV", None)
     # Registry dependencies stay compiled between local runs; the crate itself is always built
@@ -495,7 +502,8 @@ def check_sdist(
     run([py, "-m", "pip", "install", "--quiet", sdist], env=env, cwd=tmp, timeout=3600)
     build_s = time.monotonic() - t0
     use = check_short_use(py, version, tmp, without_rust_env(), hider)
-    return f"built and installed in {build_s:.0f} s; {use}"
+    size = sdist.stat().st_size / 1024
+    return f"sdist {size:.0f} kB, built and installed in {build_s:.0f} s; {use}"
 
 
 def main(argv: Sequence[str] | None = None) -> int:
