@@ -835,6 +835,7 @@ class TextInfo:
 def read_trajectory(
     path: _Path, *, time_unit: str | None = None
 ) -> tuple[Trajectory, TextInfo]: ...
+
 # ---------------------------------------------------------------- geodesy and GNSS
 
 _Origin = Literal["first", "mean"] | tuple[float, float, float] | Sequence[float]
