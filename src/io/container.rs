@@ -14,7 +14,6 @@ use std::io::Read;
 use std::path::{Path, PathBuf};
 
 use crate::error::{Error, Result};
-pub use crate::io::errors::ContainerError;
 use crate::io::mcap::reader::McapFile;
 use crate::io::messages::{ChannelInfo, MappedScan, RawMessage, ReadMode};
 use crate::io::rosbag::{Ros1Bag, Ros2Bag};
@@ -36,6 +35,8 @@ pub enum Container {
     /// A single rosbag2 SQLite database (`.db3`, `SQLite format 3\0`).
     Ros2Sqlite,
 }
+
+pub use crate::error::ContainerError;
 
 impl Container {
     /// The name reports and `inspect` give the container (`mcap`, `ros1 bag`,

@@ -21,7 +21,7 @@ use crate::error::{Error, Result, WireError};
 use crate::geometry::{PinholeCamera, Sim3};
 use crate::imu::ImuSamples;
 use crate::io::container::{AnyContainer, ChannelCount, Container, Inventory, MessageSource};
-pub use crate::io::errors::LogError;
+pub use crate::error::LogError;
 use crate::io::messages::decode::{self, KeyframeMsg, MessageKind, StampedPose};
 use crate::io::messages::{ChannelInfo, MappedMessage, RawMessage, ReadMode};
 use crate::keyframe::Keyframe;

@@ -4,13 +4,17 @@
 //!   decompressed in parallel);
 //! - [`decode`] / [`wire`]: the message decoders, which live in
 //!   [`crate::io::messages`] (every container uses them) and are re-exported here;
+//!   [`gnss_decode`]: `NavSatFix` / `LocationFix` into GNSS fixes;
 //! - [`log`]: [`read_mcap`] into [`Log`] (keyframes, reference, IMU, topics),
 //!   the assembly of [`crate::io::log`] over an MCAP file;
 //! - [`write`]: `world.mcap` ([`write_world_mcap`]) and the SLAM-side log
-//!   ([`write_slam_log`]).
+//!   ([`write_slam_log`]);
+//! - [`grid_msgs`]: the 2-D grid as `nav_msgs/OccupancyGrid` and `foxglove.Grid`.
 //!
 //! MCAP times are `u64` nanoseconds; everything else is seconds and metres.
 
+pub mod gnss_decode;
+pub mod grid_msgs;
 pub mod log;
 pub mod reader;
 pub mod schemas;

@@ -15,7 +15,7 @@ use mcap::records::{self, op, Record};
 use rayon::prelude::*;
 
 use crate::error::{Error, Result};
-use crate::io::messages::{ChannelInfo, RawMessage, ReadMode};
+pub use crate::io::messages::{ChannelInfo, RawMessage, ReadMode};
 
 /// The 8 bytes every MCAP file starts and ends with.
 pub const MAGIC: &[u8; 8] = b"\x89MCAP0\r\n";

@@ -1,38 +1,6 @@
-//! What can be wrong with a log above the bytes of its records: the reasons
-//! of [`crate::Error::Container`] (a path that is no log slam2world reads) and
-//! [`crate::Error::Log`] (topics that cannot give what was asked). They live
-//! apart from the readers so that the error type can name them without the
-//! readers and the error module importing each other; [`crate::io::container`]
-//! and [`crate::io::log`] re-export them.
-
-/// Why a path is no log that [`crate::io::container::detect`] knows.
-#[derive(Debug, thiserror::Error)]
-pub enum ContainerError {
-    /// A file of zero bytes.
-    #[error("the file is empty")]
-    Empty,
-    /// A FIFO, a socket or a device: not read, so that nothing blocks.
-    #[error("not a regular file or folder (a {kind})")]
-    NotAFile {
-        /// `FIFO`, `socket`, `character device`, `block device` or `special file`.
-        kind: &'static str,
-    },
-    /// A folder without `metadata.yaml` (the file every rosbag2 folder has).
-    #[error("a folder without metadata.yaml is not a rosbag2 bag")]
-    NoMetadata,
-    /// A ROS bag of a version other than 2.0.
-    #[error("ROS bag version {version:?}: only 2.0 is read")]
-    BagVersion {
-        /// What follows `#ROSBAG V` on the first line.
-        version: String,
-    },
-    /// Bytes that are none of the known magics.
-    #[error("unknown container: the file starts with {head:?} (not MCAP, a ROS bag or SQLite)")]
-    Unknown {
-        /// The first bytes (up to 16), lossy UTF-8 with escapes.
-        head: String,
-    },
-}
+//! What can be wrong with a log above the bytes of its records: the reason of
+//! [`super::Error::Log`] (topics that cannot give what was asked, in any
+//! container); [`crate::io::log`] re-exports it.
 
 /// Why the topics of a log cannot give what was asked: the `reason` of
 /// [`crate::Error::Log`] (the file is on the error). Each variant names the
