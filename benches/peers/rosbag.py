@@ -194,7 +194,7 @@ def _keyframe_row(k: int, compression: str) -> Case:
     total = sum(size for _, size in chunks)
     if compression == "lz4":
         try:
-            import lz4.frame
+            import lz4.frame  # type: ignore[import-untyped]
         except ImportError as e:
             raise Skip(f"lz4 is not installed ({e})") from e
 

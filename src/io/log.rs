@@ -17,11 +17,11 @@ use std::sync::atomic::{AtomicU8, Ordering};
 use nalgebra::{Quaternion, UnitQuaternion, Vector3};
 use rayon::prelude::*;
 
+pub use crate::error::LogError;
 use crate::error::{Error, Result, WireError};
 use crate::geometry::{PinholeCamera, Sim3};
 use crate::imu::ImuSamples;
 use crate::io::container::{AnyContainer, ChannelCount, Container, Inventory, MessageSource};
-pub use crate::error::LogError;
 use crate::io::messages::decode::{self, KeyframeMsg, MessageKind, StampedPose};
 use crate::io::messages::{ChannelInfo, MappedMessage, RawMessage, ReadMode};
 use crate::keyframe::Keyframe;

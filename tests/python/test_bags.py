@@ -60,7 +60,8 @@ def world_position(t: float) -> np.ndarray:
 
 
 def slam_position(t: float) -> np.ndarray:
-    return ROT.T @ (world_position(t) - SHIFT) / SCALE
+    p: np.ndarray = ROT.T @ (world_position(t) - SHIFT) / SCALE
+    return p
 
 
 def ns(t: float) -> int:
@@ -74,7 +75,7 @@ def session() -> dict[str, Any]:
     """Plain data of an LSD-SLAM session: keyframes (one re-published), live
     frames, graph updates, ground truth PoseStamped at 20 Hz, IMU at 200 Hz."""
     rng = np.random.default_rng(14)
-    keyframes = []
+    keyframes: list[dict[str, Any]] = []
     for k, kid in enumerate([0, 1, 2, 3, 2, 4, 5, 6, 7, 8, 9, 10]):
         t = 0.4 * k + 0.003
         q = rng.normal(size=4)
@@ -92,9 +93,7 @@ def session() -> dict[str, Any]:
                 "cloud": rec.tobytes(),
             }
         )
-    live = [
-        {"ns": ns(0.4 * k + 0.2), "id": 100 + k, "time": T0 + 0.4 * k + 0.2} for k in range(10)
-    ]
+    live = [{"ns": ns(0.4 * k + 0.2), "id": 100 + k, "time": T0 + 0.4 * k + 0.2} for k in range(10)]
     graphs = []
     for g, upto in enumerate([3, 6, 9]):
         t = 0.4 * (upto + 1) + 0.1
@@ -114,9 +113,9 @@ def session() -> dict[str, Any]:
     imu = []
     for i in range(800):
         t = 0.005 * i
-        g = rng.normal(size=3) * 0.1
-        a = rng.normal(size=3) * 0.2 + np.array([0.0, 0.0, 9.81])
-        imu.append({"ns": ns(t) + 2000, "stamp": ns(t), "g": g, "a": a})
+        gyro = rng.normal(size=3) * 0.1
+        acc = rng.normal(size=3) * 0.2 + np.array([0.0, 0.0, 9.81])
+        imu.append({"ns": ns(t) + 2000, "stamp": ns(t), "g": gyro, "a": acc})
     return {"kf": keyframes, "live": live, "graph": graphs, "poses": poses, "imu": imu}
 
 
@@ -214,7 +213,7 @@ def write_ros1_mcap(path: Path, s: dict[str, Any]) -> None:
 
     def cls(ty: str, text: str | None = None) -> Any:
         name = ty.replace("/msg/", "/")
-        return generate_dynamic(name, text or store.generate_msgdef(ty)[0])[name]
+        return generate_dynamic(name, text or store.generate_msgdef(ty)[0])[name]  # type: ignore[no-untyped-call]
 
     Kf, Graph, Pose, Imu = cls(KF, KEYFRAME_MSG), cls(GRAPH, GRAPH_MSG), cls(POSE), cls(IMU)
 
@@ -278,7 +277,7 @@ def write_ros1_mcap(path: Path, s: dict[str, Any]) -> None:
         w = Ros1McapWriter(f)
         for n, topic, msg in records:
             w.write_message(topic, msg, log_time=n, publish_time=n)
-        w.finish()
+        w.finish()  # type: ignore[no-untyped-call]
 
 
 def assert_same_conversion(a: s2w.Conversion, b: s2w.Conversion, what: str) -> None:
@@ -425,7 +424,7 @@ def write_ros2_mcap(path: Path, records: list[Any]) -> None:
             if ty not in schemas:
                 schemas[ty] = w.register_msgdef(ty, store.generate_msgdef(ty, ros_version=2)[0])
             w.write_message(topic, schemas[ty], value, log_time=n, publish_time=n)
-        w.finish()
+        w.finish()  # type: ignore[no-untyped-call]
 
 
 def test_ros2_bags_convert_like_the_mcap_of_the_same_messages(tmp_path: Path) -> None:
@@ -445,7 +444,11 @@ def test_ros2_bags_convert_like_the_mcap_of_the_same_messages(tmp_path: Path) ->
         assert abs(ref.transform.scale - SCALE) < 0.01
         assert ref.report["imu"] is not None
         assert len(ref.cloud.points) == 0  # poses only: no depth
-        for path, fmt in ((db3, "rosbag2 folder"), (folder, "rosbag2 folder"), (lone, "rosbag2 db3")):
+        for path, fmt in (
+            (db3, "rosbag2 folder"),
+            (folder, "rosbag2 folder"),
+            (lone, "rosbag2 db3"),
+        ):
             conv = s2w.convert(path, **opts)  # type: ignore[arg-type]
             assert conv.report["format"] == fmt
             assert_same_conversion(conv, ref, f"{path.name} {opts}")
