@@ -100,7 +100,8 @@ def session() -> dict[str, Any]:
         frames = np.zeros(upto, dtype=[("id", "<i4"), ("c", "<f4", 7)])
         frames["id"] = np.arange(upto)
         for j in range(upto):
-            c = next(k for k in keyframes if k["id"] == j)["c2w"].copy()
+            # the latest version of keyframe j (id 2 is published twice)
+            c = [k for k in keyframes if k["id"] == j][-1]["c2w"].copy()
             c[4:] += rng.normal(scale=1e-3, size=3)  # the graph refines the positions
             frames["c"][j] = c
         graphs.append({"ns": ns(t) + g, "frames": frames.tobytes(), "n": upto})
