@@ -280,9 +280,13 @@ fn data_of(bytes: &[u8], pos: usize) -> (usize, usize) {
     (pos + 4 + hl, pos + 8 + hl)
 }
 
+/// A damaged input: what it is, its path, how it is read, and the test of the
+/// error `read_log` must give.
+type Damaged = (&'static str, PathBuf, ReadOptions, fn(&Error) -> bool);
+
 /// Damaged inputs, each with the error `read_log` must give.
-fn damaged(dir: &Path) -> Vec<(&'static str, PathBuf, ReadOptions, fn(&Error) -> bool)> {
-    let mut out: Vec<(&'static str, PathBuf, ReadOptions, fn(&Error) -> bool)> = Vec::new();
+fn damaged(dir: &Path) -> Vec<Damaged> {
+    let mut out: Vec<Damaged> = Vec::new();
     let write = |name: &str, bytes: &[u8]| {
         let p = dir.join(name);
         std::fs::write(&p, bytes).unwrap();
