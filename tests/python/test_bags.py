@@ -459,6 +459,63 @@ def test_ros2_bags_convert_like_the_mcap_of_the_same_messages(tmp_path: Path) ->
     assert not log.keyframes
 
 
+# ------------------------------------------------------- TransformStamped
+
+
+TFS = "geometry_msgs/msg/TransformStamped"
+
+
+def test_transform_stamped_reads_from_ros1_and_cdr(tmp_path: Path) -> None:
+    """geometry_msgs/TransformStamped (a motion-capture body) in a ROS 1 bag
+    (ros1) and a rosbag2 .db3 (cdr), both written by rosbags, read as the
+    reference with the header stamps, translations and unit rotations given."""
+    rng = np.random.default_rng(7)
+    n = 25
+    stamps = [ns(0.04 * i) + 17 for i in range(n)]
+    pos = rng.normal(size=(n, 3)) * 3.0
+    quat = rng.normal(size=(n, 4))
+    quat /= np.linalg.norm(quat, axis=1, keepdims=True)
+    quat[quat[:, 3] < 0] *= -1  # w >= 0; read back, q and -q are the same rotation
+
+    def value(i: int) -> dict[str, Any]:
+        return {
+            "header": {
+                "stamp": {"sec": stamps[i] // 10**9, "nanosec": stamps[i] % 10**9},
+                "frame_id": "mocap",
+            },
+            "child_frame_id": "body",
+            "transform": {
+                "translation": dict(zip("xyz", pos[i], strict=True)),
+                "rotation": dict(zip("xyzw", quat[i], strict=True)),
+            },
+        }
+
+    ros1 = get_typestore(Stores.ROS1_NOETIC)
+    bag = tmp_path / "mocap.bag"
+    with Bag1Writer(bag) as w:
+        c = w.add_connection("/mocap", TFS, typestore=ros1)
+        for i in range(n):
+            v = value(i)
+            v["header"]["seq"] = i
+            w.write(c, stamps[i] + 5000, ros1.serialize_ros1(_build(ros1, TFS, v), TFS))
+    db3 = tmp_path / "mocap_db3"
+    write_ros2_bag(
+        db3, [(stamps[i] + 5000, "/mocap", TFS, value(i)) for i in range(n)], StoragePlugin.SQLITE3
+    )
+    for path, fmt in ((bag, "ros1 bag"), (db3, "rosbag2 folder")):
+        log = s2w.read_log(path)
+        assert log.format == fmt
+        assert log.reference_topic == "/mocap", path
+        r = log.reference
+        assert r is not None and len(r) == n
+        np.testing.assert_allclose(r.timestamps, np.array(stamps) * 1e-9, rtol=0, atol=1e-6)
+        np.testing.assert_array_equal(r.positions, pos)
+        o = r.orientations
+        assert o is not None
+        sign = np.sign(np.sum(o * quat, axis=1, keepdims=True))
+        np.testing.assert_allclose(o * sign, quat, rtol=0, atol=1e-12)
+
+
 # ------------------------------------------------------------------ bad input
 
 
