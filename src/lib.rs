@@ -22,6 +22,7 @@ pub mod defaults;
 pub mod error;
 pub mod geometry;
 pub mod imu;
+pub mod interrupt;
 pub mod io;
 pub mod keyframe;
 pub mod map;

@@ -47,6 +47,12 @@ pub enum ContainerError {
         /// `FIFO`, `socket`, `character device`, `block device` or `special file`.
         kind: &'static str,
     },
+    /// A folder where a log file was expected.
+    #[error("a folder, not a log file (expected {expected})")]
+    Folder {
+        /// What was expected, e.g. `an MCAP file`.
+        expected: &'static str,
+    },
     /// A folder without `metadata.yaml` (the file every rosbag2 folder has).
     #[error("a folder without metadata.yaml is not a rosbag2 bag")]
     NoMetadata,
@@ -100,6 +106,25 @@ pub fn detect(path: impl AsRef<Path>) -> Result<Container> {
         .and_then(|f| f.take(32).read_to_end(&mut head))
         .map_err(|e| Error::io(path, e))?;
     classify(&head).map_err(|r| container_err(path, r))
+}
+
+/// Refuses anything at `path` but a regular file (following links) without
+/// opening it: a folder, a FIFO, a pipe, `/dev/null`, a socket. `expected`
+/// names what the reader wanted (`an MCAP file`).
+pub fn require_file(path: &Path, expected: &'static str) -> Result<()> {
+    let meta = std::fs::metadata(path).map_err(|e| Error::io(path, e))?;
+    if meta.is_dir() {
+        return Err(container_err(path, ContainerError::Folder { expected }));
+    }
+    if !meta.is_file() {
+        return Err(container_err(
+            path,
+            ContainerError::NotAFile {
+                kind: special_kind(&meta),
+            },
+        ));
+    }
+    Ok(())
 }
 
 /// The container of a file that starts with `head` (its first 32 bytes or all of it).

@@ -50,7 +50,14 @@ pub struct PyPinholeCamera {
 #[pymethods]
 impl PyPinholeCamera {
     #[new]
-    fn new(fx: f64, fy: f64, cx: f64, cy: f64, width: u32, height: u32) -> PyResult<Self> {
+    fn new(
+        fx: f64,
+        fy: f64,
+        cx: f64,
+        cy: f64,
+        #[pyo3(from_py_with = super::arrays::uint::width)] width: u32,
+        #[pyo3(from_py_with = super::arrays::uint::height)] height: u32,
+    ) -> PyResult<Self> {
         Ok(PyPinholeCamera {
             inner: PinholeCamera::try_new(fx, fy, cx, cy, width, height)?,
         })
@@ -58,7 +65,11 @@ impl PyPinholeCamera {
 
     /// Principal point at the image centre, square pixels, horizontal field of view in degrees.
     #[staticmethod]
-    fn from_hfov(width: u32, height: u32, hfov_deg: f64) -> PyResult<Self> {
+    fn from_hfov(
+        #[pyo3(from_py_with = super::arrays::uint::width)] width: u32,
+        #[pyo3(from_py_with = super::arrays::uint::height)] height: u32,
+        hfov_deg: f64,
+    ) -> PyResult<Self> {
         Ok(PyPinholeCamera {
             inner: PinholeCamera::from_hfov(width, height, hfov_deg)?,
         })
@@ -275,11 +286,12 @@ impl PyPointFilter {
     fn new(
         scaled_depth_var: f32,
         abs_depth_var: f32,
-        min_near_support: u32,
-        sparsify: u32,
+        #[pyo3(from_py_with = super::arrays::uint::min_near_support)] min_near_support: u32,
+        #[pyo3(from_py_with = super::arrays::uint::sparsify)] sparsify: u32,
+        #[pyo3(from_py_with = super::arrays::uint::cut_first_keyframes)]
         cut_first_keyframes: Option<usize>,
         skip_border: bool,
-        seed: u64,
+        #[pyo3(from_py_with = super::arrays::uint::seed)] seed: u64,
     ) -> PyResult<Self> {
         let inner = PointFilter {
             scaled_depth_var,
