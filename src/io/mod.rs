@@ -6,6 +6,7 @@ pub mod atomic;
 pub mod colmap;
 pub mod container;
 pub mod droid;
+pub mod mapped;
 pub mod mcap;
 pub mod npy;
 pub mod ply;

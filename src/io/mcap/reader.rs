@@ -142,10 +142,11 @@ impl Scan<'_> {
     }
 }
 
-/// An MCAP file opened read-only and memory-mapped.
+/// An MCAP file opened read-only and memory-mapped (a file that shrinks
+/// while it is read is an error, not SIGBUS: [`crate::io::mapped`]).
 pub struct McapFile {
     path: PathBuf,
-    map: memmap2::Mmap,
+    map: crate::io::mapped::Mapped,
 }
 
 /// One item of the data section, before chunks are expanded.
@@ -177,9 +178,7 @@ impl McapFile {
         let path = path.as_ref().to_path_buf();
         crate::io::container::require_file(&path, "an MCAP file")?;
         let file = std::fs::File::open(&path).map_err(|e| Error::io(&path, e))?;
-        // SAFETY: the map is read-only; the file is opened read-only and a log is not
-        // expected to be modified while it is read (as with every mmap-based reader).
-        let map = unsafe { memmap2::Mmap::map(&file) }.map_err(|e| Error::io(&path, e))?;
+        let map = crate::io::mapped::Mapped::map(file, &path)?;
         if map.len() < MAGIC.len() || &map[..MAGIC.len()] != MAGIC {
             return Err(Error::Mcap {
                 path,
@@ -244,8 +243,19 @@ impl McapFile {
         Ok(self.scan_map(|_| false, |_, _| ())?.channels)
     }
 
+    /// Fails when the file shrank while it was read (see [`crate::io::mapped`]).
+    pub fn check_unchanged(&self) -> Result<()> {
+        self.map.check()
+    }
+
     /// Reads every message whose channel `want` accepts, in file order.
     pub fn scan(&self, want: impl Fn(&ChannelInfo) -> bool + Sync) -> Result<Scan<'_>> {
+        let r = self.scan_unchecked(want);
+        self.map.check()?;
+        r
+    }
+
+    fn scan_unchecked(&self, want: impl Fn(&ChannelInfo) -> bool + Sync) -> Result<Scan<'_>> {
         let profile = self.profile();
         if let Some((chunks, channels)) = self.indexed_plan()? {
             let items = self.wanted_chunks(&chunks, &channels, &want)?;
@@ -612,10 +622,11 @@ pub(super) const MAX_CHUNK: usize = 1 << 32;
 pub const CHUNK_ANY_RATIO: usize = 64 << 20;
 
 /// Above [`CHUNK_ANY_RATIO`], the largest ratio of decompressed to compressed
-/// bytes a chunk may declare. Real logs stay far below (zstd on keyframes:
-/// 2–20); a chunk of 76 KB that declares 2.5 GB is refused before anything
-/// is allocated.
-pub const MAX_CHUNK_RATIO: u64 = 1024;
+/// bytes a chunk may declare, so that what a file makes the reader allocate
+/// stays within 100 times its size plus a fixed bound. Real logs stay far
+/// below (writers cut chunks at a few MB; zstd on keyframes gives 2–20); a
+/// chunk of 76 KB that declares 2.5 GB is refused before anything is allocated.
+pub const MAX_CHUNK_RATIO: u64 = 100;
 
 /// Decompresses a chunk's records into `out` (cleared first, its allocation reused).
 pub(super) fn decompress_into(

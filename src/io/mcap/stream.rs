@@ -73,6 +73,17 @@ impl McapFile {
         want: impl Fn(&ChannelInfo) -> bool + Sync,
         map: impl Fn(&ChannelInfo, &RawMessage<'_>) -> T + Sync,
     ) -> Result<MappedScan<T>> {
+        let r = self.scan_map_checked(want, map);
+        // A file that shrank while it was read: that, whatever else went wrong.
+        self.check_unchanged()?;
+        r
+    }
+
+    fn scan_map_checked<T: Send + Default>(
+        &self,
+        want: impl Fn(&ChannelInfo) -> bool + Sync,
+        map: impl Fn(&ChannelInfo, &RawMessage<'_>) -> T + Sync,
+    ) -> Result<MappedScan<T>> {
         let scan = self.scan_map_with(&want, &map, true)?;
         if scan.mode == ReadMode::Indexed {
             if let Some(declared) = self.declared_counts() {
