@@ -301,10 +301,13 @@ impl<'py> Points<'py> {
         let p = if let Ok(a) = obj.cast::<PyArray2<f32>>() {
             Points::F32(a.readonly())
         } else {
-            Points::F64(
-                obj.extract()
-                    .map_err(|_| shape_err(what, "a 2-D array of shape (N, 3)", &[]))?,
-            )
+            Points::F64(obj.extract().map_err(|_| {
+                PyErr::from(Error::ShapeMismatch {
+                    what: what.into(),
+                    expected: "a 2-D array of shape (N, 3)".into(),
+                    got: given(obj),
+                })
+            })?)
         };
         let shape = match &p {
             Points::F32(a) => a.shape().to_vec(),
@@ -328,7 +331,7 @@ pub(crate) fn with_points<R>(
         PyErr::from(Error::ShapeMismatch {
             what: what.into(),
             expected: "a 2-D array of shape (N, 3)".into(),
-            got: "something else".into(),
+            got: given(obj),
         })
     })?;
     let shape = arr.shape();
@@ -336,7 +339,7 @@ pub(crate) fn with_points<R>(
         return Err(Error::ShapeMismatch {
             what: what.into(),
             expected: "(N, 3)".into(),
-            got: format!("{shape:?}"),
+            got: shape_text(shape),
         }
         .into());
     }

@@ -120,12 +120,12 @@ pub struct PyKeyframe {
 fn image_f32(obj: &Bound<'_, PyAny>, what: &str, h: usize, w: usize) -> PyResult<Vec<f32>> {
     let a: PyArrayLike2<'_, f32, AllowTypeChange> = obj
         .extract()
-        .map_err(|_| shape_err(what, format!("a 2-D array ({h}, {w})"), "not one".into()))?;
+        .map_err(|_| shape_err(what, format!("a 2-D array ({h}, {w})"), super::arrays::given(obj)))?;
     if a.shape() != [h, w] {
         return Err(shape_err(
             what,
             format!("({h}, {w})"),
-            format!("{:?}", a.shape()),
+            super::arrays::shape_text(a.shape()),
         ));
     }
     Ok(match c_slice(&a) {
