@@ -183,7 +183,7 @@ mod guard {
                     PAGE.store(p as usize, Ordering::Relaxed);
                 }
                 let mut act: libc::sigaction = std::mem::zeroed();
-                act.sa_sigaction = on_sigbus as usize;
+                act.sa_sigaction = on_sigbus as *const () as usize;
                 act.sa_flags = libc::SA_SIGINFO | libc::SA_ONSTACK;
                 libc::sigemptyset(&mut act.sa_mask);
                 let prev = (*std::ptr::addr_of_mut!(PREVIOUS)).as_mut_ptr();
