@@ -857,7 +857,7 @@ fn layout(opcode: u8) -> &'static [Field] {
         op::CHUNK_INDEX => &[Fixed(32), Bytes32, Fixed(8), Str, Fixed(16)],
         op::ATTACHMENT => &[Fixed(16), Str, Str, Bytes64, Fixed(4)],
         op::ATTACHMENT_INDEX => &[Fixed(40), Str, Str],
-        op::STATISTICS => &[Fixed(34), Bytes32],
+        op::STATISTICS => &[Fixed(42), Bytes32],
         op::METADATA => &[Str, StrMap],
         op::METADATA_INDEX => &[Fixed(16), Str],
         op::SUMMARY_OFFSET => &[Fixed(17)],
