@@ -12,7 +12,7 @@
 //! case through `/proc/self/clear_refs`) of at most 100 × the case's size
 //! plus [`FIXED_BYTES`].
 //!
-//! `SLAM2WORLD_MUTATION_CASES` changes the cases per reader (default 120);
+//! `SLAM2WORLD_MUTATION_CASES` changes the cases per reader (default 400);
 //! `SLAM2WORLD_MUTATION_SECONDS=N` instead runs the MCAP reader on random
 //! mutations for N seconds (the stable-Rust stand-in for the `mcap_file`
 //! fuzz target, `make fuzz-stable`).
@@ -49,7 +49,7 @@ fn cases_per_reader() -> usize {
     std::env::var("SLAM2WORLD_MUTATION_CASES")
         .ok()
         .and_then(|s| s.parse().ok())
-        .unwrap_or(120)
+        .unwrap_or(400)
 }
 
 // ---------------------------------------------------------------- seeds

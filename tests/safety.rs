@@ -476,3 +476,48 @@ fn an_mcap_whose_summary_lost_a_chunk_index_is_read_whole() {
     assert_eq!(log.reference.as_ref().unwrap().len(), n as usize);
     assert!(!log.indexed, "read by a linear scan");
 }
+
+#[test]
+fn fit_refusals_name_the_argument_or_the_repeated_stamps() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    let log = d.join("run.mcap");
+    simulated_log(&log);
+    let out = d.join("o");
+    // --skip-init beyond the matched pairs: how many there were and what was asked.
+    let o = run(&["convert", s(&log), "-o", s(&out), "-q", "--skip-init", "99999"]);
+    assert_eq!(o.status.code(), Some(1));
+    let e = one_line_naming(&o, "99999");
+    assert!(e.contains("start-up cut"), "{e}");
+    assert!(!e.contains("0 keyframe stamps match"), "{e}");
+    assert!(!out.exists());
+    // --max-offset beyond the reference's span: the argument named.
+    let o = run(&[
+        "convert",
+        s(&log),
+        "-o",
+        s(&out),
+        "-q",
+        "--estimate-offset",
+        "--max-offset",
+        "1e300",
+    ]);
+    assert_eq!(o.status.code(), Some(1));
+    one_line_naming(&o, "max_offset");
+    // Every stamp the same on both sides: the stamps repeat, not "points coincide".
+    let (_, reference, _) = trajectory_inputs(d);
+    let text = std::fs::read_to_string(&reference).unwrap();
+    let same: String = text
+        .lines()
+        .map(|l| match l.split_once(' ') {
+            Some((_, rest)) if !l.starts_with('#') => format!("1.0 {rest}\n"),
+            _ => format!("{l}\n"),
+        })
+        .collect();
+    let dup = d.join("same.txt");
+    std::fs::write(&dup, same).unwrap();
+    let o = run(&["align", s(&dup), s(&dup)]);
+    assert_eq!(o.status.code(), Some(1));
+    let e = one_line_naming(&o, "the stamps repeat");
+    assert!(!e.contains("coincide"), "{e}");
+}
