@@ -521,3 +521,107 @@ fn fit_refusals_name_the_argument_or_the_repeated_stamps() {
     let e = one_line_naming(&o, "the stamps repeat");
     assert!(!e.contains("coincide"), "{e}");
 }
+
+/// A zstd MCAP of `n` poses in chunks of about `chunk` bytes.
+fn zstd_pose_log(path: &Path, n: u32, chunk: u64) {
+    let mut w = mcap::WriteOptions::new()
+        .chunk_size(Some(chunk))
+        .compression(Some(mcap::Compression::Zstd))
+        .create(std::io::BufWriter::new(std::fs::File::create(path).unwrap()))
+        .unwrap();
+    let schema = w
+        .add_schema(
+            "geometry_msgs/PoseStamped",
+            "ros1msg",
+            b"std_msgs/Header header\ngeometry_msgs/Pose pose\n",
+        )
+        .unwrap();
+    let ch = w
+        .add_channel(schema, "/pose", "ros1", &Default::default())
+        .unwrap();
+    for i in 0..n {
+        let t = 1.0 + 0.01 * i as f64;
+        let data = slam2world::io::mcap::write::pose_stamped_ros1(
+            i,
+            t,
+            "world",
+            [i as f64, 0.0, 0.0],
+            [0.0, 0.0, 0.0, 1.0],
+        );
+        let ns = (t * 1e9) as u64;
+        w.write_to_known_channel(
+            &mcap::records::MessageHeader {
+                channel_id: ch,
+                sequence: i,
+                log_time: ns,
+                publish_time: ns,
+            },
+            &data,
+        )
+        .unwrap();
+    }
+    w.finish().unwrap();
+}
+
+#[test]
+fn an_mcap_chunk_that_declares_gigabytes_is_refused_before_allocating() {
+    let dir = tempfile::tempdir().unwrap();
+    let path = dir.path().join("bomb.mcap");
+    zstd_pose_log(&path, 2000, 1 << 20);
+    assert!(slam2world::io::mcap::read_mcap(&path, &Default::default()).is_ok());
+    // Every chunk (opcode 0x06) and chunk index (0x08) declares 2.5 GB uncompressed.
+    let mut bytes = std::fs::read(&path).unwrap();
+    let huge = 2_500_000_000u64.to_le_bytes();
+    let mut pos = 8;
+    let mut patched = 0;
+    while pos + 9 <= bytes.len() - 8 {
+        let op = bytes[pos];
+        let len = u64::from_le_bytes(bytes[pos + 1..pos + 9].try_into().unwrap()) as usize;
+        let body = pos + 9;
+        if op == 0x06 {
+            bytes[body + 16..body + 24].copy_from_slice(&huge);
+            patched += 1;
+        } else if op == 0x08 {
+            // After the fixed 32 bytes, the offsets map, the index length and the
+            // compression string: compressed size, then uncompressed size.
+            let map_len = u32::from_le_bytes(bytes[body + 32..body + 36].try_into().unwrap());
+            let c = body + 36 + map_len as usize + 8;
+            let s_len = u32::from_le_bytes(bytes[c..c + 4].try_into().unwrap()) as usize;
+            let u = c + 4 + s_len + 8;
+            bytes[u..u + 8].copy_from_slice(&huge);
+        }
+        pos = body + len;
+    }
+    assert!(patched >= 1);
+    assert!(bytes.len() < 200_000, "{}", bytes.len());
+    std::fs::write(&path, &bytes).unwrap();
+    let e = slam2world::io::mcap::read_mcap(&path, &Default::default())
+        .unwrap_err()
+        .to_string();
+    assert!(e.contains("2500000000") && e.contains("bomb.mcap"), "{e}");
+    assert!(e.len() < 400 && !e.contains('\n'), "{e}");
+    let e = slam2world::io::mcap::inspect_mcap(&path).map(|_| ()).unwrap_err();
+    assert!(e.to_string().contains("2500000000"), "{e}");
+}
+
+#[test]
+fn an_mcap_truncated_while_it_is_read_is_an_error_not_sigbus() {
+    let dir = tempfile::tempdir().unwrap();
+    let path = dir.path().join("live.mcap");
+    zstd_pose_log(&path, 20_000, 64 << 10);
+    let len = std::fs::metadata(&path).unwrap().len();
+    assert!(len > 256 << 10, "{len}");
+    let file = slam2world::io::mcap::McapFile::open(&path).unwrap();
+    // The writer (or a copy) cuts the file after it was opened and mapped.
+    std::fs::OpenOptions::new()
+        .write(true)
+        .open(&path)
+        .unwrap()
+        .set_len(len / 3)
+        .unwrap();
+    let e = match file.scan(|_| true) {
+        Ok(_) => panic!("a scan of a shrunk file succeeded"),
+        Err(e) => e.to_string(),
+    };
+    assert!(e.contains("shrank") && e.contains("live.mcap"), "{e}");
+}
