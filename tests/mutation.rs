@@ -42,7 +42,17 @@ const ADDRESS_SPACE: u64 = 2 << 30;
 const FIXED_BYTES: u64 = 160 << 20;
 
 const READERS: [&str; 11] = [
-    "mcap", "ros1", "ply", "bt", "tum", "euroc", "imu", "xyz", "colmap_bin", "colmap_txt", "npy",
+    "mcap",
+    "ros1",
+    "ply",
+    "bt",
+    "tum",
+    "euroc",
+    "imu",
+    "xyz",
+    "colmap_bin",
+    "colmap_txt",
+    "npy",
 ];
 
 fn cases_per_reader() -> usize {
@@ -214,7 +224,11 @@ fn seeds(reader: &str, dir: &Path) -> Vec<PathBuf> {
         "colmap_txt" | "colmap_bin" => {
             let txt = p("model_txt");
             std::fs::create_dir_all(&txt).unwrap();
-            std::fs::write(txt.join("cameras.txt"), "1 PINHOLE 640 480 500 500 320 240\n").unwrap();
+            std::fs::write(
+                txt.join("cameras.txt"),
+                "1 PINHOLE 640 480 500 500 320 240\n",
+            )
+            .unwrap();
             std::fs::write(
                 txt.join("images.txt"),
                 "1 1 0 0 0 0.1 0.2 0.3 1 a.png\n10 20 1 30 40 -1\n\
@@ -238,7 +252,8 @@ fn seeds(reader: &str, dir: &Path) -> Vec<PathBuf> {
         }
         "npy" => {
             let f = p("poses.npy");
-            let mut header = String::from("{'descr': '<f4', 'fortran_order': False, 'shape': (5, 7), }");
+            let mut header =
+                String::from("{'descr': '<f4', 'fortran_order': False, 'shape': (5, 7), }");
             while (10 + header.len() + 1) % 64 != 0 {
                 header.push(' ');
             }
@@ -386,9 +401,7 @@ fn read_case(reader: &str, path: &Path) -> Result<(), String> {
         "euroc" => slam2world::io::text::read_euroc(path).map(|_| ()),
         "imu" => slam2world::io::text::read_euroc_imu(path).map(|_| ()),
         "xyz" => slam2world::io::ply::read_xyz_text(path).map(|_| ()),
-        "colmap_bin" | "colmap_txt" => {
-            slam2world::io::colmap::read_colmap(path, None).map(|_| ())
-        }
+        "colmap_bin" | "colmap_txt" => slam2world::io::colmap::read_colmap(path, None).map(|_| ()),
         "npy" => slam2world::io::npy::read_npy(path).map(|_| ()),
         other => return Err(format!("unknown reader {other}")),
     };
@@ -396,7 +409,11 @@ fn read_case(reader: &str, path: &Path) -> Result<(), String> {
     if let Err(e) = r {
         let msg = e.to_string();
         if msg.len() > 2000 || msg.contains('\n') {
-            return Err(format!("error message of {} bytes: {}", msg.len(), &msg[..200.min(msg.len())]));
+            return Err(format!(
+                "error message of {} bytes: {}",
+                msg.len(),
+                &msg[..200.min(msg.len())]
+            ));
         }
     }
     Ok(())
@@ -593,8 +610,17 @@ fn every_reader_survives_seeded_mutations() {
         }
         failures.extend(out.failures);
     }
-    eprintln!("{} readers in {:.1} s", READERS.len(), t0.elapsed().as_secs_f64());
-    assert!(failures.is_empty(), "{} failures:\n{}", failures.len(), failures.join("\n"));
+    eprintln!(
+        "{} readers in {:.1} s",
+        READERS.len(),
+        t0.elapsed().as_secs_f64()
+    );
+    assert!(
+        failures.is_empty(),
+        "{} failures:\n{}",
+        failures.len(),
+        failures.join("\n")
+    );
 }
 
 /// The bounded random-input run of the MCAP reader (`SLAM2WORLD_MUTATION_SECONDS`).

@@ -55,8 +55,12 @@ fn trajectory_inputs(dir: &Path) -> (PathBuf, PathBuf, PathBuf) {
         .map(|&s| Vector3::new(s.sin(), (0.7 * s).cos(), 0.2 * s))
         .collect();
     let q = vec![UnitQuaternion::identity(); t.len()];
-    let est = Trajectory::try_new(t.clone(), p.iter().map(|v| v / 3.0).collect(), Some(q.clone()))
-        .unwrap();
+    let est = Trajectory::try_new(
+        t.clone(),
+        p.iter().map(|v| v / 3.0).collect(),
+        Some(q.clone()),
+    )
+    .unwrap();
     let reference = Trajectory::try_new(t, p, Some(q)).unwrap();
     let (e, r, c) = (dir.join("est.txt"), dir.join("ref.txt"), dir.join("in.ply"));
     slam2world::io::text::write_tum(&est, &e).unwrap();
@@ -127,7 +131,15 @@ fn an_output_that_is_an_input_is_refused() {
 
     // simulate -o s.mcap --truth s.mcap: one file for two outputs.
     let sm = d.join("s.mcap");
-    let o = run(&["simulate", "-o", s(&sm), "--truth", s(&sm), "--reduced", "16"]);
+    let o = run(&[
+        "simulate",
+        "-o",
+        s(&sm),
+        "--truth",
+        s(&sm),
+        "--reduced",
+        "16",
+    ]);
     assert_eq!(o.status.code(), Some(1));
     one_line_naming(&o, "s.mcap");
     assert!(!sm.exists());
@@ -143,7 +155,10 @@ fn fifos_devices_and_links_are_not_replaced() {
     // /dev/null: written through, still a character device.
     let o = transform_cloud(&cloud, &est, &reference, Path::new("/dev/null"));
     assert!(o.status.success(), "{}", stderr(&o));
-    assert!(std::fs::metadata("/dev/null").unwrap().file_type().is_char_device());
+    assert!(std::fs::metadata("/dev/null")
+        .unwrap()
+        .file_type()
+        .is_char_device());
 
     // A FIFO with a reader gets the PLY; without one, a clear error; it stays a FIFO.
     let fifo = d.join("out.ply");
@@ -170,7 +185,10 @@ fn fifos_devices_and_links_are_not_replaced() {
     assert!(out.is_some(), "the FIFO was never written");
     let got = reader.join().unwrap();
     assert!(got.starts_with(b"ply\n"), "{:?}", &got[..got.len().min(16)]);
-    assert!(std::fs::symlink_metadata(&fifo).unwrap().file_type().is_fifo());
+    assert!(std::fs::symlink_metadata(&fifo)
+        .unwrap()
+        .file_type()
+        .is_fifo());
 
     // A symbolic link: followed, its target replaced, the link kept.
     let target = d.join("target.ply");
@@ -179,7 +197,10 @@ fn fifos_devices_and_links_are_not_replaced() {
     std::os::unix::fs::symlink("target.ply", &link).unwrap();
     let o = transform_cloud(&cloud, &est, &reference, &link);
     assert!(o.status.success(), "{}", stderr(&o));
-    assert!(std::fs::symlink_metadata(&link).unwrap().file_type().is_symlink());
+    assert!(std::fs::symlink_metadata(&link)
+        .unwrap()
+        .file_type()
+        .is_symlink());
     assert!(std::fs::read(&target).unwrap().starts_with(b"ply\n"));
     // No temporary file left anywhere.
     assert!(
@@ -260,7 +281,15 @@ fn a_failed_rerun_leaves_the_previous_outputs_and_stale_ones_go() {
     let big: Vec<f32> = (0..30_000).map(|i| i as f32).collect();
     slam2world::io::ply::write_ply_parts(&cloud, &big, None).unwrap();
     let o = run_with_fsize(
-        &["transform-cloud", s(&cloud), "--align", s(&est), s(&reference), "-o", s(&d.join("w.ply"))],
+        &[
+            "transform-cloud",
+            s(&cloud),
+            "--align",
+            s(&est),
+            s(&reference),
+            "-o",
+            s(&d.join("w.ply")),
+        ],
         8192,
     );
     assert_eq!(o.status.code(), Some(1));
@@ -306,10 +335,7 @@ fn paths_that_are_no_log_and_files_that_are_no_text_say_what_they_are() {
     let dir = tempfile::tempdir().unwrap();
     let d = dir.path();
     let out = d.join("o");
-    for (log, what) in [
-        (s(d), "folder"),
-        ("/dev/null", "character device"),
-    ] {
+    for (log, what) in [(s(d), "folder"), ("/dev/null", "character device")] {
         let o = run(&["convert", log, "-o", s(&out), "-q"]);
         assert_eq!(o.status.code(), Some(1));
         let e = one_line_naming(&o, what);
@@ -364,7 +390,8 @@ fn non_finite_points_are_dropped_counted_and_named() {
     let dir = tempfile::tempdir().unwrap();
     let log = dir.path().join("run.mcap");
     simulated_log(&log);
-    let mut rec = Recording::from(slam2world::io::mcap::read_mcap(&log, &Default::default()).unwrap());
+    let mut rec =
+        Recording::from(slam2world::io::mcap::read_mcap(&log, &Default::default()).unwrap());
     // An inverse depth so small that 1/idepth overflows f32.
     let kf = &mut rec.keyframes[2];
     let id = kf.id;
@@ -398,7 +425,10 @@ fn non_finite_points_are_dropped_counted_and_named() {
     let mut late = c.clone();
     *late.slam_trajectory.timestamps.last_mut().unwrap() = 1e300;
     let e = late
-        .write_world_mcap(dir.path().join("w.mcap"), slam2world::io::mcap::WorldFlavor::Foxglove)
+        .write_world_mcap(
+            dir.path().join("w.mcap"),
+            slam2world::io::mcap::WorldFlavor::Foxglove,
+        )
         .unwrap_err()
         .to_string();
     assert!(e.contains("1e300") && e.len() < 300, "{e}");
@@ -415,7 +445,9 @@ fn an_mcap_whose_summary_lost_a_chunk_index_is_read_whole() {
     let mut w = mcap::WriteOptions::new()
         .chunk_size(Some(2048))
         .compression(None)
-        .create(std::io::BufWriter::new(std::fs::File::create(&path).unwrap()))
+        .create(std::io::BufWriter::new(
+            std::fs::File::create(&path).unwrap(),
+        ))
         .unwrap();
     let schema = w
         .add_schema(
@@ -485,7 +517,15 @@ fn fit_refusals_name_the_argument_or_the_repeated_stamps() {
     simulated_log(&log);
     let out = d.join("o");
     // --skip-init beyond the matched pairs: how many there were and what was asked.
-    let o = run(&["convert", s(&log), "-o", s(&out), "-q", "--skip-init", "99999"]);
+    let o = run(&[
+        "convert",
+        s(&log),
+        "-o",
+        s(&out),
+        "-q",
+        "--skip-init",
+        "99999",
+    ]);
     assert_eq!(o.status.code(), Some(1));
     let e = one_line_naming(&o, "99999");
     assert!(e.contains("start-up cut"), "{e}");
@@ -527,7 +567,9 @@ fn zstd_pose_log(path: &Path, n: u32, chunk: u64) {
     let mut w = mcap::WriteOptions::new()
         .chunk_size(Some(chunk))
         .compression(Some(mcap::Compression::Zstd))
-        .create(std::io::BufWriter::new(std::fs::File::create(path).unwrap()))
+        .create(std::io::BufWriter::new(
+            std::fs::File::create(path).unwrap(),
+        ))
         .unwrap();
     let schema = w
         .add_schema(
@@ -600,7 +642,9 @@ fn an_mcap_chunk_that_declares_gigabytes_is_refused_before_allocating() {
         .to_string();
     assert!(e.contains("2500000000") && e.contains("bomb.mcap"), "{e}");
     assert!(e.len() < 400 && !e.contains('\n'), "{e}");
-    let e = slam2world::io::mcap::inspect_mcap(&path).map(|_| ()).unwrap_err();
+    let e = slam2world::io::mcap::inspect_mcap(&path)
+        .map(|_| ())
+        .unwrap_err();
     assert!(e.to_string().contains("2500000000"), "{e}");
 }
 

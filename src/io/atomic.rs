@@ -392,8 +392,7 @@ impl OutputSet {
         crate::interrupt::check()?;
         let mut written = Vec::with_capacity(self.staged.len() + self.through.len());
         let staged = std::mem::take(&mut self.staged);
-        let mut left = staged.into_iter();
-        while let Some(mut s) = left.next() {
+        for mut s in staged {
             if let Err(e) = std::fs::rename(&s.tmp, &s.target) {
                 // `s` and the rest are dropped: their temporary files removed.
                 return Err(Error::io(&s.given, e));

@@ -205,8 +205,7 @@ mod guard {
             return None;
         }
         for (i, s) in TABLE.iter().enumerate() {
-            if s
-                .taken
+            if s.taken
                 .compare_exchange(false, true, Ordering::AcqRel, Ordering::Acquire)
                 .is_ok()
             {

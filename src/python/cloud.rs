@@ -118,9 +118,13 @@ pub struct PyKeyframe {
 
 /// An (H, W) image as a row-major float32 vector.
 fn image_f32(obj: &Bound<'_, PyAny>, what: &str, h: usize, w: usize) -> PyResult<Vec<f32>> {
-    let a: PyArrayLike2<'_, f32, AllowTypeChange> = obj
-        .extract()
-        .map_err(|_| shape_err(what, format!("a 2-D array ({h}, {w})"), super::arrays::given(obj)))?;
+    let a: PyArrayLike2<'_, f32, AllowTypeChange> = obj.extract().map_err(|_| {
+        shape_err(
+            what,
+            format!("a 2-D array ({h}, {w})"),
+            super::arrays::given(obj),
+        )
+    })?;
     if a.shape() != [h, w] {
         return Err(shape_err(
             what,
