@@ -151,11 +151,7 @@ pub fn exit_code(signal: i32) -> i32 {
 
 /// `SIGINT`, `SIGTERM` or `signal N`.
 pub fn name(signal: i32) -> String {
-    match signal {
-        SIGINT => "SIGINT".into(),
-        SIGTERM => "SIGTERM".into(),
-        s => format!("signal {s}"),
-    }
+    crate::error::signal_name(signal)
 }
 
 #[cfg(test)]

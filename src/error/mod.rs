@@ -242,11 +242,20 @@ pub enum Error {
     },
     /// The run was stopped by SIGINT (Ctrl-C) or SIGTERM ([`crate::interrupt`]);
     /// the outputs of the run were not written, the previous ones are intact.
-    #[error("interrupted by {}: no output written", crate::interrupt::name(*signal))]
+    #[error("interrupted by {}: no output written", signal_name(*signal))]
     Interrupted {
         /// The signal number (2 SIGINT, 15 SIGTERM).
         signal: i32,
     },
+}
+
+/// `SIGINT`, `SIGTERM` or `signal N` (the name [`Error::Interrupted`] gives).
+pub fn signal_name(signal: i32) -> String {
+    match signal {
+        2 => "SIGINT".into(),
+        15 => "SIGTERM".into(),
+        s => format!("signal {s}"),
+    }
 }
 
 /// Result with the crate's [`Error`].

@@ -16,7 +16,52 @@
 use std::fs::File;
 use std::path::{Path, PathBuf};
 
-use crate::error::{Error, Result};
+use crate::error::{ContainerError, Error, Result};
+
+/// Refuses anything at `path` but a regular file (following links) without
+/// opening it: a folder, a FIFO, a pipe, `/dev/null`, a socket. `expected`
+/// names what the reader wanted (`an MCAP file`).
+pub fn require_file(path: &Path, expected: &'static str) -> Result<()> {
+    let meta = std::fs::metadata(path).map_err(|e| Error::io(path, e))?;
+    let reason = if meta.is_dir() {
+        ContainerError::Folder { expected }
+    } else if !meta.is_file() {
+        ContainerError::NotAFile {
+            kind: special_kind(&meta),
+        }
+    } else {
+        return Ok(());
+    };
+    Err(Error::Container {
+        path: path.to_path_buf(),
+        reason,
+    })
+}
+
+/// What a path that is neither a file nor a folder is: `FIFO`, `socket`,
+/// `character device`, `block device` or `special file`.
+#[cfg(unix)]
+pub fn special_kind(meta: &std::fs::Metadata) -> &'static str {
+    use std::os::unix::fs::FileTypeExt;
+    let t = meta.file_type();
+    if t.is_fifo() {
+        "FIFO"
+    } else if t.is_socket() {
+        "socket"
+    } else if t.is_char_device() {
+        "character device"
+    } else if t.is_block_device() {
+        "block device"
+    } else {
+        "special file"
+    }
+}
+
+/// What a path that is neither a file nor a folder is.
+#[cfg(not(unix))]
+pub fn special_kind(_meta: &std::fs::Metadata) -> &'static str {
+    "special file"
+}
 
 /// A read-only map of a whole file.
 pub struct Mapped {

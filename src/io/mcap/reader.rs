@@ -176,7 +176,7 @@ impl McapFile {
     /// does not start with the MCAP magic.
     pub fn open(path: impl AsRef<Path>) -> Result<Self> {
         let path = path.as_ref().to_path_buf();
-        crate::io::container::require_file(&path, "an MCAP file")?;
+        crate::io::mapped::require_file(&path, "an MCAP file")?;
         let file = std::fs::File::open(&path).map_err(|e| Error::io(&path, e))?;
         let map = crate::io::mapped::Mapped::map(file, &path)?;
         if map.len() < MAGIC.len() || &map[..MAGIC.len()] != MAGIC {
