@@ -51,10 +51,17 @@ fn shape_err(what: &str, expected: &str, shape: &[usize]) -> PyErr {
 /// shape when NumPy gives it one (`(4,)`, `(2, 3, 3)`, `()` for a number),
 /// else its type (`a str`, a ragged list).
 pub fn given(obj: &Bound<'_, PyAny>) -> String {
-    let shape = obj.getattr("shape").ok().or_else(|| {
-        let np = obj.py().import("numpy").ok()?;
-        np.call_method1("shape", (obj,)).ok()
-    });
+    // A string is no array of numbers, whatever shape numpy gives it (`()`).
+    let text = obj.is_instance_of::<pyo3::types::PyString>()
+        || obj.is_instance_of::<pyo3::types::PyBytes>();
+    let shape = (!text)
+        .then(|| {
+            obj.getattr("shape").ok().or_else(|| {
+                let np = obj.py().import("numpy").ok()?;
+                np.call_method1("shape", (obj,)).ok()
+            })
+        })
+        .flatten();
     match shape.and_then(|s| s.extract::<Vec<usize>>().ok()) {
         Some(s) => format!("shape {}", shape_text(&s)),
         None => {
@@ -209,6 +216,9 @@ pub mod num_max {
         /// `u32::MAX` etc. as text.
         const MAX_TEXT: &'static str;
     }
+    impl Max for u8 {
+        const MAX_TEXT: &'static str = "255";
+    }
     impl Max for u32 {
         const MAX_TEXT: &'static str = "4294967295";
     }
@@ -254,10 +264,12 @@ pub mod uint {
         seed: u64 = "seed";
         min_count: u32 = "min_count";
         reduced: usize = "reduced";
+        zone: u8 = "zone";
     }
     named_opt! {
         cut_first_keyframes: usize = "cut_first_keyframes";
         n_to_align: usize = "n_to_align";
+        opt_zone: u8 = "zone";
     }
 }
 

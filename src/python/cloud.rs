@@ -519,7 +519,7 @@ impl PyPointCloud {
         path: PathBuf,
         origin: &Bound<'_, PyAny>,
         crs: &str,
-        zone: Option<u8>,
+        #[pyo3(from_py_with = super::arrays::uint::opt_zone)] zone: Option<u8>,
         hemisphere: Option<&str>,
     ) -> PyResult<u16> {
         let colors = self.colors.as_ref().map(|c| c.bind(py).readonly());

@@ -10,6 +10,7 @@ import subprocess
 import sys
 import textwrap
 import time
+from collections.abc import Callable
 from pathlib import Path
 
 import numpy as np
@@ -41,9 +42,12 @@ def _traj_files(tmp: Path) -> tuple[Path, Path]:
         (lambda: s2w.PinholeCamera.from_hfov(-640, 480, 60.0), "width"),
         (lambda: s2w.simulate(seed=-1), "seed"),
         (lambda: s2w.simulate(reduced=-2), "reduced"),
+        (lambda: s2w.geodetic_to_utm([48.0], [11.0], [500.0], zone=-1), "zone"),
+        (lambda: s2w.utm_to_geodetic([[500000.0, 0.0, 0.0]], -32), "zone"),
+        (lambda: s2w.utm_to_geodetic([[500000.0, 0.0, 0.0]], 300), "zone"),
     ],
 )
-def test_negative_integers_name_the_argument(call, name: str) -> None:
+def test_negative_integers_name_the_argument(call: Callable[[], object], name: str) -> None:
     with pytest.raises(s2w.InvalidInputError, match=name) as e:
         call()
     assert "integer from 0" in str(e.value)
