@@ -114,7 +114,7 @@ pub struct Log {
 fn log_err(path: &Path, reason: LogError) -> Error {
     Error::Log {
         path: path.to_path_buf(),
-        reason,
+        reason: Box::new(reason),
     }
 }
 
