@@ -109,7 +109,10 @@ impl From<Error> for PyErr {
                 | Error::InvalidArgument { .. }
                 | Error::OutOfRange { .. }
                 | Error::GravityTilted { .. } => &c.invalid,
-                Error::Degenerate { .. } => &c.degenerate,
+                Error::Degenerate { .. }
+                | Error::StaticReference { .. }
+                | Error::UnexplainedSpread { .. }
+                | Error::NothingFitted { .. } => &c.degenerate,
                 Error::Parse { .. }
                 | Error::Mcap { .. }
                 | Error::Decode { .. }
