@@ -552,6 +552,16 @@ pub fn associate_one_to_one(
         if groups[l].unused.is_empty() || groups[r].unused.is_empty() {
             continue;
         }
+        // Its key is stale when a pose of either group was used since: the
+        // next poses have higher indices, so the key only grows; put it back
+        // with the key it has now.
+        match candidate(&groups, l, r) {
+            Some(now) if (now.reference_index, now.slam_index) != (c.reference_index, c.slam_index) => {
+                heap.push(now);
+                continue;
+            }
+            _ => {}
+        }
         let (a, b) = (groups[l].unused.pop(), groups[r].unused.pop());
         if let (Some(a), Some(b)) = (a, b) {
             pairs.push(if groups[l].reference { (b, a) } else { (a, b) });
