@@ -92,7 +92,14 @@ fn anchor_first_puts_the_first_pose_on_its_reference() {
     let text = String::from_utf8_lossy(&o.stdout);
     assert!(text.contains("T_ref_est (4 DoF: translation + yaw)"), "{text}");
     assert!(text.contains("fit: dof 4dof, anchor first, association evo"), "{text}");
-    assert!(text.contains("gravity tilt of the Sim(3) fit: 0.000 deg"), "{text}");
+    // The wiggle tilts the Sim(3) fit a little; the 4-DoF fit went through.
+    let tilt: f64 = text
+        .split("gravity tilt of the Sim(3) fit: ")
+        .nth(1)
+        .and_then(|rest| rest.split(" deg").next())
+        .and_then(|x| x.parse().ok())
+        .unwrap_or_else(|| panic!("{text}"));
+    assert!(tilt < 2.0, "{text}");
 }
 
 #[test]
