@@ -500,11 +500,7 @@ pub fn associate_one_to_one(
     );
     // A stamp that is not a number matches nothing.
     items.retain(|x| !x.0.is_nan());
-    items.sort_by(|a, b| {
-        a.0.total_cmp(&b.0)
-            .then(a.1.cmp(&b.1))
-            .then(b.2.cmp(&a.2))
-    });
+    items.sort_by(|a, b| a.0.total_cmp(&b.0).then(a.1.cmp(&b.1)).then(b.2.cmp(&a.2)));
     let mut groups: Vec<StampGroup> = Vec::new();
     for (time, reference, index) in items {
         match groups.last_mut() {
@@ -556,7 +552,9 @@ pub fn associate_one_to_one(
         // next poses have higher indices, so the key only grows; put it back
         // with the key it has now.
         match candidate(&groups, l, r) {
-            Some(now) if (now.reference_index, now.slam_index) != (c.reference_index, c.slam_index) => {
+            Some(now)
+                if (now.reference_index, now.slam_index) != (c.reference_index, c.slam_index) =>
+            {
                 heap.push(now);
                 continue;
             }

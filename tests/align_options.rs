@@ -39,7 +39,11 @@ fn world_path(n: usize) -> Trajectory {
         .iter()
         .map(|&t| {
             let u = t - 100.0;
-            Vector3::new(3.0 * (0.3 * u).cos(), 2.0 * (0.45 * u).sin(), 0.4 * (0.2 * u).sin())
+            Vector3::new(
+                3.0 * (0.3 * u).cos(),
+                2.0 * (0.45 * u).sin(),
+                0.4 * (0.2 * u).sin(),
+            )
         })
         .collect();
     let q = t
@@ -142,7 +146,10 @@ fn one_to_one_equals_the_benchmarks_rule() {
             offset,
         );
         let want = brute_one_to_one(&slam, &reference, max_diff, offset);
-        assert_eq!(ours, want, "case {case}: slam {slam:?} reference {reference:?}");
+        assert_eq!(
+            ours, want,
+            "case {case}: slam {slam:?} reference {reference:?}"
+        );
     }
 }
 
@@ -161,7 +168,11 @@ fn one_to_one_uses_each_pose_once_where_evo_does_not() {
     assert_eq!(evo.len(), 40);
     let mut refs: Vec<usize> = evo.iter().map(|p| p.1).collect();
     refs.dedup();
-    assert_eq!(refs.len(), 20, "each used reference pose serves twice under evo");
+    assert_eq!(
+        refs.len(),
+        20,
+        "each used reference pose serves twice under evo"
+    );
     assert_eq!(one.len(), 20);
     for (k, &(i, j)) in one.iter().enumerate() {
         assert_eq!((i, j), (2 * k, 3 * k));
@@ -211,15 +222,8 @@ fn anchor_first_leaves_the_first_pose_on_its_reference() {
     let truth = Sim3::try_new(yaw(0.8), Vector3::new(2.0, -1.0, 0.5), 1.7).unwrap();
     let slam = seen(&world, &truth, 0.02, 1);
     for dof in Dof::ALL {
-        let free = align_trajectories(
-            &slam,
-            &world,
-            &TrajectoryAlignOptions {
-                dof,
-                ..opts()
-            },
-        )
-        .unwrap();
+        let free =
+            align_trajectories(&slam, &world, &TrajectoryAlignOptions { dof, ..opts() }).unwrap();
         let pinned = align_trajectories(
             &slam,
             &world,
@@ -379,25 +383,30 @@ fn options_that_contradict_each_other_are_refused() {
         scale: false,
         ..opts()
     };
-    assert_eq!(align_trajectories(&world, &world, &se3).unwrap().dof, Dof::Se3);
+    assert_eq!(
+        align_trajectories(&world, &world, &se3).unwrap().dof,
+        Dof::Se3
+    );
 }
 
 #[test]
 fn a_known_extrinsic_with_a_yaw_only_fit() {
     // Body poses in the world; the camera 20 cm ahead of the body, turned.
     let body = world_path(150);
-    let body_from_cam = Sim3::from_quaternion_xyzw(
-        [0.5, -0.5, 0.5, 0.5],
-        Vector3::new(0.2, -0.05, 0.03),
-        1.0,
-    )
-    .unwrap();
+    let body_from_cam =
+        Sim3::from_quaternion_xyzw([0.5, -0.5, 0.5, 0.5], Vector3::new(0.2, -0.05, 0.03), 1.0)
+            .unwrap();
     let q = body.orientations.as_ref().unwrap();
     let cams: Vec<(Vector3<f64>, UnitQuaternion<f64>)> = body
         .positions
         .iter()
         .zip(q)
-        .map(|(p, r)| (p + r * body_from_cam.translation, r * body_from_cam.rotation))
+        .map(|(p, r)| {
+            (
+                p + r * body_from_cam.translation,
+                r * body_from_cam.rotation,
+            )
+        })
         .collect();
     for (dof, scale) in [(Dof::FourDof, 1.0), (Dof::ScaleFourDof, 2.5)] {
         let truth = Sim3::try_new(yaw(-1.2), Vector3::new(0.5, 4.0, -0.2), scale).unwrap();
@@ -410,7 +419,10 @@ fn a_known_extrinsic_with_a_yaw_only_fit() {
         .unwrap();
         let plain = TrajectoryAlignOptions { dof, ..opts() };
         let without = align_trajectories(&slam, &body, &plain).unwrap();
-        assert!(without.ape.rmse > 0.05, "{dof}: the lever arm stays in the residual");
+        assert!(
+            without.ape.rmse > 0.05,
+            "{dof}: the lever arm stays in the residual"
+        );
         let with = TrajectoryAlignOptions {
             body_from_cam: Some(body_from_cam),
             ..plain.clone()
@@ -487,8 +499,14 @@ fn windowed_fits_keep_the_dof() {
         )
         .unwrap();
         let global = align_dof(
-            &w.pairs.iter().map(|p| slam.positions[p.0]).collect::<Vec<_>>(),
-            &w.pairs.iter().map(|p| world.positions[p.1]).collect::<Vec<_>>(),
+            &w.pairs
+                .iter()
+                .map(|p| slam.positions[p.0])
+                .collect::<Vec<_>>(),
+            &w.pairs
+                .iter()
+                .map(|p| world.positions[p.1])
+                .collect::<Vec<_>>(),
             &DofOptions {
                 dof,
                 ..DofOptions::default()
@@ -597,7 +615,13 @@ fn drive() -> Trajectory {
     let t: Vec<f64> = (0..300).map(|i| i as f64 * 0.2).collect();
     let p = t
         .iter()
-        .map(|&t| Vector3::new(60.0 * (0.05 * t).sin(), 40.0 * (0.08 * t).sin(), 2.0 * (0.1 * t).sin()))
+        .map(|&t| {
+            Vector3::new(
+                60.0 * (0.05 * t).sin(),
+                40.0 * (0.08 * t).sin(),
+                2.0 * (0.1 * t).sin(),
+            )
+        })
         .collect();
     Trajectory::try_new(t, p, None).unwrap()
 }
@@ -609,7 +633,10 @@ fn ecef_reference_against_an_enu_estimate() {
     let estimate = seen(&enu, &Sim3::identity(), 0.05, 8);
     let ecef_ref = Trajectory::try_new(
         enu.timestamps.clone(),
-        enu.positions.iter().map(|p| enu_to_ecef(p, lat, lon)).collect(),
+        enu.positions
+            .iter()
+            .map(|p| enu_to_ecef(p, lat, lon))
+            .collect(),
         None,
     )
     .unwrap();
@@ -650,7 +677,13 @@ fn ecef_reference_against_an_enu_estimate() {
         enu.positions
             .iter()
             .enumerate()
-            .map(|(i, p)| if i < 150 { *p } else { enu_to_ecef(p, lat, lon) })
+            .map(|(i, p)| {
+                if i < 150 {
+                    *p
+                } else {
+                    enu_to_ecef(p, lat, lon)
+                }
+            })
             .collect(),
         None,
     )
@@ -689,11 +722,16 @@ fn a_scale_left_at_one_with_a_large_residual_is_refused() {
     let raw: Vec<Vector3<f64>> = (0..n)
         .map(|i| {
             let u = i as f64 / n as f64 * std::f64::consts::TAU;
-            Vector3::new(15.0 * (3.0 * u).cos(), 12.0 * (2.0 * u).sin(), 4.0 * (5.0 * u).cos())
+            Vector3::new(
+                15.0 * (3.0 * u).cos(),
+                12.0 * (2.0 * u).sin(),
+                4.0 * (5.0 * u).cos(),
+            )
         })
         .collect();
     // Per coordinate, remove the least-squares fit on (1, âx, ây, âz).
-    let basis = nalgebra::DMatrix::from_fn(n, 4, |i, j| if j == 0 { 1.0 } else { centred[i][j - 1] });
+    let basis =
+        nalgebra::DMatrix::from_fn(n, 4, |i, j| if j == 0 { 1.0 } else { centred[i][j - 1] });
     let mut e = vec![Vector3::zeros(); n];
     for k in 0..3 {
         let y = nalgebra::DVector::from_fn(n, |i, _| raw[i][k]);

@@ -84,14 +84,25 @@ fn anchor_first_puts_the_first_pose_on_its_reference() {
         assert_eq!(pinned["fit"]["dof"], dof);
         assert_eq!(pinned["fit"]["anchor"], "first");
         assert_eq!(pinned["fit"]["association"], "evo");
-        assert!(pinned["fit"]["dof_diagnostics"]["yaw_determinacy"].as_f64().unwrap() > 0.9);
+        assert!(
+            pinned["fit"]["dof_diagnostics"]["yaw_determinacy"]
+                .as_f64()
+                .unwrap()
+                > 0.9
+        );
         assert_eq!(pinned["with_scale"], dof == "sim3" || dof == "scale+4dof");
     }
     // The text names the dof and what it adds.
     let o = bin(&["align", e, r, "--dof", "4dof", "--anchor", "first"]);
     let text = String::from_utf8_lossy(&o.stdout);
-    assert!(text.contains("T_ref_est (4 DoF: translation + yaw)"), "{text}");
-    assert!(text.contains("fit: dof 4dof, anchor first, association evo"), "{text}");
+    assert!(
+        text.contains("T_ref_est (4 DoF: translation + yaw)"),
+        "{text}"
+    );
+    assert!(
+        text.contains("fit: dof 4dof, anchor first, association evo"),
+        "{text}"
+    );
     // The wiggle tilts the Sim(3) fit a little; the 4-DoF fit went through.
     let tilt: f64 = text
         .split("gravity tilt of the Sim(3) fit: ")
@@ -183,7 +194,13 @@ fn a_static_reference_exits_1_and_transform_cloud_takes_the_flags() {
     for i in 0..60 {
         let j = (i * 37 % 11) as f64 / 11.0 - 0.5;
         let k = (i * 17 % 7) as f64 / 7.0 - 0.5;
-        text += &format!("{} {} {} {} 0 0 0 1\n", i as f64 * 0.1, 5.0 + 0.03 * j, 0.03 * k, 0.02 * j * k);
+        text += &format!(
+            "{} {} {} {} 0 0 0 1\n",
+            i as f64 * 0.1,
+            5.0 + 0.03 * j,
+            0.03 * k,
+            0.02 * j * k
+        );
     }
     std::fs::write(&still, text).unwrap();
     let s = still.to_str().unwrap();

@@ -294,7 +294,9 @@ mod tests {
             reference_noise: Some(-1.0),
             ..FitChecks::default()
         };
-        assert!(matches!(bad.check(), Err(Error::InvalidArgument { what, .. }) if what == "reference_noise"));
+        assert!(
+            matches!(bad.check(), Err(Error::InvalidArgument { what, .. }) if what == "reference_noise")
+        );
         let off = FitChecks {
             max_residual_over_spread: f64::INFINITY,
             ..FitChecks::default()

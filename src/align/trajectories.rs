@@ -421,14 +421,7 @@ pub fn align_trajectories(
         }
         None => None,
     };
-    let pairs = matched_pairs_with(
-        slam,
-        reference,
-        opts.max_diff,
-        offset,
-        3,
-        opts.association,
-    )?;
+    let pairs = matched_pairs_with(slam, reference, opts.max_diff, offset, 3, opts.association)?;
     let src: Vec<Vector3<f64>> = pairs.iter().map(|&(s, _)| slam.positions[s]).collect();
     let dst: Vec<Vector3<f64>> = pairs.iter().map(|&(_, r)| reference.positions[r]).collect();
     let need_rot = opts.use_orientations || opts.body_from_cam.is_some();
@@ -501,7 +494,12 @@ pub fn align_trajectories(
         .as_ref()
         .map(|m| m.iter().map(|&b| f64::from(u8::from(b))).collect());
     let fitted_reference: Vec<Vector3<f64>> = match &inliers {
-        Some(m) => fd.iter().zip(m).filter(|(_, &k)| k).map(|(p, _)| *p).collect(),
+        Some(m) => fd
+            .iter()
+            .zip(m)
+            .filter(|(_, &k)| k)
+            .map(|(p, _)| *p)
+            .collect(),
         None => fd.to_vec(),
     };
     let quality = check_fit(
