@@ -588,6 +588,63 @@ fn a_reference_that_never_moves_is_refused() {
     assert!(r.quality.residual_over_spread < 0.1);
 }
 
+#[test]
+fn sparse_keyframes_of_a_small_motion_are_not_a_static_reference() {
+    // fr1/xyz-like: a hand-held 0.3 m wobble, ground truth at 100 Hz with
+    // 1 mm noise, 32 keyframes one to two seconds apart. Between keyframes
+    // the path turns a lot (their second differences are as large as the
+    // motion); the noise comes from the reference at its own rate.
+    let mut rng = ChaCha8Rng::seed_from_u64(11);
+    let n = 3000;
+    let t: Vec<f64> = (0..n).map(|i| i as f64 * 0.01).collect();
+    let truth: Vec<Vector3<f64>> = t
+        .iter()
+        .map(|&t| {
+            Vector3::new(
+                0.3 * (1.3 * t).sin(),
+                0.2 * (0.9 * t).cos(),
+                0.1 * (2.1 * t).sin(),
+            )
+        })
+        .collect();
+    let reference = Trajectory::try_new(
+        t.clone(),
+        truth.iter().map(|p| p + gauss(&mut rng) * 1e-3).collect(),
+        None,
+    )
+    .unwrap();
+    let keys: Vec<usize> = (0..32).map(|k| k * 93 + 17).collect();
+    let t_world_slam = Sim3::try_new(yaw(0.4), Vector3::new(1.0, 2.0, 0.5), 2.0).unwrap();
+    let inv = t_world_slam.inverse();
+    let slam = Trajectory::try_new(
+        keys.iter().map(|&k| t[k]).collect(),
+        keys.iter()
+            .map(|&k| inv.transform_point(&truth[k]))
+            .collect(),
+        None,
+    )
+    .unwrap();
+    let r = align_trajectories(&slam, &reference, &opts()).unwrap();
+    assert_eq!(r.ape.n_pairs, 32);
+    assert_eq!(r.quality.noise_source, Some(NoiseSource::SecondDifferences));
+    let noise = r.quality.reference_noise.unwrap();
+    assert!(noise < 3e-3, "{noise}");
+    // The same 32 poses as the whole reference: their second differences see
+    // the turns as noise and the check refuses a motion that is there.
+    let sparse = Trajectory::try_new(
+        keys.iter().map(|&k| t[k]).collect(),
+        keys.iter().map(|&k| reference.positions[k]).collect(),
+        None,
+    )
+    .unwrap();
+    let sparse_noise = match align_trajectories(&slam, &sparse, &opts()) {
+        Err(Error::StaticReference { noise_m, .. }) => noise_m,
+        Ok(r) => r.quality.reference_noise.unwrap(),
+        Err(e) => panic!("{e}"),
+    };
+    assert!(sparse_noise > 20.0 * noise, "{sparse_noise} vs {noise}");
+}
+
 /// WGS84 geodetic (deg, deg, m) to ECEF, metres.
 fn ecef(lat: f64, lon: f64, h: f64) -> Vector3<f64> {
     let (a, f) = (6_378_137.0, 1.0 / 298.257_223_563);

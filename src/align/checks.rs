@@ -19,19 +19,21 @@
 //!
 //! The reference noise (metres, 3-D rms of one position's error) is the
 //! stated [`FitChecks::reference_noise`] when given; otherwise it is estimated
-//! from the reference positions themselves, in time order, by their second
-//! differences: `sqrt(Σ‖b_{k+1} − 2·b_k + b_{k−1}‖² / (6·(n − 2)))`, which for
-//! white noise of per-axis deviation `σ` is `√3·σ` (the 3-D rms of one
-//! error) and grows only with the path's curvature for a smooth motion. With
-//! fewer than [`MIN_PAIRS_FOR_NOISE`] fitted pairs and no stated noise, the
-//! two checks that need the noise are skipped.
+//! from the reference's own poses over the fitted time span (every pose of
+//! the reference there, at its own rate, not only the matched ones: sparse
+//! keyframe pairs would see the path's curvature as noise), in time order, by
+//! their second differences: `sqrt(Σ‖b_{k+1} − 2·b_k + b_{k−1}‖² / (6·(n −
+//! 2)))`, which for white noise of per-axis deviation `σ` is `√3·σ` (the 3-D
+//! rms of one error) and grows only with the path's curvature (`a·Δt²`) for a
+//! smooth motion. With fewer than [`MIN_PAIRS_FOR_NOISE`] such poses and no
+//! stated noise, the two checks that need the noise are skipped.
 
 use nalgebra::Vector3;
 
 use crate::defaults;
 use crate::error::{Error, Result};
 
-/// Fewest pairs from which the reference noise is estimated.
+/// Fewest reference poses from which the reference noise is estimated.
 pub const MIN_PAIRS_FOR_NOISE: usize = 8;
 
 /// Thresholds of the fit-quality refusals (defaults in [`crate::defaults`]).
@@ -194,13 +196,19 @@ fn noise_of(reference: &[Vector3<f64>], checks: &FitChecks) -> (Option<f64>, Opt
 }
 
 /// The static-reference check, before any fit: `reference` are the fitted
-/// pairs' reference positions in time order. Errors: [`Error::StaticReference`].
-pub fn check_reference_moves(reference: &[Vector3<f64>], checks: &FitChecks) -> Result<()> {
+/// pairs' reference positions, `run` the reference's poses over their time
+/// span in time order (for the noise estimate). Errors:
+/// [`Error::StaticReference`].
+pub fn check_reference_moves(
+    reference: &[Vector3<f64>],
+    run: &[Vector3<f64>],
+    checks: &FitChecks,
+) -> Result<()> {
     if !checks.enabled || checks.min_spread_over_noise == 0.0 {
         return Ok(());
     }
     let spread = rms_spread(reference);
-    let (Some(noise), Some(source)) = noise_of(reference, checks) else {
+    let (Some(noise), Some(source)) = noise_of(run, checks) else {
         return Ok(());
     };
     if spread <= checks.min_spread_over_noise * noise {
@@ -216,18 +224,20 @@ pub fn check_reference_moves(reference: &[Vector3<f64>], checks: &FitChecks) -> 
 }
 
 /// The figures of a fit with rmse `rmse` (metres) and scale `scale` to the
-/// pairs' reference positions `reference` (time order), and its refusal:
-/// [`Error::NothingFitted`] (only when `fits_scale`), then
+/// pairs' reference positions `reference` (`run`: the reference's poses over
+/// their time span, for the noise, as [`check_reference_moves`]), and its
+/// refusal: [`Error::NothingFitted`] (only when `fits_scale`), then
 /// [`Error::UnexplainedSpread`].
 pub fn check_fit(
     reference: &[Vector3<f64>],
+    run: &[Vector3<f64>],
     rmse: f64,
     scale: f64,
     fits_scale: bool,
     checks: &FitChecks,
 ) -> Result<FitQuality> {
     let spread = rms_spread(reference);
-    let (noise, source) = noise_of(reference, checks);
+    let (noise, source) = noise_of(run, checks);
     let residual_over_spread = if spread > 0.0 {
         rmse / spread
     } else {

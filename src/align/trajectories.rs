@@ -443,7 +443,14 @@ pub fn align_trajectories(
     let dopts = opts.dof_options()?;
     let dof = dopts.dof;
     let (fs, fd) = (&src[range.clone()], &dst[range.clone()]);
-    check_reference_moves(fd, &opts.checks)?;
+    // The reference's own poses over the fitted span, for its noise.
+    let run = {
+        let fitted = &pairs[range.clone()];
+        let lo = fitted.iter().map(|p| p.1).min().unwrap_or(0);
+        let hi = fitted.iter().map(|p| p.1).max().unwrap_or(0);
+        &reference.positions[lo..=hi.max(lo)]
+    };
+    check_reference_moves(fd, run, &opts.checks)?;
     let mut inliers = None;
     let alignment = if opts.use_orientations {
         align_with_orientations_dof(
@@ -504,6 +511,7 @@ pub fn align_trajectories(
     };
     let quality = check_fit(
         &fitted_reference,
+        run,
         alignment.rmse,
         t.scale,
         dof.has_scale(),
