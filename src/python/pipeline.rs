@@ -157,7 +157,17 @@ impl PyConversion {
 /// `fit_checks` are `align_trajectories`'s (degrees of freedom, pinned first
 /// pair, pairing rule, gravity check, fit-quality refusals).
 #[pyfunction(name = "convert")]
-#[pyo3(signature = (log_or_path, *, keyframe_topic=None, graph_topic=None, pose_topic=None, tf_parent=None, tf_child=None, max_diff=0.01, offset=0.0, n_to_align=None, scale=true, method="horn", filter=None, octree_resolution=None, octree_max_range=None, prob_hit=0.7, prob_miss=0.4, clamp_min=0.1192, clamp_max=0.971, skip_init=None, robust=None, inlier_threshold=None, loss="huber", use_orientations=false, estimate_offset=false, max_offset=0.5, body_from_cam=None, compare_windowed=None, windowed_cloud=false, imu_topic=None, imu_from_cam=None, gravity=9.81, level=0.95, dof="sim3", anchor=None, association="evo", max_tilt_deg=Some(crate::defaults::MAX_TILT_DEG), reference_noise=None, fit_checks=true))]
+#[pyo3(signature = (log_or_path, *, keyframe_topic=None, graph_topic=None, pose_topic=None, tf_parent=None, tf_child=None, max_diff=0.01, offset=0.0, n_to_align=None, scale=true, method="horn", filter=None, octree_resolution=None, octree_max_range=None, prob_hit=0.7, prob_miss=0.4, clamp_min=0.1192, clamp_max=0.971, skip_init=None, robust=None, inlier_threshold=None, loss="huber", use_orientations=false, estimate_offset=false, max_offset=0.5, body_from_cam=None, compare_windowed=None, windowed_cloud=false, imu_topic=None, imu_from_cam=None, gravity=9.81, level=0.95, dof="sim3", anchor=None, association="evo", max_tilt_deg=Some(crate::defaults::MAX_TILT_DEG), reference_noise=None, fit_checks=true),
+       text_signature = "(log_or_path, *, keyframe_topic=None, graph_topic=None, pose_topic=None, \
+                         tf_parent=None, tf_child=None, max_diff=0.01, offset=0.0, n_to_align=None, \
+                         scale=True, method='horn', filter=None, octree_resolution=None, \
+                         octree_max_range=None, prob_hit=0.7, prob_miss=0.4, clamp_min=0.1192, \
+                         clamp_max=0.971, skip_init=None, robust=None, inlier_threshold=None, \
+                         loss='huber', use_orientations=False, estimate_offset=False, max_offset=0.5, \
+                         body_from_cam=None, compare_windowed=None, windowed_cloud=False, \
+                         imu_topic=None, imu_from_cam=None, gravity=9.81, level=0.95, dof='sim3', \
+                         anchor=None, association='evo', max_tilt_deg=2.0, reference_noise=None, \
+                         fit_checks=True)")]
 #[allow(clippy::too_many_arguments)]
 fn convert_py(
     py: Python<'_>,

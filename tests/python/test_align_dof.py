@@ -300,13 +300,13 @@ def test_windowed_fits_keep_the_dof() -> None:
     t = np.arange(n) * 0.1
     world = synthetic(n, seed=5)
     est = yaw_sim3(0.5, (1.0, 2.0, 0.0)).inverse().apply(world)
-    w = s2w.align_windowed(
-        s2w.Trajectory(t, est), s2w.Trajectory(t, world), window=15, dof="4dof"
-    )
+    w = s2w.align_windowed(s2w.Trajectory(t, est), s2w.Trajectory(t, world), window=15, dof="4dof")
     assert np.all(w.scales == 1.0)
     for tr in w.transforms:
         np.testing.assert_allclose(tr.rotation[2], [0.0, 0.0, 1.0], atol=1e-12)
-    np.testing.assert_allclose(w.single.transform.matrix(), yaw_sim3(0.5, (1.0, 2.0, 0.0)).matrix(), atol=1e-9)
+    np.testing.assert_allclose(
+        w.single.transform.matrix(), yaw_sim3(0.5, (1.0, 2.0, 0.0)).matrix(), atol=1e-9
+    )
     one = s2w.align_windowed(
         s2w.Trajectory(t, est), s2w.Trajectory(t, world), window=15, association="one_to_one"
     )
