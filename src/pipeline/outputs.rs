@@ -1,5 +1,5 @@
 //! The files a conversion writes: `world.mcap` (Foxglove or ROS 2),
-//! `cloud.ply`, `map.bt` (with an octree) and `report.json`.
+//! `cloud.ply`, `map.bt` (with an octree), `report.json` and `report.html`.
 
 use std::path::{Path, PathBuf};
 use std::time::Instant;
@@ -8,7 +8,9 @@ use crate::error::{Error, Result};
 use crate::io::mcap::{write_world_mcap_with_octomap, WorldFlavor, WorldScene};
 use crate::map::{OccupancyMap, VoxelState};
 
-use super::report::{to_json_bytes, Report};
+use super::figures::{FigureData, FigureOptions};
+use super::html::{write_html, Page, Summary};
+use super::report::{to_json_bytes, DemoReport, Report};
 use super::Conversion;
 
 /// The world cloud, both trajectories, `world → slam` and the occupied voxels.
@@ -19,6 +21,18 @@ pub const CLOUD_PLY: &str = "cloud.ply";
 pub const REPORT_JSON: &str = "report.json";
 /// The occupancy octree (OctoMap binary), written when the conversion has one.
 pub const MAP_BT: &str = "map.bt";
+/// The report page (self-contained HTML: summary, paths, errors, cloud, voxels).
+pub const REPORT_HTML: &str = "report.html";
+
+/// What `report.html` adds to the conversion: the demo's comparison with the
+/// truth, and the limits of what it embeds.
+#[derive(Clone, Copy, Debug, Default)]
+pub struct HtmlOptions<'a> {
+    /// The demo report (its truth card), for `demo`.
+    pub demo: Option<&'a DemoReport>,
+    /// Limits of the embedded cloud and voxels.
+    pub figures: FigureOptions,
+}
 
 impl Conversion {
     /// Writes `world.mcap` (cloud, both trajectories, `world → slam`, and the
@@ -71,10 +85,39 @@ impl Conversion {
         write_report(&self.report, path.as_ref())
     }
 
-    /// Writes `world.mcap`, `cloud.ply`, `report.json` and, with an octree,
-    /// `map.bt` into `dir` (created when missing); the written report carries
-    /// the write time. When one fails, the outputs written by this call are
-    /// removed.
+    /// Writes `report.html` with `octree`'s voxels (through a temporary file,
+    /// renamed).
+    pub fn write_html_with(
+        &self,
+        path: impl AsRef<Path>,
+        octree: Option<&OccupancyMap>,
+        opts: &HtmlOptions<'_>,
+    ) -> Result<()> {
+        self.write_page(&self.report, path.as_ref(), octree, opts)
+    }
+
+    fn write_page(
+        &self,
+        report: &Report,
+        path: &Path,
+        octree: Option<&OccupancyMap>,
+        opts: &HtmlOptions<'_>,
+    ) -> Result<()> {
+        let figures = FigureData::of_conversion(self, octree, &opts.figures)?;
+        let title = report.input.display().to_string();
+        let page = Page {
+            title: &title,
+            summary: Summary::Convert(report),
+            demo: opts.demo,
+            figures: &figures,
+        };
+        write_html(path, &page)
+    }
+
+    /// Writes `world.mcap`, `cloud.ply`, `report.json`, `report.html` and,
+    /// with an octree, `map.bt` into `dir` (created when missing); the written
+    /// report (in both files the same) carries the write time. When one
+    /// fails, the outputs written by this call are removed.
     pub fn write_all(&self, dir: impl AsRef<Path>, flavor: WorldFlavor) -> Result<()> {
         self.write_all_with(dir, flavor, self.octree.as_ref())
     }
@@ -86,6 +129,17 @@ impl Conversion {
         dir: impl AsRef<Path>,
         flavor: WorldFlavor,
         octree: Option<&OccupancyMap>,
+    ) -> Result<()> {
+        self.write_all_html(dir, flavor, octree, &HtmlOptions::default())
+    }
+
+    /// [`Conversion::write_all_with`] with what `report.html` adds.
+    pub fn write_all_html(
+        &self,
+        dir: impl AsRef<Path>,
+        flavor: WorldFlavor,
+        octree: Option<&OccupancyMap>,
+        html: &HtmlOptions<'_>,
     ) -> Result<()> {
         let dir = dir.as_ref();
         std::fs::create_dir_all(dir).map_err(|e| Error::io(dir, e))?;
@@ -105,6 +159,9 @@ impl Conversion {
             }
             let mut report = self.report.clone();
             report.timing.write_s = t.elapsed().as_secs_f64();
+            let p = dir.join(REPORT_HTML);
+            self.write_page(&report, &p, octree, html)?;
+            written.push(p);
             let p = dir.join(REPORT_JSON);
             write_report(&report, &p)?;
             written.push(p);
