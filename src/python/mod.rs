@@ -13,6 +13,7 @@ mod colmap;
 mod defaults;
 mod droid;
 mod errors;
+mod geo;
 mod geometry;
 mod imu;
 mod io;
@@ -40,5 +41,6 @@ fn _slam2world(m: &Bound<'_, PyModule>) -> PyResult<()> {
     colmap::register(m)?;
     droid::register(m)?;
     text::register(m)?;
+    geo::register(m)?;
     Ok(())
 }
