@@ -281,17 +281,23 @@ def _finest_voxels(voxels: FloatArray, resolution: float) -> npt.NDArray[np.int6
         steps = np.arange(max(int(edge), 1), dtype=np.int64)
         offs = np.stack(np.meshgrid(steps, steps, steps, indexing="ij"), -1).reshape(-1, 3)
         out.append((lo[:, None, :] + offs[None, :, :]).reshape(-1, 3))
-    return np.unique(np.vstack(out), axis=0) if out else np.zeros((0, 3), dtype=np.int64)
+    if not out:
+        return np.zeros((0, 3), dtype=np.int64)
+    unique: npt.NDArray[np.int64] = np.unique(np.vstack(out), axis=0)
+    return unique
 
 
 def _exposed_faces(idx: npt.NDArray[np.int64]) -> tuple[FloatArray, npt.NDArray[np.int64]]:
     """Quads (M, 4, 3) in voxel units of the faces of ``idx`` that no occupied voxel
     covers (bottom faces left out: the view is from above), and the voxel of each."""
-    span = idx.max(axis=0) - idx.min(axis=0) + 3 if idx.size else np.ones(3, dtype=np.int64)
-    base = idx - idx.min(axis=0) + 1 if idx.size else idx
+    span: npt.NDArray[np.int64] = (
+        idx.max(axis=0) - idx.min(axis=0) + 3 if idx.size else np.ones(3, dtype=np.int64)
+    )
+    base: npt.NDArray[np.int64] = idx - idx.min(axis=0) + 1 if idx.size else idx
 
     def key(a: npt.NDArray[np.int64]) -> npt.NDArray[np.int64]:
-        return (a[:, 0] * span[1] + a[:, 1]) * span[2] + a[:, 2]
+        k: npt.NDArray[np.int64] = (a[:, 0] * span[1] + a[:, 1]) * span[2] + a[:, 2]
+        return k
 
     occupied = np.sort(key(base))
     corners = {
@@ -330,7 +336,7 @@ def plot_octree(
     black: the plane): a 3-D view of the voxel faces and the height seen from above.
     """
     from matplotlib.colors import Normalize
-    from mpl_toolkits.mplot3d.art3d import Poly3DCollection
+    from mpl_toolkits.mplot3d.art3d import Poly3DCollection  # type: ignore[import-untyped]
 
     v = np.asarray(voxels, dtype=np.float64)
     if v.ndim != 2 or v.shape[1] != 4 or v.shape[0] == 0:

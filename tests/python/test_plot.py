@@ -104,8 +104,12 @@ def test_octree_figure(tmp_path: Path) -> None:
     assert plot._exposed_faces(np.array([[0, 0, 0], [0, 0, 1]]))[0].shape == (9, 4, 3)
     with pytest.raises(ValueError, match=r"\(N, 4\)"):
         plot.plot_octree(
-            np.zeros((3, 3)), tmp_path / "x.png", resolution=0.1, cube_min=[[0, 0, 0]],
-            cube_size=1.0, plane_half=(1, 1),
+            np.zeros((3, 3)),
+            tmp_path / "x.png",
+            resolution=0.1,
+            cube_min=[[0, 0, 0]],
+            cube_size=1.0,
+            plane_half=(1, 1),
         )
 
 
@@ -120,7 +124,13 @@ def test_demo_writes_its_figures(tmp_path: Path, monkeypatch: pytest.MonkeyPatch
     monkeypatch.setenv("SLAM2WORLD_PYTHON", sys.executable)
     out = tmp_path / "demo"
     assert s2w._slam2world.run_cli(["slam2world", "demo", "-o", str(out), "--reduced", "8"]) == 0
-    for name in ("paths.png", "scale_factors.png", "cloud.png", "error_histogram.png", "octree.png"):
+    for name in (
+        "paths.png",
+        "scale_factors.png",
+        "cloud.png",
+        "error_histogram.png",
+        "octree.png",
+    ):
         check_png(out / name)
     assert (out / "map.bt").stat().st_size > 1000
     assert (out / "demo.json").stat().st_size > 1000

@@ -241,7 +241,10 @@ def test_align_html_renders_in_chromium(tmp_path: Path, browser: Browser) -> Non
     assert browser.evaluate("document.body.dataset.ready") == "1"
     assert browser.errors() == []
     # No cloud in an alignment: its section is hidden, the rest drawn.
-    assert browser.evaluate("getComputedStyle(document.getElementById('cloud-section')).display") == "none"
+    assert (
+        browser.evaluate("getComputedStyle(document.getElementById('cloud-section')).display")
+        == "none"
+    )
 
 
 def test_align_plot_without_matches_is_an_error(tmp_path: Path) -> None:
