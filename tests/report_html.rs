@@ -80,7 +80,10 @@ fn a_conversion_writes_a_self_contained_page_with_the_reports_numbers() {
     // The embedded report is report.json (the same write time in both).
     assert_eq!(data["report"], report);
     let f = &data["figures"];
-    assert_eq!(f["pairs"]["error"].as_array().unwrap().len(), conv.report.pairs.len());
+    assert_eq!(
+        f["pairs"]["error"].as_array().unwrap().len(),
+        conv.report.pairs.len()
+    );
     assert_eq!(
         f["scale_factors"].as_array().unwrap().len(),
         conv.report.pairs.len() - 1
@@ -96,7 +99,10 @@ fn a_conversion_writes_a_self_contained_page_with_the_reports_numbers() {
     for (doc, key, value) in &nums {
         assert_eq!(doc, "report");
         let want = lookup(&report, key);
-        assert!(!want.is_null() || value == "null", "{key}: missing in report.json");
+        assert!(
+            !want.is_null() || value == "null",
+            "{key}: missing in report.json"
+        );
         let got: serde_json::Value = serde_json::from_str(value).unwrap();
         assert_eq!(&got, want, "{key}");
     }
@@ -110,9 +116,18 @@ fn align_writes_the_figures_and_the_page() {
     let mut est = String::new();
     for i in 0..200 {
         let t = f64::from(i) * 0.1;
-        let (x, y, z) = (3.0 * (0.3 * t).cos(), 2.0 * (0.3 * t).sin(), 0.1 * (t).sin());
+        let (x, y, z) = (
+            3.0 * (0.3 * t).cos(),
+            2.0 * (0.3 * t).sin(),
+            0.1 * (t).sin(),
+        );
         reference += &format!("{t} {x} {y} {z} 0 0 0 1\n");
-        est += &format!("{t} {} {} {} 0 0 0 1\n", y / 3.0 + 1.0, -x / 3.0, z / 3.0 + 0.001 * (7.0 * t).sin());
+        est += &format!(
+            "{t} {} {} {} 0 0 0 1\n",
+            y / 3.0 + 1.0,
+            -x / 3.0,
+            z / 3.0 + 0.001 * (7.0 * t).sin()
+        );
     }
     let (e, r) = (dir.path().join("est.txt"), dir.path().join("ref.txt"));
     std::fs::write(&e, est).unwrap();
@@ -120,7 +135,15 @@ fn align_writes_the_figures_and_the_page() {
     let save = dir.path().join("ape.png");
     let page = dir.path().join("align.html");
     assert_eq!(
-        run(&["align", s(&e), s(&r), "--save-plot", s(&save), "--html", s(&page)]),
+        run(&[
+            "align",
+            s(&e),
+            s(&r),
+            "--save-plot",
+            s(&save),
+            "--html",
+            s(&page)
+        ]),
         0
     );
     for name in ["ape_map.png", "ape_raw.png"] {
@@ -140,5 +163,14 @@ fn align_writes_the_figures_and_the_page() {
     // A folder that does not exist is an error (exit 1), nothing half-written.
     let bad = dir.path().join("missing").join("ape.png");
     assert_eq!(run(&["align", s(&e), s(&r), "--save-plot", s(&bad)]), 1);
-    assert_eq!(run(&["align", s(&e), s(&r), "--html", s(&dir.path().join("no/x.html"))]), 1);
+    assert_eq!(
+        run(&[
+            "align",
+            s(&e),
+            s(&r),
+            "--html",
+            s(&dir.path().join("no/x.html"))
+        ]),
+        1
+    );
 }

@@ -86,9 +86,11 @@ fn jet(t: f64) -> RGBColor {
 pub fn plane_of_most_motion(p: &[Vector3<f64>]) -> (usize, usize) {
     let mut spread = [0.0f64; 3];
     for (k, s) in spread.iter_mut().enumerate() {
-        let (lo, hi) = p.iter().fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), v| {
-            (a.min(v[k]), b.max(v[k]))
-        });
+        let (lo, hi) = p
+            .iter()
+            .fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), v| {
+                (a.min(v[k]), b.max(v[k]))
+            });
         *s = if hi >= lo { hi - lo } else { 0.0 };
     }
     let least = (0..3)
@@ -140,7 +142,12 @@ pub fn write_ape_figures(
     draw_raw(&rel, errors, &fit.ape, raw)
 }
 
-fn draw_map(reference: &Trajectory, aligned: &[Vector3<f64>], errors: &[f64], path: &Path) -> Result<()> {
+fn draw_map(
+    reference: &Trajectory,
+    aligned: &[Vector3<f64>],
+    errors: &[f64],
+    path: &Path,
+) -> Result<()> {
     let (a, b) = plane_of_most_motion(&reference.positions);
     let names = ["x", "y", "z"];
     let all = || reference.positions.iter().chain(aligned.iter());
@@ -157,7 +164,10 @@ fn draw_map(reference: &Trajectory, aligned: &[Vector3<f64>], errors: &[f64], pa
         root.fill(&WHITE).map_err(|e| plot_error(path, e))?;
         let (main, bar) = root.split_horizontally(WIDTH - 150);
         let mut chart = ChartBuilder::on(&main)
-            .caption("Reference and aligned estimate, coloured by APE", ("sans-serif", 26))
+            .caption(
+                "Reference and aligned estimate, coloured by APE",
+                ("sans-serif", 26),
+            )
             .margin(16)
             .x_label_area_size(50)
             .y_label_area_size(80)
@@ -183,11 +193,16 @@ fn draw_map(reference: &Trajectory, aligned: &[Vector3<f64>], errors: &[f64], pa
         let colour = |e: f64| jet((e - elo) / (ehi - elo));
         chart
             .draw_series(aligned.windows(2).zip(errors).map(|(w, &e)| {
-                PathElement::new([(w[0][a], w[0][b]), (w[1][a], w[1][b])], colour(e).stroke_width(3))
+                PathElement::new(
+                    [(w[0][a], w[0][b]), (w[1][a], w[1][b])],
+                    colour(e).stroke_width(3),
+                )
             }))
             .map_err(|e| plot_error(path, e))?
             .label("estimate (aligned)")
-            .legend(move |(x, y)| PathElement::new([(x, y), (x + 24, y)], jet(0.8).stroke_width(3)));
+            .legend(move |(x, y)| {
+                PathElement::new([(x, y), (x + 24, y)], jet(0.8).stroke_width(3))
+            });
         chart
             .configure_series_labels()
             .label_font(("sans-serif", 17))
@@ -216,8 +231,12 @@ fn draw_map(reference: &Trajectory, aligned: &[Vector3<f64>], errors: &[f64], pa
             bar.draw(&Text::new(format!("{v:.4}"), (66, y - 8), style.clone()))
                 .map_err(|e| plot_error(path, e))?;
         }
-        bar.draw(&Text::new("APE (m)", (20, top - 40), ("sans-serif", 19).into_font()))
-            .map_err(|e| plot_error(path, e))?;
+        bar.draw(&Text::new(
+            "APE (m)",
+            (20, top - 40),
+            ("sans-serif", 19).into_font(),
+        ))
+        .map_err(|e| plot_error(path, e))?;
         root.present().map_err(|e| plot_error(path, e))?;
     }
     write_png(path, &buf)
@@ -230,7 +249,12 @@ fn draw_raw(
     path: &Path,
 ) -> Result<()> {
     let (xlo, xhi) = range(times.iter().copied());
-    let ymax = errors.iter().copied().fold(0.0f64, f64::max).max(ape.mean + ape.std) * 1.08;
+    let ymax = errors
+        .iter()
+        .copied()
+        .fold(0.0f64, f64::max)
+        .max(ape.mean + ape.std)
+        * 1.08;
     let ymax = if ymax > 0.0 { ymax } else { 1.0 };
     let mut buf = vec![0u8; (WIDTH * HEIGHT * 3) as usize];
     {
@@ -254,12 +278,17 @@ fn draw_raw(
         let band = RGBColor(160, 160, 160);
         chart
             .draw_series(std::iter::once(Rectangle::new(
-                [(xlo, (ape.mean - ape.std).max(0.0)), (xhi, ape.mean + ape.std)],
+                [
+                    (xlo, (ape.mean - ape.std).max(0.0)),
+                    (xhi, ape.mean + ape.std),
+                ],
                 band.mix(0.35).filled(),
             )))
             .map_err(|e| plot_error(path, e))?
             .label("std")
-            .legend(move |(x, y)| Rectangle::new([(x, y - 6), (x + 24, y + 6)], band.mix(0.35).filled()));
+            .legend(move |(x, y)| {
+                Rectangle::new([(x, y - 6), (x + 24, y + 6)], band.mix(0.35).filled())
+            });
         chart
             .draw_series(LineSeries::new(
                 times.iter().copied().zip(errors.iter().copied()),
@@ -267,17 +296,24 @@ fn draw_raw(
             ))
             .map_err(|e| plot_error(path, e))?
             .label("APE (m)")
-            .legend(|(x, y)| PathElement::new([(x, y), (x + 24, y)], RGBColor(60, 60, 60).stroke_width(2)));
+            .legend(|(x, y)| {
+                PathElement::new([(x, y), (x + 24, y)], RGBColor(60, 60, 60).stroke_width(2))
+            });
         for (name, v, colour) in [
             ("rmse", ape.rmse, RGBColor(31, 119, 180)),
             ("median", ape.median, RGBColor(44, 160, 44)),
             ("mean", ape.mean, RGBColor(214, 39, 40)),
         ] {
             chart
-                .draw_series(LineSeries::new([(xlo, v), (xhi, v)], colour.stroke_width(2)))
+                .draw_series(LineSeries::new(
+                    [(xlo, v), (xhi, v)],
+                    colour.stroke_width(2),
+                ))
                 .map_err(|e| plot_error(path, e))?
                 .label(format!("{name} {v:.5}"))
-                .legend(move |(x, y)| PathElement::new([(x, y), (x + 24, y)], colour.stroke_width(2)));
+                .legend(move |(x, y)| {
+                    PathElement::new([(x, y), (x + 24, y)], colour.stroke_width(2))
+                });
         }
         chart
             .configure_series_labels()

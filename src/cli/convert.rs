@@ -15,8 +15,7 @@ use crate::io::mcap::{ReadOptions, WorldFlavor};
 use crate::map::MapParams;
 use crate::pipeline::report::ImuReport;
 use crate::pipeline::{
-    convert_source, source, ConvertOptions, CLOUD_PLY, MAP_BT, REPORT_HTML, REPORT_JSON,
-    WORLD_MCAP,
+    convert_source, source, ConvertOptions, CLOUD_PLY, MAP_BT, REPORT_HTML, REPORT_JSON, WORLD_MCAP,
 };
 
 /// Arguments of `convert`.

@@ -24,12 +24,12 @@ use crate::error::{Error, Result};
 use crate::geometry::Sim3;
 use crate::io::atomic::write_bytes_atomic;
 use crate::io::mcap::{read_mcap, write_slam_log, SlamLogOptions, WorldFlavor};
+use crate::map::{MapParams, VoxelState};
+use crate::pipeline::outputs::HtmlOptions;
 use crate::pipeline::report::{
     to_json_bytes, DemoAlignment, DemoReport, DemoSeconds, DemoTruth, EvaluateReport, FramesReport,
     SceneReport, SimStages, TransformReport, TruthReport,
 };
-use crate::map::{MapParams, VoxelState};
-use crate::pipeline::outputs::HtmlOptions;
 use crate::pipeline::{convert, ConvertOptions, Recording};
 use crate::sim::evaluate::{ape, point_distances, transform_error, ErrorStats};
 use crate::sim::{simulate, CameraPath, Scene, SimConfig, Simulation};

@@ -218,7 +218,11 @@ impl FigureData {
         let t = fit.transform();
         let world = Trajectory {
             timestamps: slam.timestamps.iter().map(|x| x + fit.offset).collect(),
-            positions: slam.positions.iter().map(|p| t.transform_point(p)).collect(),
+            positions: slam
+                .positions
+                .iter()
+                .map(|p| t.transform_point(p))
+                .collect(),
             orientations: None,
         };
         let mut f = FigureData {
@@ -314,13 +318,17 @@ fn decimate(cloud: &PointCloud, origin: [f64; 3], max: usize) -> CloudData {
             xyz.push((f64::from(cloud.points[3 * i + k]) - origin[k]) as f32);
         }
     }
-    let rgb = cloud.colors.as_ref().filter(|c| c.len() == 3 * n_total).map(|c| {
-        U8Array(
-            keep.iter()
-                .flat_map(|&i| [c[3 * i], c[3 * i + 1], c[3 * i + 2]])
-                .collect(),
-        )
-    });
+    let rgb = cloud
+        .colors
+        .as_ref()
+        .filter(|c| c.len() == 3 * n_total)
+        .map(|c| {
+            U8Array(
+                keep.iter()
+                    .flat_map(|&i| [c[3 * i], c[3 * i + 1], c[3 * i + 2]])
+                    .collect(),
+            )
+        });
     CloudData {
         n_total,
         stride,

@@ -283,10 +283,19 @@ fn fit_cards(doc: &'static str, f: &FitReport, figures: &FigureData) -> Vec<Card
     match &f.stages {
         Some(s) => {
             let k = |n: &str| format!("fit.stages.{n}");
-            c.row("converging from p_k", c.count(&k("converging_start"), s.converging_start));
-            c.row("stable from p_k", c.count(&k("stable_start"), s.stable_start));
+            c.row(
+                "converging from p_k",
+                c.count(&k("converging_start"), s.converging_start),
+            );
+            c.row(
+                "stable from p_k",
+                c.count(&k("stable_start"), s.stable_start),
+            );
             c.row("factors", c.count(&k("n_factors"), s.n_factors));
-            c.row("stable level (≈ s²)", c.num(&k("stable_level"), s.stable_level, 6));
+            c.row(
+                "stable level (≈ s²)",
+                c.num(&k("stable_level"), s.stable_level, 6),
+            );
             c.row("noise of ln p_k", c.num(&k("noise"), s.noise, 4));
             c.note = "Detected in the scale factors and cut from the fit (skip_init auto).".into();
         }
@@ -312,7 +321,10 @@ fn fit_cards(doc: &'static str, f: &FitReport, figures: &FigureData) -> Vec<Card
     }
     c.row("first fitted pair", c.count("fit.fit_start", f.fit_start));
     c.row("pairs before it dropped because", esc(&f.skip_reason));
-    c.row("seconds added to SLAM stamps", c.num("fit.offset", f.offset, 6));
+    c.row(
+        "seconds added to SLAM stamps",
+        c.num("fit.offset", f.offset, 6),
+    );
     if let (Some(i), Some(o)) = (f.n_inliers, f.n_outliers) {
         c.row(
             "robust fit",
@@ -343,7 +355,11 @@ fn fit_cards(doc: &'static str, f: &FitReport, figures: &FigureData) -> Vec<Card
         for (a, name) in ["x", "y", "z"].iter().enumerate() {
             c.row(
                 &format!("translation {name} (m)"),
-                c.nums(&format!("fit.intervals.translation.{a}"), &i.translation[a], 6),
+                c.nums(
+                    &format!("fit.intervals.translation.{a}"),
+                    &i.translation[a],
+                    6,
+                ),
             );
         }
         c.row(
@@ -354,7 +370,10 @@ fn fit_cards(doc: &'static str, f: &FitReport, figures: &FigureData) -> Vec<Card
                 4,
             ),
         );
-        c.row("residual σ per axis (m)", c.num("fit.intervals.sigma", i.sigma, 5));
+        c.row(
+            "residual σ per axis (m)",
+            c.num("fit.intervals.sigma", i.sigma, 5),
+        );
         cards.push(c);
     }
     cards
@@ -364,7 +383,12 @@ fn imu_card(doc: &'static str, r: &ImuReport) -> Card {
     let mut c = Card::new(doc, "Inertial initialisation");
     c.row(
         "gives T_world_slam",
-        if r.used_for_transform { "yes" } else { "no (checked against the poses)" }.into(),
+        if r.used_for_transform {
+            "yes"
+        } else {
+            "no (checked against the poses)"
+        }
+        .into(),
     );
     if let Some(e) = &r.error {
         c.row("failed", esc(e));
@@ -373,14 +397,24 @@ fn imu_card(doc: &'static str, r: &ImuReport) -> Card {
     if let Some(s) = r.scale {
         c.row(
             "scale ± σ",
-            format!("{} ± {}", c.num("imu.scale.0", s[0], 7), c.num("imu.scale.1", s[1], 3)),
+            format!(
+                "{} ± {}",
+                c.num("imu.scale.0", s[0], 7),
+                c.num("imu.scale.1", s[1], 3)
+            ),
         );
     }
     if let Some(g) = r.gravity_slam {
-        c.row("gravity in SLAM axes (m/s²)", c.nums("imu.gravity_slam", &g, 5));
+        c.row(
+            "gravity in SLAM axes (m/s²)",
+            c.nums("imu.gravity_slam", &g, 5),
+        );
     }
     if let Some(g) = r.gravity_sigma_deg {
-        c.row("gravity direction σ (deg)", c.num("imu.gravity_sigma_deg", g, 4));
+        c.row(
+            "gravity direction σ (deg)",
+            c.num("imu.gravity_sigma_deg", g, 4),
+        );
     }
     if let Some(p) = &r.pose_check {
         c.row(
@@ -397,15 +431,24 @@ fn imu_card(doc: &'static str, r: &ImuReport) -> Card {
 
 fn octree_card(doc: &'static str, o: &OctreeReport, figures: &FigureData) -> Card {
     let mut c = Card::new(doc, "Occupancy octree");
-    c.row("resolution (m)", c.num("octree.resolution", o.resolution, 6));
-    c.row("occupied leaves", c.count("octree.leaves_occupied", o.leaves_occupied));
+    c.row(
+        "resolution (m)",
+        c.num("octree.resolution", o.resolution, 6),
+    );
+    c.row(
+        "occupied leaves",
+        c.count("octree.leaves_occupied", o.leaves_occupied),
+    );
     c.row("free leaves", c.count("octree.leaves_free", o.leaves_free));
     c.row("nodes", c.count("octree.nodes", o.nodes));
-    c.row("scans / points inserted", format!(
-        "{} / {}",
-        c.count("octree.scans", o.scans),
-        c.count("octree.points", o.points)
-    ));
+    c.row(
+        "scans / points inserted",
+        format!(
+            "{} / {}",
+            c.count("octree.scans", o.scans),
+            c.count("octree.points", o.points)
+        ),
+    );
     if let Some(v) = &figures.voxels {
         c.note = if v.n == v.n_total {
             format!("All {} occupied leaves are drawn.", v.n)
@@ -446,17 +489,21 @@ fn windowed_card(doc: &'static str, w: &WindowedReport) -> Card {
 
 fn demo_card(d: &DemoReport) -> Card {
     let mut c = Card::new("demo", "Against the truth (demo)");
-    c.row(
-        "true scale",
-        c.num("truth.scale", d.truth.scale, 7),
-    );
+    c.row("true scale", c.num("truth.scale", d.truth.scale, 7));
     let e = &d.transform_error;
-    c.row("scale error (relative)", c.num("transform_error.scale_error", e.scale_error, 4));
+    c.row(
+        "scale error (relative)",
+        c.num("transform_error.scale_error", e.scale_error, 4),
+    );
     c.row(
         "rotation / gravity error (deg)",
         format!(
             "{} / {}",
-            c.num("transform_error.rotation_error_deg", e.rotation_error_deg, 4),
+            c.num(
+                "transform_error.rotation_error_deg",
+                e.rotation_error_deg,
+                4
+            ),
             c.num("transform_error.gravity_error_deg", e.gravity_error_deg, 4)
         ),
     );
@@ -503,14 +550,25 @@ fn convert_cards(r: &Report, figures: &FigureData) -> Vec<Card> {
     let mut cards = Vec::new();
     let mut t = transform_card(doc, "t_world_slam", &r.t_world_slam, "T_world_slam");
     if let Some(a) = &r.ape {
-        ape_rows(&mut t, "ape", r.fit_rmse.map(|v| ("fit_rmse".to_string(), v)), a);
+        ape_rows(
+            &mut t,
+            "ape",
+            r.fit_rmse.map(|v| ("fit_rmse".to_string(), v)),
+            a,
+        );
     }
     cards.push(t);
 
     let mut p = Card::new(doc, "Pairs");
     p.row("SLAM poses (keyframes)", p.count("keyframes", r.keyframes));
-    p.row("reference poses", p.count("reference_poses", r.reference_poses));
-    p.row("matched with a reference pose", p.count("frames_used", r.frames_used));
+    p.row(
+        "reference poses",
+        p.count("reference_poses", r.reference_poses),
+    );
+    p.row(
+        "matched with a reference pose",
+        p.count("frames_used", r.frames_used),
+    );
     p.row(
         "dropped: no reference pose within max_diff",
         format!(
@@ -525,7 +583,11 @@ fn convert_cards(r: &Report, figures: &FigureData) -> Vec<Card> {
         "pairs not fitted",
         format!(
             "{} of {} (start-up cut, n_to_align, robust outliers)",
-            derived("pairs_not_fitted", (r.pairs.len() - r.pairs_fitted.min(r.pairs.len())) as f64, 9),
+            derived(
+                "pairs_not_fitted",
+                (r.pairs.len() - r.pairs_fitted.min(r.pairs.len())) as f64,
+                9
+            ),
             p.length("pairs", r.pairs.len())
         ),
     );
@@ -557,7 +619,10 @@ fn convert_cards(r: &Report, figures: &FigureData) -> Vec<Card> {
     i.row("world cloud points", i.count("points", r.points));
     if let Some(c) = &figures.cloud {
         i.note = if c.stride > 1 {
-            format!("The 3-D view draws every {}th point ({} of {}).", c.stride, c.n, c.n_total)
+            format!(
+                "The 3-D view draws every {}th point ({} of {}).",
+                c.stride, c.n, c.n_total
+            )
         } else {
             format!("The 3-D view draws all {} points.", c.n)
         };
@@ -581,7 +646,16 @@ fn align_cards(r: &AlignReport, figures: &FigureData) -> Vec<Card> {
             })
         }),
     };
-    let mut t = transform_card(doc, "", &tr, if r.with_scale { "T_ref_est, Sim(3)" } else { "T_ref_est, SE(3)" });
+    let mut t = transform_card(
+        doc,
+        "",
+        &tr,
+        if r.with_scale {
+            "T_ref_est, Sim(3)"
+        } else {
+            "T_ref_est, SE(3)"
+        },
+    );
     ape_rows(&mut t, "ape", Some(("fit_rmse".into(), r.fit_rmse)), &r.ape);
     let mut cards = vec![t];
     let mut p = Card::new(doc, "Pairs");
@@ -599,7 +673,11 @@ fn align_cards(r: &AlignReport, figures: &FigureData) -> Vec<Card> {
     p.row("fitted", p.count("n_fitted", r.n_fitted));
     p.row(
         "EST poses without a REF pose within max_diff",
-        derived("est_unmatched", (r.n_est - r.n_pairs.min(r.n_est)) as f64, 9),
+        derived(
+            "est_unmatched",
+            (r.n_est - r.n_pairs.min(r.n_est)) as f64,
+            9,
+        ),
     );
     p.row("estimate", esc(&r.est));
     p.row("reference", esc(&r.reference));
@@ -620,7 +698,8 @@ pub fn render(page: &Page<'_>) -> Result<String> {
         demo: page.demo,
         figures: page.figures,
     };
-    let json = serde_json::to_string(&data).map_err(|e| Error::invalid("report page", e.to_string()))?;
+    let json =
+        serde_json::to_string(&data).map_err(|e| Error::invalid("report page", e.to_string()))?;
     // Inside <script>, `<` only occurs in JSON strings, where `\u003c` means the same.
     let json = json.replace('<', "\\u003c");
     let mut html = String::with_capacity(json.len() + PAGE_JS.len() + 64 * 1024);
@@ -709,20 +788,31 @@ mod tests {
 
     #[test]
     fn text_is_escaped() {
-        assert_eq!(esc("<a href=\"x\">&'"), "&lt;a href=&quot;x&quot;&gt;&amp;&#39;");
+        assert_eq!(
+            esc("<a href=\"x\">&'"),
+            "&lt;a href=&quot;x&quot;&gt;&amp;&#39;"
+        );
     }
 
     #[test]
     fn gravity_is_minus_z_in_slam_axes() {
         // A rotation of 90° about x maps SLAM y to world z: world −z is SLAM −y.
         let t = crate::geometry::Sim3::from_quaternion_xyzw(
-            [std::f64::consts::FRAC_1_SQRT_2, 0.0, 0.0, std::f64::consts::FRAC_1_SQRT_2],
+            [
+                std::f64::consts::FRAC_1_SQRT_2,
+                0.0,
+                0.0,
+                std::f64::consts::FRAC_1_SQRT_2,
+            ],
             nalgebra::Vector3::zeros(),
             2.0,
         )
         .unwrap();
         let (g, angle) = gravity_and_angle(&TransformReport::from(&t));
-        assert!((g[0]).abs() < 1e-12 && (g[1] + 1.0).abs() < 1e-12 && g[2].abs() < 1e-12, "{g:?}");
+        assert!(
+            (g[0]).abs() < 1e-12 && (g[1] + 1.0).abs() < 1e-12 && g[2].abs() < 1e-12,
+            "{g:?}"
+        );
         assert!((angle - 90.0).abs() < 1e-9);
     }
 }
