@@ -274,3 +274,30 @@ def test_conversion_write_all_writes_the_page(tmp_path: Path) -> None:
     parser.feed(html)
     report = json.loads((tmp_path / "out" / "report.json").read_text())
     assert check_numbers(parser.rows, {"report": report}) > 30
+
+
+def test_rerun_recording_of_a_conversion(tmp_path: Path) -> None:
+    from slam2world import rerun as s2w_rerun
+
+    log = tmp_path / "s.mcap"
+    assert run_cli(["slam2world", "simulate", "-o", str(log), "--reduced", "8"]) == 0
+    out = tmp_path / "out"
+    s2w.convert(log, octree_resolution=0.2).write_all(out)
+    report = json.loads((out / "report.json").read_text())
+    data = s2w_rerun.read_outputs(out)
+    # What the recording logs is what the outputs hold.
+    assert data["cloud"].shape == (report["points"], 3)
+    assert data["pair_error"].tolist() == [p["error"] for p in report["pairs"]]
+    assert len(data["voxel_sizes"]) == report["octree"]["leaves_occupied"]
+    np.testing.assert_allclose(data["voxel_sizes"], 0.2, rtol=1e-6)
+    np.testing.assert_array_equal(data["t_world_slam"], report["t_world_slam"]["matrix"])
+    rrd = tmp_path / "world.rrd"
+    try:
+        import rerun  # type: ignore[import-not-found, unused-ignore]  # noqa: F401
+    except ImportError:
+        # Without rerun-sdk: a clear message and exit 1, nothing written.
+        assert s2w_rerun.main([str(out), "-o", str(rrd)]) == 1
+        assert not rrd.exists()
+        return
+    assert s2w_rerun.main([str(out), "-o", str(rrd)]) == 0
+    assert rrd.read_bytes()[:4] == b"RRF2" and rrd.stat().st_size > 100_000
