@@ -204,6 +204,14 @@ fn derived(name: &str, v: f64, sig: usize) -> String {
     )
 }
 
+/// A count computed for the page (not in the report), named `name`.
+fn derived_count(name: &str, v: usize) -> String {
+    format!(
+        "<span class=\"num derived\" data-derived=\"{}\" data-value=\"{v}\">{v}</span>",
+        esc(name)
+    )
+}
+
 /// Gravity's direction in SLAM axes, `R_world_slamᵀ · (0, 0, −1)`, and the
 /// rotation angle in degrees, from the report's matrix.
 fn gravity_and_angle(t: &TransformReport) -> ([f64; 3], f64) {
@@ -304,11 +312,11 @@ fn fit_cards(doc: &'static str, f: &FitReport, figures: &FigureData) -> Vec<Card
                 let st = &s.stages;
                 c.row(
                     "converging from p_k",
-                    derived("stages.converging_start", st.converging_start as f64, 6),
+                    derived_count("stages.converging_start", st.converging_start),
                 );
                 c.row(
                     "stable from p_k",
-                    derived("stages.stable_start", st.stable_start as f64, 6),
+                    derived_count("stages.stable_start", st.stable_start),
                 );
                 c.row(
                     "stable level (≈ s²)",
@@ -583,10 +591,9 @@ fn convert_cards(r: &Report, figures: &FigureData) -> Vec<Card> {
         "pairs not fitted",
         format!(
             "{} of {} (start-up cut, n_to_align, robust outliers)",
-            derived(
+            derived_count(
                 "pairs_not_fitted",
-                (r.pairs.len() - r.pairs_fitted.min(r.pairs.len())) as f64,
-                9
+                r.pairs.len() - r.pairs_fitted.min(r.pairs.len())
             ),
             p.length("pairs", r.pairs.len())
         ),
@@ -673,11 +680,7 @@ fn align_cards(r: &AlignReport, figures: &FigureData) -> Vec<Card> {
     p.row("fitted", p.count("n_fitted", r.n_fitted));
     p.row(
         "EST poses without a REF pose within max_diff",
-        derived(
-            "est_unmatched",
-            (r.n_est - r.n_pairs.min(r.n_est)) as f64,
-            9,
-        ),
+        derived_count("est_unmatched", r.n_est - r.n_pairs.min(r.n_est)),
     );
     p.row("estimate", esc(&r.est));
     p.row("reference", esc(&r.reference));

@@ -361,6 +361,12 @@
         var v = Math.log10(m) + e;
         if (v >= ylo && v <= yhi && (m === 1 || yhi - ylo < 3)) out.push(v);
       });
+      // Less than a decade shown: linear ticks placed on the log axis.
+      if (out.length < 3) {
+        out = niceTicks(Math.pow(10, ylo), Math.pow(10, yhi), 6)
+          .filter(function (v) { return v > 0; })
+          .map(function (v) { return Math.log10(v); });
+      }
       return out;
     })() : niceTicks(ylo, yhi, 6);
     yt.forEach(function (v) {
@@ -445,6 +451,9 @@
   var origin = F.origin;
   var ape = R.ape || null;
   var pairs = F.pairs;
+  // Times on the plots: seconds since the first matched pair.
+  var t0 = pairs.t.length ? pairs.t[0] : 0;
+  var trel = pairs.t.map(function (x) { return x - t0; });
 
   function local(path) {
     var out = new Float32Array(path.xyz.length * 3);
@@ -518,11 +527,11 @@
     var canvas = document.getElementById("pk-plot");
     var p = F.scale_factors;
     if (!p.length) { plot2d(canvas, { empty: "no scale factors (no matched pairs with a reference)" }); drawn.push("p_k"); return; }
-    var t = p.map(function (_, k) { return pairs.t[k + 1]; });
+    var t = p.map(function (_, k) { return trel[k + 1]; });
     var st = F.stages;
     var spans = [], series = [];
     if (st) {
-      var tc = pairs.t[st.converging_start + 1], ts = pairs.t[st.stable_start + 1];
+      var tc = trel[st.converging_start + 1], ts = trel[st.stable_start + 1];
       var used = st.used_by_fit ? "" : " (not cut)";
       spans.push({ x0: t[0] - 1e9, x1: tc, color: "rgba(214,39,40,0.10)", label: "1: start-up" + used });
       spans.push({ x0: tc, x1: ts, color: "rgba(255,127,14,0.16)", label: "2: converging" + used });
@@ -539,7 +548,7 @@
     if (st) h.push({ v: st.stable_level, color: "#2ca02c", label: "stable level " + fmt(st.stable_level) });
     var sc = R.t_world_slam ? R.t_world_slam.scale : R.scale;
     if (sc) h.push({ v: sc * sc, color: "#1f77b4", dash: true, label: "fitted s² " + fmt(sc * sc) });
-    plot2d(canvas, { xlabel: "time of the later pair (s)", ylabel: "p_k = |Δref|² / |Δslam|²", logy: true, series: series, vspans: spans, hlines: h });
+    plot2d(canvas, { xlabel: "time of the later pair since the first pair (s)", ylabel: "p_k = |Δref|² / |Δslam|²", logy: true, series: series, vspans: spans, hlines: h });
     drawn.push("p_k");
   }
 
@@ -551,14 +560,14 @@
     }
     var fit = { kind: "points", x: [], y: [], color: "#1f6feb", size: 3, label: "fitted pair" };
     var out = { kind: "points", x: [], y: [], color: "#d62728", size: 3, label: "not fitted" };
-    pairs.error.forEach(function (e, k) { var s = pairs.fitted[k] ? fit : out; s.x.push(pairs.t[k]); s.y.push(e); });
-    var line = { kind: "line", x: pairs.t, y: pairs.error, color: "rgba(31,111,235,0.35)", width: 1 };
+    pairs.error.forEach(function (e, k) { var s = pairs.fitted[k] ? fit : out; s.x.push(trel[k]); s.y.push(e); });
+    var line = { kind: "line", x: trel, y: pairs.error, color: "rgba(31,111,235,0.35)", width: 1 };
     var stats = ape ? [
       { v: ape.rmse, color: "#d62728", label: "rmse " + fmt(ape.rmse) },
       { v: ape.median, color: "#2ca02c", dash: true, label: "median " + fmt(ape.median) },
       { v: ape.mean, color: "#9467bd", dash: true, label: "mean " + fmt(ape.mean) }
     ] : [];
-    plot2d(c1, { xlabel: "time (s)", ylabel: "APE (m)", yzero: true, series: [line, fit, out], hlines: stats });
+    plot2d(c1, { xlabel: "time since the first pair (s)", ylabel: "APE (m)", yzero: true, series: [line, fit, out], hlines: stats });
     var hi = quantile(pairs.error, 0.995);
     if (!(hi > 0)) hi = errHi;
     var nb = 40, edges = [], counts = [];
