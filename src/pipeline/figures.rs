@@ -314,8 +314,8 @@ fn decimate(cloud: &PointCloud, origin: [f64; 3], max: usize) -> CloudData {
     let keep: Vec<usize> = (0..n_total).step_by(stride).collect();
     let mut xyz = Vec::with_capacity(keep.len() * 3);
     for &i in &keep {
-        for k in 0..3 {
-            xyz.push((f64::from(cloud.points[3 * i + k]) - origin[k]) as f32);
+        for (p, o) in cloud.points[3 * i..3 * i + 3].iter().zip(origin) {
+            xyz.push((f64::from(*p) - o) as f32);
         }
     }
     let rgb = cloud
@@ -370,8 +370,8 @@ fn voxels(map: &OccupancyMap, origin: [f64; 3], max: usize) -> VoxelData {
     let mut center = Vec::with_capacity(cubes.len() * 3);
     let mut size = Vec::with_capacity(cubes.len());
     for (c, s) in &cubes {
-        for k in 0..3 {
-            center.push((c[k] - origin[k]) as f32);
+        for (v, o) in c.iter().zip(origin) {
+            center.push((v - o) as f32);
         }
         size.push(*s as f32);
     }
