@@ -13,10 +13,9 @@ use crate::defaults;
 use crate::error::Result;
 use crate::io::mcap::{ReadOptions, WorldFlavor};
 use crate::map::MapParams;
+use crate::pipeline::outputs::output_set;
 use crate::pipeline::report::ImuReport;
-use crate::pipeline::{
-    convert_source, source, ConvertOptions, CLOUD_PLY, MAP_BT, REPORT_HTML, REPORT_JSON, WORLD_MCAP,
-};
+use crate::pipeline::{convert_source, source, ConvertOptions};
 
 /// Arguments of `convert`.
 #[derive(Args, Debug)]
@@ -155,8 +154,10 @@ pub fn run(args: &ConvertArgs) -> Result<()> {
         bar.set_style(style);
     }
     let opts = args.options()?;
-    // Bad options fail before the log is read.
+    // Bad options and a bad output folder (a file, the input's folder) fail
+    // before the log is read.
     opts.check()?;
+    let mut outputs = output_set(&args.output, [&args.log])?;
     let src = source::open_log(&args.log, &opts.read)?;
     bar.set_message(if opts.map.is_some() {
         "reading, aligning, backprojecting and building the octree"
@@ -171,7 +172,8 @@ pub fn run(args: &ConvertArgs) -> Result<()> {
     } else {
         WorldFlavor::Foxglove
     };
-    c.write_all(&args.output, flavor)?;
+    c.write_into(&mut outputs, flavor, c.octree.as_ref())?;
+    let done = outputs.commit()?;
     if let Some(rrd) = &args.rrd {
         write_rrd(&args.output, rrd)?;
     }
@@ -217,11 +219,14 @@ pub fn run(args: &ConvertArgs) -> Result<()> {
             o.time_s
         );
     }
-    for name in [WORLD_MCAP, CLOUD_PLY, REPORT_JSON, REPORT_HTML] {
-        s += &format!("wrote {}\n", args.output.join(name).display());
+    for p in &done.written {
+        s += &format!("wrote {}\n", p.display());
     }
-    if c.octree.is_some() {
-        s += &format!("wrote {}\n", args.output.join(MAP_BT).display());
+    for p in &done.removed {
+        s += &format!(
+            "removed {} (of an earlier run; not produced by this one)\n",
+            p.display()
+        );
     }
     if let Some(rrd) = &args.rrd {
         s += &format!("wrote {}\n", rrd.display());

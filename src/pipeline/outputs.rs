@@ -1,15 +1,19 @@
 //! The files a conversion writes: `world.mcap` (Foxglove or ROS 2),
-//! `cloud.ply`, `map.bt` (with an octree), `report.json` and `report.html`.
+//! `cloud.ply`, `map.bt` (with an octree), `report.json` and `report.html`, as one
+//! [`OutputSet`]: all written under temporary names, then published together,
+//! the names of [`OUTPUT_NAMES`] this run did not write removed; never over an
+//! input of the run.
 
-use std::path::{Path, PathBuf};
+use std::path::Path;
 use std::time::Instant;
 
 use crate::error::{Error, Result};
-use crate::io::mcap::{write_world_mcap_with_octomap, WorldFlavor, WorldScene};
+use crate::io::atomic::{Committed, OutputSet};
+use crate::io::mcap::{write_world_mcap_into, WorldFlavor, WorldScene};
 use crate::map::{OccupancyMap, VoxelState};
 
 use super::figures::{FigureData, FigureOptions};
-use super::html::{write_html, Page, Summary};
+use super::html::{render, Page, Summary};
 use super::report::{to_json_bytes, DemoReport, Report};
 use super::Conversion;
 
@@ -34,6 +38,25 @@ pub struct HtmlOptions<'a> {
     pub figures: FigureOptions,
 }
 
+/// Every name a conversion may write into its output folder. A writer that
+/// adds an output adds its name here: a later run that does not produce it
+/// removes the stale one.
+pub const OUTPUT_NAMES: &[&str] = &[WORLD_MCAP, CLOUD_PLY, MAP_BT, REPORT_JSON, REPORT_HTML];
+
+/// The output set of a conversion in `dir`: the names of [`OUTPUT_NAMES`],
+/// none of which may be one of `inputs` (the log, the reference, the cloud).
+/// Make it before the conversion to refuse a bad output folder before the work.
+pub fn output_set<P: AsRef<Path>>(
+    dir: &Path,
+    inputs: impl IntoIterator<Item = P>,
+) -> Result<OutputSet> {
+    let set = OutputSet::folder(dir, OUTPUT_NAMES)?.with_inputs(inputs);
+    for name in OUTPUT_NAMES {
+        set.check_output(&dir.join(name))?;
+    }
+    Ok(set)
+}
+
 impl Conversion {
     /// Writes `world.mcap` (cloud, both trajectories, `world → slam`, and the
     /// occupied voxels of `octree` when given).
@@ -43,6 +66,14 @@ impl Conversion {
         flavor: WorldFlavor,
         octree: Option<&OccupancyMap>,
     ) -> Result<()> {
+        let mut set = OutputSet::new().with_inputs([&self.report.input]);
+        self.world_mcap_into(&mut set, path.as_ref(), flavor, octree)?;
+        set.commit().map(|_| ())
+    }
+
+    /// The last SLAM stamp, the time of the messages of `world.mcap`;
+    /// refused (naming the keyframe) where an MCAP log time cannot hold it.
+    fn world_stamp(&self) -> Result<f64> {
         let stamp = self
             .slam_trajectory
             .timestamps
@@ -50,18 +81,40 @@ impl Conversion {
             .copied()
             .unwrap_or(0.0)
             .max(0.0);
+        if stamp >= 1.8e10 {
+            let id = self.report.pairs.last().map(|p| p.keyframe_id);
+            return Err(Error::invalid(
+                "keyframe time",
+                format!(
+                    "the last SLAM stamp{} of {} is {} s, beyond what an MCAP log time holds (1.8e10 s); world.mcap not written",
+                    id.map_or(String::new(), |id| format!(" (keyframe {id})")),
+                    self.report.input.display(),
+                    crate::error::num(stamp)
+                ),
+            ));
+        }
+        Ok(stamp)
+    }
+
+    fn world_mcap_into(
+        &self,
+        set: &mut OutputSet,
+        path: &Path,
+        flavor: WorldFlavor,
+        octree: Option<&OccupancyMap>,
+    ) -> Result<()> {
         let scene = WorldScene {
             points: &self.cloud.points,
             colors: self.cloud.colors.as_deref(),
             t_world_slam: self.transform(),
             slam_trajectory: Some(&self.slam_trajectory),
             reference: self.reference.as_ref(),
-            stamp,
+            stamp: self.world_stamp()?,
             world_frame: "world",
             slam_frame: "slam",
         };
         let leaves = octree.map(|m| m.leaves(VoxelState::Occupied));
-        write_world_mcap_with_octomap(path, &scene, leaves.as_deref(), flavor)
+        write_world_mcap_into(set, path, &scene, leaves.as_deref(), flavor)
     }
 
     /// Writes `world.mcap` with the conversion's own octree.
@@ -72,17 +125,28 @@ impl Conversion {
     /// Writes the octree as an OctoMap `.bt` file (through a temporary file,
     /// renamed). Error when the conversion has no octree.
     pub fn write_bt(&self, path: impl AsRef<Path>) -> Result<()> {
-        write_bt(self.octree.as_ref(), path.as_ref())
+        let mut set = OutputSet::new().with_inputs([&self.report.input]);
+        write_bt_into(&mut set, self.octree.as_ref(), path.as_ref())?;
+        set.commit().map(|_| ())
     }
 
     /// Writes the world cloud as binary PLY.
     pub fn write_ply(&self, path: impl AsRef<Path>) -> Result<()> {
-        crate::io::ply::write_ply(path, &self.cloud)
+        let mut set = OutputSet::new().with_inputs([&self.report.input]);
+        self.ply_into(&mut set, path.as_ref())?;
+        set.commit().map(|_| ())
+    }
+
+    /// The world cloud as binary PLY, one output of `set`.
+    pub fn ply_into(&self, set: &mut OutputSet, path: &Path) -> Result<()> {
+        crate::io::ply::write_ply_into(set, path, &self.cloud.points, self.cloud.colors.as_deref())
     }
 
     /// Writes `report.json` (through a temporary file, renamed).
     pub fn write_report(&self, path: impl AsRef<Path>) -> Result<()> {
-        write_report(&self.report, path.as_ref())
+        let mut set = OutputSet::new().with_inputs([&self.report.input]);
+        set.write_bytes(path.as_ref(), &to_json_bytes(&self.report)?)?;
+        set.commit().map(|_| ())
     }
 
     /// Writes `report.html` with `octree`'s voxels (through a temporary file,
@@ -93,32 +157,38 @@ impl Conversion {
         octree: Option<&OccupancyMap>,
         opts: &HtmlOptions<'_>,
     ) -> Result<()> {
-        self.write_page(&self.report, path.as_ref(), octree, opts)
+        let mut set = OutputSet::new().with_inputs([&self.report.input]);
+        set.write_bytes(
+            path.as_ref(),
+            self.page(&self.report, octree, opts)?.as_bytes(),
+        )?;
+        set.commit().map(|_| ())
     }
 
-    fn write_page(
+    /// The text of `report.html` summarising `report`.
+    fn page(
         &self,
         report: &Report,
-        path: &Path,
         octree: Option<&OccupancyMap>,
         opts: &HtmlOptions<'_>,
-    ) -> Result<()> {
+    ) -> Result<String> {
         let figures = FigureData::of_conversion(self, octree, &opts.figures)?;
         let title = report.input.display().to_string();
-        let page = Page {
+        render(&Page {
             title: &title,
             summary: Summary::Convert(report),
             demo: opts.demo,
             figures: &figures,
-        };
-        write_html(path, &page)
+        })
     }
 
     /// Writes `world.mcap`, `cloud.ply`, `report.json`, `report.html` and,
     /// with an octree, `map.bt` into `dir` (created when missing); the written
-    /// report (in both files the same) carries the write time. When one
-    /// fails, the outputs written by this call are removed.
-    pub fn write_all(&self, dir: impl AsRef<Path>, flavor: WorldFlavor) -> Result<()> {
+    /// report (in both files the same) carries the write time. All or nothing: when one fails (or the run is
+    /// interrupted), the previous outputs in `dir` stay as they were; on
+    /// success, a `map.bt` of an earlier run is removed when this one has no
+    /// octree. Never writes over the conversion's input.
+    pub fn write_all(&self, dir: impl AsRef<Path>, flavor: WorldFlavor) -> Result<Committed> {
         self.write_all_with(dir, flavor, self.octree.as_ref())
     }
 
@@ -129,7 +199,7 @@ impl Conversion {
         dir: impl AsRef<Path>,
         flavor: WorldFlavor,
         octree: Option<&OccupancyMap>,
-    ) -> Result<()> {
+    ) -> Result<Committed> {
         self.write_all_html(dir, flavor, octree, &HtmlOptions::default())
     }
 
@@ -140,46 +210,61 @@ impl Conversion {
         flavor: WorldFlavor,
         octree: Option<&OccupancyMap>,
         html: &HtmlOptions<'_>,
+    ) -> Result<Committed> {
+        let mut set = output_set(dir.as_ref(), [&self.report.input])?;
+        self.write_into_html(&mut set, flavor, octree, html)?;
+        set.commit()
+    }
+
+    /// Writes every output of the conversion into the folder of `set`
+    /// ([`output_set`]), to be published by [`OutputSet::commit`].
+    pub fn write_into(
+        &self,
+        set: &mut OutputSet,
+        flavor: WorldFlavor,
+        octree: Option<&OccupancyMap>,
     ) -> Result<()> {
-        let dir = dir.as_ref();
-        std::fs::create_dir_all(dir).map_err(|e| Error::io(dir, e))?;
+        self.write_into_html(set, flavor, octree, &HtmlOptions::default())
+    }
+
+    /// [`Conversion::write_into`] with what `report.html` adds.
+    pub fn write_into_html(
+        &self,
+        set: &mut OutputSet,
+        flavor: WorldFlavor,
+        octree: Option<&OccupancyMap>,
+        html: &HtmlOptions<'_>,
+    ) -> Result<()> {
         let t = Instant::now();
-        let mut written: Vec<PathBuf> = Vec::new();
-        let result = (|| {
-            let p = dir.join(WORLD_MCAP);
-            self.write_world_mcap_with(&p, flavor, octree)?;
-            written.push(p);
-            let p = dir.join(CLOUD_PLY);
-            self.write_ply(&p)?;
-            written.push(p);
-            if octree.is_some() {
-                let p = dir.join(MAP_BT);
-                write_bt(octree, &p)?;
-                written.push(p);
-            }
-            let mut report = self.report.clone();
-            report.timing.write_s = t.elapsed().as_secs_f64();
-            let p = dir.join(REPORT_HTML);
-            self.write_page(&report, &p, octree, html)?;
-            written.push(p);
-            let p = dir.join(REPORT_JSON);
-            write_report(&report, &p)?;
-            written.push(p);
-            Ok(())
-        })();
-        if result.is_err() {
-            for p in &written {
-                let _ = std::fs::remove_file(p);
-            }
+        let [world, cloud, bt, json, page] =
+            [WORLD_MCAP, CLOUD_PLY, MAP_BT, REPORT_JSON, REPORT_HTML].map(|n| set.path(n));
+        self.world_mcap_into(set, &world, flavor, octree)?;
+        self.ply_into(set, &cloud)?;
+        if octree.is_some() {
+            write_bt_into(set, octree, &bt)?;
         }
-        result
+        let mut report = self.report.clone();
+        report.timing.write_s = t.elapsed().as_secs_f64();
+        set.write_bytes(&page, self.page(&report, octree, html)?.as_bytes())?;
+        set.write_bytes(&json, &to_json_bytes(&report)?)
     }
 }
 
 /// Writes `octree` as `.bt`; an error without one.
 pub fn write_bt(octree: Option<&OccupancyMap>, path: &Path) -> Result<()> {
+    let mut set = OutputSet::new();
+    write_bt_into(&mut set, octree, path)?;
+    set.commit().map(|_| ())
+}
+
+/// `octree` as `.bt`, one output of `set`; an error without one.
+pub fn write_bt_into(
+    set: &mut OutputSet,
+    octree: Option<&OccupancyMap>,
+    path: &Path,
+) -> Result<()> {
     match octree {
-        Some(m) => m.write_bt(path),
+        Some(m) => set.write_bytes(path, &m.to_bt_bytes()),
         None => Err(Error::invalid(
             "octree",
             "the conversion has no octree (convert with an octree resolution)",

@@ -37,6 +37,17 @@ fn flavor_of(ros2: bool) -> WorldFlavor {
     }
 }
 
+/// Runs `f` with the GIL released and SIGINT/SIGTERM caught as a flag that
+/// the core's long loops check: Ctrl-C stops the work (its outputs not
+/// written) and raises `KeyboardInterrupt`.
+pub(crate) fn interruptible<R: Send>(
+    py: Python<'_>,
+    f: impl FnOnce() -> crate::Result<R> + Send,
+) -> crate::Result<R> {
+    let _guard = crate::interrupt::Guard::new(crate::interrupt::Second::Flags);
+    py.detach(f)
+}
+
 impl PyConversion {
     /// Runs `f` with the octree (the Python object's, which is the
     /// conversion's own) and the GIL released.
@@ -47,6 +58,7 @@ impl PyConversion {
             + Send,
     ) -> PyResult<R> {
         let inner = &self.inner;
+        let _guard = crate::interrupt::Guard::new(crate::interrupt::Second::Flags);
         match &self.octree {
             // Under the map's read lock (other threads' inserts wait).
             Some(m) => Ok(m.get().read(py, |map| f(inner, Some(map)))?),
@@ -154,7 +166,9 @@ impl PyConversion {
     /// with an octree, `map.bt` into `directory`.
     #[pyo3(signature = (directory, *, ros2=false))]
     fn write_all(&self, py: Python<'_>, directory: PathBuf, ros2: bool) -> PyResult<()> {
-        self.with_octree(py, |c, m| c.write_all_with(&directory, flavor_of(ros2), m))
+        self.with_octree(py, |c, m| {
+            c.write_all_with(&directory, flavor_of(ros2), m).map(|_| ())
+        })
     }
 }
 
@@ -186,7 +200,7 @@ fn convert_py(
     tf_child: Option<String>,
     max_diff: f64,
     offset: f64,
-    n_to_align: Option<usize>,
+    #[pyo3(from_py_with = super::arrays::uint::n_to_align)] n_to_align: Option<usize>,
     scale: bool,
     method: &str,
     filter: Option<PyRef<'_, PyPointFilter>>,
@@ -260,7 +274,7 @@ fn convert_py(
     };
     let mut conversion = if let Ok(log) = log_or_path.cast::<PyLog>() {
         let log = log.get();
-        py.detach(|| pipeline::convert(&log.log, &opts))?
+        interruptible(py, || pipeline::convert(&log.log, &opts))?
     } else {
         let path: PathBuf = log_or_path.extract().map_err(|_| {
             PyErr::from(crate::Error::invalid(
@@ -268,7 +282,7 @@ fn convert_py(
                 "expected a Log or a path (str or os.PathLike)",
             ))
         })?;
-        py.detach(|| pipeline::convert_path(&path, &opts))?
+        interruptible(py, || pipeline::convert_path(&path, &opts))?
     };
     let alignment = match &conversion.world {
         pipeline::WorldFrame::Poses(p) => Some(Py::new(

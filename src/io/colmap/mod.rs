@@ -719,30 +719,13 @@ impl ColmapModel {
                 ));
             }
         }
-        let mut temps = Vec::with_capacity(files.len());
+        // One output set: every file written under a temporary name, then all
+        // renamed together.
+        let mut set = crate::io::atomic::OutputSet::new();
         for (stem, bytes) in &files {
-            let final_path = file(dir, stem, format);
-            let mut tmp = tempfile::Builder::new()
-                .prefix(&format!(".{stem}."))
-                .tempfile_in(dir)
-                .map_err(|e| Error::io(dir, e))?;
-            use std::io::Write;
-            tmp.write_all(bytes)
-                .and_then(|_| tmp.as_file().sync_all())
-                .map_err(|e| Error::io(&final_path, e))?;
-            #[cfg(unix)]
-            {
-                use std::os::unix::fs::PermissionsExt;
-                tmp.as_file()
-                    .set_permissions(std::fs::Permissions::from_mode(0o644))
-                    .map_err(|e| Error::io(&final_path, e))?;
-            }
-            temps.push((tmp, final_path));
+            set.write_bytes(&file(dir, stem, format), bytes)?;
         }
-        for (tmp, final_path) in temps {
-            tmp.persist(&final_path)
-                .map_err(|e| Error::io(&final_path, e.error))?;
-        }
+        set.commit()?;
         if self.rigs.is_none() {
             for stem in ["rigs", "frames"] {
                 let p = file(dir, stem, format);
