@@ -111,5 +111,5 @@ pub const TABLE: &[(&str, Value)] = &[
     ("clamp_min", Value::Float(CLAMP_MIN)),
     ("clamp_max", Value::Float(CLAMP_MAX)),
     ("max_points", Value::Int(HTML_MAX_POINTS as i64)),
-    ("max_voxels", Value::Int(HTML_MAX_VOXELS as i64)),
+    ("max_cubes", Value::Int(HTML_MAX_VOXELS as i64)),
 ];

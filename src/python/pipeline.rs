@@ -144,20 +144,20 @@ impl PyConversion {
     }
     /// Writes `report.html`: the summary, the paths, the errors, the cloud
     /// (at most `max_points`, every n-th) and the octree's occupied voxels (at
-    /// most `max_voxels`, coarser levels beyond) in one self-contained page.
-    #[pyo3(signature = (path, *, max_points=300_000, max_voxels=200_000))]
+    /// most `max_cubes` cubes, coarser levels beyond) in one self-contained page.
+    #[pyo3(signature = (path, *, max_points=300_000, max_cubes=200_000))]
     fn write_html(
         &self,
         py: Python<'_>,
         path: PathBuf,
         max_points: usize,
-        max_voxels: usize,
+        max_cubes: usize,
     ) -> PyResult<()> {
         let opts = pipeline::outputs::HtmlOptions {
             demo: None,
             figures: pipeline::figures::FigureOptions {
                 max_points,
-                max_voxels,
+                max_voxels: max_cubes,
             },
         };
         self.with_octree(py, |c, m| c.write_html_with(&path, m, &opts))

@@ -316,3 +316,21 @@ def test_rerun_recording_of_a_conversion(tmp_path: Path) -> None:
         return
     assert s2w_rerun.main([str(out), "-o", str(rrd)]) == 0
     assert rrd.read_bytes()[:4] == b"RRF2" and rrd.stat().st_size > 20_000
+
+
+def test_conversion_write_html_keeps_to_its_limits(tmp_path: Path) -> None:
+    log = tmp_path / "s.mcap"
+    assert run_cli(["slam2world", "simulate", "-o", str(log), "--reduced", "8"]) == 0
+    conv = s2w.convert(log, octree_resolution=0.1)
+    page = tmp_path / "page.html"
+    conv.write_html(page, max_points=1000, max_cubes=50)
+    figures = json.loads(
+        re.search(
+            r'<script id="s2w-data" type="application/json">(.*?)</script>', page.read_text(), re.S
+        )[1]
+    )["figures"]
+    cloud, voxels = figures["cloud"], figures["voxels"]
+    assert cloud["n"] <= 1000 < cloud["n_total"]
+    assert voxels["n"] <= 50 < voxels["n_total"] and voxels["shown_resolution"] > 0.1
+    with pytest.raises(ValueError, match="max_points"):
+        conv.write_html(page, max_points=0)
