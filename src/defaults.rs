@@ -76,6 +76,13 @@ pub const CLAMP_MAX: f64 = 0.971;
 /// OctoMap's occupancy threshold: a voxel above it is occupied.
 pub const OCCUPANCY_THRESHOLD: f64 = 0.5;
 
+/// Most cloud points embedded in `report.html` (a deterministic stride).
+pub const HTML_MAX_POINTS: usize = 300_000;
+/// Most occupied voxels embedded in `report.html` (coarser levels beyond it).
+pub const HTML_MAX_VOXELS: usize = 200_000;
+/// Voxel edge of the octree `slam2world demo` builds, metres.
+pub const DEMO_OCTREE_RESOLUTION: f64 = 0.1;
+
 /// A default as the Python side sees it.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub enum Value {
@@ -124,4 +131,6 @@ pub const TABLE: &[(&str, Value)] = &[
     ("prob_miss", Value::Float(PROB_MISS)),
     ("clamp_min", Value::Float(CLAMP_MIN)),
     ("clamp_max", Value::Float(CLAMP_MAX)),
+    ("max_points", Value::Int(HTML_MAX_POINTS as i64)),
+    ("max_cubes", Value::Int(HTML_MAX_VOXELS as i64)),
 ];

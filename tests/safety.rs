@@ -250,7 +250,13 @@ fn a_failed_rerun_leaves_the_previous_outputs_and_stale_ones_go() {
         .collect();
     assert_eq!(
         first.iter().map(|f| f.0.as_str()).collect::<Vec<_>>(),
-        ["cloud.ply", "map.bt", "report.json", "world.mcap"]
+        [
+            "cloud.ply",
+            "map.bt",
+            "report.html",
+            "report.json",
+            "world.mcap"
+        ]
     );
     // Disk full (a file size limit below world.mcap's size): exit 1, naming the
     // output as a file error; every previous output as it was; no temporary file.
@@ -271,7 +277,10 @@ fn a_failed_rerun_leaves_the_previous_outputs_and_stale_ones_go() {
     let o = run(&["convert", s(&log), "-o", s(&out)]);
     assert!(o.status.success(), "{}", stderr(&o));
     assert!(String::from_utf8_lossy(&o.stdout).contains("removed"));
-    assert_eq!(names(&out), ["cloud.ply", "report.json", "world.mcap"]);
+    assert_eq!(
+        names(&out),
+        ["cloud.ply", "report.html", "report.json", "world.mcap"]
+    );
     // -o naming a file is an output folder that is a file.
     let o = run(&["convert", s(&log), "-o", s(&log), "-q"]);
     assert_eq!(o.status.code(), Some(1));

@@ -3,9 +3,11 @@
 - :func:`plot_paths`: ground-truth path and SLAM path, each in its own axes;
 - :func:`plot_scale_factors`: the frame-to-frame factors ``p_k`` with the three stages marked;
 - :func:`plot_cloud`: the converted cloud over the true scene (top view and 3-D);
-- :func:`plot_error_histogram`: distances of the converted points to the true surfaces.
+- :func:`plot_error_histogram`: distances of the converted points to the true surfaces;
+- :func:`plot_octree`: the occupied octree voxels coloured by height over the true scene
+  (the paper's Fig. 1c), in 3-D and from above.
 
-``python -m slam2world.plot DIR`` draws all four from the files that ``slam2world demo``
+``python -m slam2world.plot DIR`` draws all five from the files that ``slam2world demo``
 writes into ``DIR`` (``demo.json`` and raw little-endian arrays in ``DIR/plot_data``).
 Every file is written to a temporary name in its folder and renamed.
 """
@@ -35,6 +37,7 @@ __all__ = [
     "plot_cloud",
     "plot_demo",
     "plot_error_histogram",
+    "plot_octree",
     "plot_paths",
     "plot_scale_factors",
 ]
@@ -268,13 +271,149 @@ def plot_error_histogram(
     return _save(fig, path)
 
 
+def _finest_voxels(voxels: FloatArray, resolution: float) -> npt.NDArray[np.int64]:
+    """Integer voxel indices ``floor(centre / resolution)`` of every finest voxel, pruned
+    leaves (edges of ``2^k`` voxels) expanded."""
+    out = []
+    for edge in np.unique(np.round(voxels[:, 3] / resolution).astype(np.int64)):
+        sel = voxels[np.round(voxels[:, 3] / resolution).astype(np.int64) == edge]
+        lo = np.floor((sel[:, :3] - 0.5 * edge * resolution) / resolution + 0.5).astype(np.int64)
+        steps = np.arange(max(int(edge), 1), dtype=np.int64)
+        offs = np.stack(np.meshgrid(steps, steps, steps, indexing="ij"), -1).reshape(-1, 3)
+        out.append((lo[:, None, :] + offs[None, :, :]).reshape(-1, 3))
+    if not out:
+        return np.zeros((0, 3), dtype=np.int64)
+    unique: npt.NDArray[np.int64] = np.unique(np.vstack(out), axis=0)
+    return unique
+
+
+def _exposed_faces(idx: npt.NDArray[np.int64]) -> tuple[FloatArray, npt.NDArray[np.int64]]:
+    """Quads (M, 4, 3) in voxel units of the faces of ``idx`` that no occupied voxel
+    covers (bottom faces left out: the view is from above), and the voxel of each."""
+    span: npt.NDArray[np.int64] = (
+        idx.max(axis=0) - idx.min(axis=0) + 3 if idx.size else np.ones(3, dtype=np.int64)
+    )
+    base: npt.NDArray[np.int64] = idx - idx.min(axis=0) + 1 if idx.size else idx
+
+    def key(a: npt.NDArray[np.int64]) -> npt.NDArray[np.int64]:
+        k: npt.NDArray[np.int64] = (a[:, 0] * span[1] + a[:, 1]) * span[2] + a[:, 2]
+        return k
+
+    occupied = np.sort(key(base))
+    corners = {
+        (0, 1): [(1, 0, 0), (1, 1, 0), (1, 1, 1), (1, 0, 1)],
+        (0, -1): [(0, 0, 0), (0, 1, 0), (0, 1, 1), (0, 0, 1)],
+        (1, 1): [(0, 1, 0), (1, 1, 0), (1, 1, 1), (0, 1, 1)],
+        (1, -1): [(0, 0, 0), (1, 0, 0), (1, 0, 1), (0, 0, 1)],
+        (2, 1): [(0, 0, 1), (1, 0, 1), (1, 1, 1), (0, 1, 1)],
+    }
+    quads, owner = [], []
+    for (axis, sign), cs in corners.items():
+        nb = base.copy()
+        nb[:, axis] += sign
+        k = key(nb)
+        pos = np.clip(np.searchsorted(occupied, k), 0, max(len(occupied) - 1, 0))
+        free = occupied[pos] != k if len(occupied) else np.ones(len(k), dtype=bool)
+        sel = np.nonzero(free)[0]
+        quads.append(idx[sel][:, None, :] + np.asarray(cs, dtype=np.int64)[None, :, :])
+        owner.append(sel)
+    if not quads:
+        return np.zeros((0, 4, 3)), np.zeros(0, dtype=np.int64)
+    return np.concatenate(quads).astype(np.float64), np.concatenate(owner)
+
+
+def plot_octree(
+    voxels: npt.ArrayLike,
+    path: str | os.PathLike[str],
+    *,
+    resolution: float,
+    cube_min: npt.ArrayLike,
+    cube_size: float,
+    plane_half: Sequence[float],
+) -> Path:
+    """The occupied voxels of the octree (rows ``cx, cy, cz, edge`` in metres, as
+    ``OccupancyMap`` leaves), coloured by height, over the true scene (red: the cubes,
+    black: the plane): a 3-D view of the voxel faces and the height seen from above.
+    """
+    from matplotlib.colors import Normalize
+    from mpl_toolkits.mplot3d.art3d import Poly3DCollection  # type: ignore[import-untyped]
+
+    v = np.asarray(voxels, dtype=np.float64)
+    if v.ndim != 2 or v.shape[1] != 4 or v.shape[0] == 0:
+        raise ValueError(f"voxels: expected a non-empty (N, 4) array, got shape {v.shape}")
+    if not resolution > 0:
+        raise ValueError(f"resolution must be > 0, got {resolution}")
+    idx = _finest_voxels(v, resolution)
+    quads, owner = _exposed_faces(idx)
+    z = (idx[:, 2] + 0.5) * resolution
+    norm = Normalize(vmin=-0.05, vmax=1.1)
+    cmap = plt.get_cmap("viridis")
+    cubes = _rows3(cube_min, "cube_min")
+    hx, hy = float(plane_half[0]), float(plane_half[1])
+    fig = plt.figure(figsize=(15, 6.5))
+    ax: Any = fig.add_subplot(1, 2, 1, projection="3d")
+    shade = np.where(quads[:, 0, 2] == quads[:, 2, 2], 1.0, 0.72)  # tops lit, sides darker
+    colours = cmap(norm(z[owner]))
+    colours[:, :3] *= shade[:, None]
+    ax.add_collection3d(
+        Poly3DCollection(quads * resolution, facecolors=colours, edgecolors="none", linewidths=0)
+    )
+    for lo in cubes:
+        for e in _cube_edges(lo, cube_size):
+            ax.plot(e[:, 0], e[:, 1], e[:, 2], color="r", lw=0.9)
+    ax.plot([-hx, hx, hx, -hx, -hx], [-hy, -hy, hy, hy, -hy], [0, 0, 0, 0, 0], color="k", lw=0.8)
+    ax.set_xlim(-hx, hx)
+    ax.set_ylim(-hy, hy)
+    ax.set_zlim(-0.5, 2.5)
+    ax.set_box_aspect((2 * hx, 2 * hy, 3.0))
+    ax.view_init(elev=35, azim=-60)
+    ax.set_xlabel("x [m]")
+    ax.set_ylabel("y [m]")
+    ax.set_zlabel("z [m]")
+    ax.set_title(f"Occupied voxels ({len(idx)} of {resolution:g} m), coloured by height")
+    ax2 = fig.add_subplot(1, 2, 2)
+    lo_xy = idx[:, :2].min(axis=0)
+    shape = tuple(int(s) for s in idx[:, :2].max(axis=0) - lo_xy + 1)
+    top = np.full(shape, np.nan)
+    order = np.argsort(z)
+    top[idx[order, 0] - lo_xy[0], idx[order, 1] - lo_xy[1]] = z[order]
+    extent = (
+        lo_xy[0] * resolution,
+        (lo_xy[0] + shape[0]) * resolution,
+        lo_xy[1] * resolution,
+        (lo_xy[1] + shape[1]) * resolution,
+    )
+    im = ax2.imshow(top.T, origin="lower", extent=extent, cmap=cmap, norm=norm)
+    ax2.add_patch(Rectangle((-hx, -hy), 2 * hx, 2 * hy, fill=False, ec="k", lw=1.0))
+    for lo in cubes:
+        ax2.add_patch(Rectangle((lo[0], lo[1]), cube_size, cube_size, fill=False, ec="r", lw=1.0))
+    ax2.set_aspect("equal")
+    ax2.set_xlim(-hx - 1.5, hx + 1.5)
+    ax2.set_ylim(-hy - 1.5, hy + 1.5)
+    ax2.set_xlabel("x [m]")
+    ax2.set_ylabel("y [m]")
+    ax2.set_title("Highest occupied voxel, top view (red: true cubes)")
+    fig.colorbar(im, ax=ax2, label="z [m]", shrink=0.8)
+    fig.tight_layout()
+    return _save(fig, path)
+
+
 def _raw(folder: Path, name: str, dtype: type, cols: int) -> npt.NDArray[Any]:
     a = np.fromfile(folder / name, dtype=np.dtype(dtype).newbyteorder("<"))
     return a.reshape(-1, cols) if cols > 1 else a
 
 
+def _octree_resolution(folder: Path, voxels: npt.NDArray[Any]) -> float:
+    """The octree's resolution from ``report.json``, else the smallest leaf edge."""
+    try:
+        return float(json.loads((folder / "report.json").read_text())["octree"]["resolution"])
+    except (OSError, KeyError, TypeError, ValueError):
+        return float(np.min(voxels[:, 3]))
+
+
 def plot_demo(folder: str | os.PathLike[str]) -> list[Path]:
-    """Draws the four figures from the files ``slam2world demo`` wrote into ``folder``."""
+    """Draws the figures from the files ``slam2world demo`` wrote into ``folder`` (the
+    octree's when the demo built one)."""
     d = Path(folder)
     meta = json.loads((d / "demo.json").read_text())
     files = meta["files"]
@@ -287,6 +426,20 @@ def plot_demo(folder: str | os.PathLike[str]) -> list[Path]:
     p_k = _raw(d, files["scale_factors"], np.float64, 1)
     scene = meta["scene"]
     truth = meta["truth"]
+    extra = []
+    if "voxels" in files:
+        vox = _raw(d, files["voxels"], np.float32, 4)
+        if vox.shape[0]:
+            extra.append(
+                plot_octree(
+                    vox,
+                    d / "octree.png",
+                    resolution=_octree_resolution(d, vox),
+                    cube_min=np.asarray(scene["cube_min"], dtype=np.float64),
+                    cube_size=float(scene["cube_size"]),
+                    plane_half=scene["plane_half"],
+                )
+            )
     return [
         plot_paths(true_path, slam_path, d / "paths.png"),
         plot_scale_factors(
@@ -304,6 +457,7 @@ def plot_demo(folder: str | os.PathLike[str]) -> list[Path]:
             trajectory=aligned,
         ),
         plot_error_histogram(dist, d / "error_histogram.png", reference=dist_true),
+        *extra,
     ]
 
 

@@ -342,6 +342,14 @@ fn factors(src: &[Vector3<f64>], dst: &[Vector3<f64>]) -> Vec<f64> {
     out
 }
 
+/// The scale factors of consecutive matched pairs as the start-up detection
+/// sees them: `p_k = ‖dst_{k+1} − dst_k‖² / ‖src_{k+1} − src_k‖²` (`src` SLAM
+/// positions, `dst` reference positions, metres), a zero SLAM step carrying
+/// the previous factor so that `k` stays a pair index; `n − 1` factors.
+pub fn fit_scale_factors(src: &[Vector3<f64>], dst: &[Vector3<f64>]) -> Vec<f64> {
+    factors(src, dst)
+}
+
 fn orientations<'a>(t: &'a Trajectory, what: &str) -> Result<&'a [UnitQuaternion<f64>]> {
     t.orientations.as_deref().ok_or_else(|| {
         Error::invalid(

@@ -8,6 +8,7 @@ use std::path::PathBuf;
 
 use clap::Args;
 
+use super::ape_plot;
 use super::args::{fit_text, print, print_json, FitArgs};
 use crate::align::dof::Dof;
 use crate::align::handeye::estimate_body_from_cam_trajectories;
@@ -15,6 +16,8 @@ use crate::align::trajectories::align_trajectories;
 use crate::error::{Error, Result};
 use crate::io::log::{read_log, ReadOptions};
 use crate::io::text::TrajectoryFormat;
+use crate::pipeline::figures::FigureData;
+use crate::pipeline::html::{write_html, Page, Summary};
 use crate::pipeline::report::{AlignReport, ApeReport, FitReport, HandEyeReport};
 use crate::trajectory::Trajectory;
 
@@ -64,6 +67,19 @@ pub struct AlignArgs {
     /// two axes at least.
     #[arg(long, conflicts_with_all = ["no_scale", "body_from_cam"])]
     estimate_body_from_cam: bool,
+    /// Draw evo_ape's figures as PNG: the paths in the plane of most motion
+    /// (the estimate coloured by APE) and the APE over time (`ape_map.png`,
+    /// `ape_raw.png` unless --save-plot names them).
+    #[arg(long)]
+    plot: bool,
+    /// Where the figures go: PATH `ape.png` gives `ape_map.png` and
+    /// `ape_raw.png` beside it (implies --plot).
+    #[arg(long, value_name = "PATH")]
+    save_plot: Option<PathBuf>,
+    /// Also write the report page (self-contained HTML: summary, paths in 3-D,
+    /// p_k with the start-up stages, APE over time and its histogram).
+    #[arg(long, value_name = "PATH")]
+    html: Option<PathBuf>,
     #[command(flatten)]
     fit: FitArgs,
 }
@@ -106,10 +122,34 @@ pub fn run(args: AlignArgs) -> Result<()> {
         fit: FitReport::of(&r, args.fit.confidence),
         body_from_cam_estimate: hand_eye.as_ref().map(|(he, n)| HandEyeReport::of(he, *n)),
     };
+    let mut written = String::new();
+    if args.plot || args.save_plot.is_some() {
+        let save = args
+            .save_plot
+            .clone()
+            .unwrap_or_else(|| PathBuf::from("ape.png"));
+        let (map, raw) = ape_plot::figure_paths(&save);
+        ape_plot::write_ape_figures(&est, &reference, &r, &map, &raw)?;
+        written += &format!("wrote {} and {}\n", map.display(), raw.display());
+    }
+    if let Some(path) = &args.html {
+        let figures = FigureData::of_alignment(&est, &reference, &r)?;
+        let title = args.est.display().to_string();
+        let page = Page {
+            title: &title,
+            summary: Summary::Align(&report),
+            demo: None,
+            figures: &figures,
+        };
+        write_html(path, &page)?;
+        written += &format!("wrote {}\n", path.display());
+    }
     if args.json {
+        // stdout holds the JSON alone; what was written goes to stderr.
+        eprint!("{written}");
         return print_json(&report);
     }
-    print(&text(&report))
+    print(&(text(&report) + &written))
 }
 
 /// The estimate and the reference, from two files or from two topics of a

@@ -1,6 +1,6 @@
 //! `slam2world convert LOG -o OUTDIR`: `world.mcap`, `cloud.ply`, `report.json`,
-//! and with `--octree RES` the occupancy map `map.bt` (its occupied voxels also
-//! in `world.mcap`).
+//! `report.html`, and with `--octree RES` the occupancy map `map.bt` (its
+//! occupied voxels also in `world.mcap` and the page).
 
 use std::path::PathBuf;
 
@@ -93,6 +93,11 @@ pub struct ConvertArgs {
     /// world poses) instead of the single one: for SLAM whose scale drifts.
     #[arg(long, requires = "compare_windowed")]
     pub windowed_cloud: bool,
+    /// Also write a Rerun recording of the outputs (cloud, paths, voxels,
+    /// T_world_slam): runs `python -m slam2world.rerun`, which needs Python
+    /// ($SLAM2WORLD_PYTHON, else python3) with slam2world and rerun-sdk.
+    #[arg(long, value_name = "PATH")]
+    pub rrd: Option<PathBuf>,
     /// Association and fit options.
     #[command(flatten)]
     pub fit: FitArgs,
@@ -176,6 +181,9 @@ pub fn run(args: &ConvertArgs) -> Result<()> {
     };
     c.write_into(&mut outputs, flavor, c.octree.as_ref())?;
     let done = outputs.commit()?;
+    if let Some(rrd) = &args.rrd {
+        write_rrd(&args.output, rrd)?;
+    }
     bar.inc(1);
     bar.finish_and_clear();
     if args.quiet {
@@ -227,7 +235,36 @@ pub fn run(args: &ConvertArgs) -> Result<()> {
             p.display()
         );
     }
+    if let Some(rrd) = &args.rrd {
+        s += &format!("wrote {}\n", rrd.display());
+    }
     print(&s)
+}
+
+/// Runs `python -m slam2world.rerun OUT -o RRD`; an error saying what is
+/// missing when it cannot.
+fn write_rrd(out: &std::path::Path, rrd: &std::path::Path) -> Result<()> {
+    let exe = std::env::var_os("SLAM2WORLD_PYTHON")
+        .map(PathBuf::from)
+        .unwrap_or_else(|| PathBuf::from("python3"));
+    let why = |reason: String| {
+        crate::Error::invalid(
+            "--rrd",
+            format!("{reason} (a Rerun recording needs Python with slam2world and rerun-sdk; the other outputs are written)"),
+        )
+    };
+    let run = std::process::Command::new(&exe)
+        .args(["-m", "slam2world.rerun"])
+        .arg(out)
+        .arg("-o")
+        .arg(rrd)
+        .output()
+        .map_err(|e| why(format!("could not run {}: {e}", exe.display())))?;
+    if run.status.success() {
+        return Ok(());
+    }
+    let err = String::from_utf8_lossy(&run.stderr);
+    Err(why(err.lines().last().unwrap_or("failed").to_string()))
 }
 
 /// One line on the inertial initialisation.

@@ -10,6 +10,7 @@ use std::ffi::OsString;
 use clap::{Parser, Subcommand};
 
 pub mod align;
+pub mod ape_plot;
 pub mod args;
 pub mod convert;
 pub mod imu_init;

@@ -25,6 +25,8 @@ use crate::geometry::Sim3;
 use crate::io::atomic::write_bytes_atomic;
 use crate::io::atomic::OutputSet;
 use crate::io::mcap::{read_mcap, write_slam_log_into, SlamLogOptions, WorldFlavor};
+use crate::map::{MapParams, VoxelState};
+use crate::pipeline::outputs::HtmlOptions;
 use crate::pipeline::report::{
     to_json_bytes, DemoAlignment, DemoReport, DemoSeconds, DemoTruth, EvaluateReport, FramesReport,
     SceneReport, SimStages, TransformReport, TruthReport,
@@ -123,6 +125,9 @@ pub struct DemoArgs {
     /// Python interpreter for the figures (default: $SLAM2WORLD_PYTHON, else python3).
     #[arg(long, value_name = "EXE")]
     python: Option<PathBuf>,
+    /// Voxel edge of the occupancy octree (`map.bt`, `octree.png`), metres.
+    #[arg(long, value_name = "RES", default_value_t = crate::defaults::DEMO_OCTREE_RESOLUTION, value_parser = super::args::positive)]
+    octree: f64,
     #[command(flatten)]
     run: RunArgs,
 }
@@ -356,11 +361,15 @@ pub fn run_demo(args: &DemoArgs) -> Result<()> {
     write_log(&sim, &log_path, &truth_file, true)?;
     let t_log = t0.elapsed().as_secs_f64() - t_sim;
 
-    // Convert it: read, associate, align (keyframes vs reference), backproject, write.
-    let opts = ConvertOptions::default();
+    // Convert it: read, associate, align (keyframes vs reference), backproject,
+    // build the octree; the outputs are written once the scores are known
+    // (report.html shows them).
+    let opts = ConvertOptions {
+        map: Some(MapParams::new(args.octree)),
+        ..ConvertOptions::default()
+    };
     let log = Recording::from(read_mcap(&log_path, &opts.read)?);
     let conv = convert(&log, &opts)?;
-    conv.write_all(dir, WorldFlavor::Foxglove)?;
     let est = conv.transform();
     let cloud = &conv.cloud;
     // The same keyframes through the same filter, carried with the true transform:
@@ -398,7 +407,21 @@ pub fn run_demo(args: &DemoArgs) -> Result<()> {
         .interpolate(&sim.slam_frames.timestamps, 0.1)?;
     let p_k = scale_factors(&sim.slam_frames.positions, &ref_at.positions)?;
 
+    let voxels = conv
+        .octree
+        .as_ref()
+        .map(|m| m.leaves(VoxelState::Occupied))
+        .unwrap_or_default();
     let files = [
+        (
+            "voxels",
+            "plot_data/voxels.f32",
+            raw_f32(
+                voxels
+                    .iter()
+                    .flat_map(|(c, size)| [c[0], c[1], c[2], *size].map(|v| v as f32)),
+            ),
+        ),
         (
             "points",
             "plot_data/points.f32",
@@ -449,7 +472,7 @@ pub fn run_demo(args: &DemoArgs) -> Result<()> {
         .map(|p| &p.alignment)
         .ok_or_else(|| Error::invalid("demo", "the simulated log has reference poses"))?;
     let truth = truth_report(&sim, false);
-    let report = DemoReport {
+    let mut report = DemoReport {
         t_world_slam: TransformReport::from(&est),
         truth: DemoTruth {
             t_world_slam: truth.t_world_slam,
@@ -479,6 +502,13 @@ pub fn run_demo(args: &DemoArgs) -> Result<()> {
             score: t_score,
         },
     };
+    let t2 = Instant::now();
+    let html = HtmlOptions {
+        demo: Some(&report),
+        ..HtmlOptions::default()
+    };
+    conv.write_all_html(dir, WorldFlavor::Foxglove, conv.octree.as_ref(), &html)?;
+    report.seconds.convert += t2.elapsed().as_secs_f64();
     write_bytes_atomic(&dir.join("demo.json"), &to_json_bytes(&report)?)?;
 
     let plots = if args.no_plots {
@@ -530,9 +560,15 @@ pub fn run_demo(args: &DemoArgs) -> Result<()> {
         err.rmse / err_true.rmse
     );
     println!("  keyframe APE rmse {:.1} mm", 1e3 * ape_kf.rmse);
+    if let Some(o) = &conv.report.octree {
+        println!(
+            "  octree {} m: {} occupied and {} free leaves (map.bt); report.html",
+            o.resolution, o.leaves_occupied, o.leaves_free
+        );
+    }
     match plots {
         Some(Ok(())) => {
-            println!("  figures: paths.png, scale_factors.png, cloud.png, error_histogram.png")
+            println!("  figures: paths.png, scale_factors.png, cloud.png, error_histogram.png, octree.png")
         }
         Some(Err(e)) => println!("  figures skipped: {e}"),
         None => {}
@@ -543,7 +579,7 @@ pub fn run_demo(args: &DemoArgs) -> Result<()> {
         t0.elapsed().as_secs_f64(),
         t_sim,
         t_log,
-        t_convert,
+        report.seconds.convert,
         t_score
     );
     Ok(())

@@ -5,7 +5,9 @@
 //! - [`poses`] / [`imu`]: where `T_world_slam` comes from — a metric
 //!   reference trajectory, or the raw IMU when there is none;
 //! - [`report`]: the typed model of every JSON document the commands write;
-//! - [`outputs`]: `world.mcap`, `cloud.ply`, `map.bt`, `report.json`.
+//! - [`outputs`]: `world.mcap`, `cloud.ply`, `map.bt`, `report.json`,
+//!   `report.html`;
+//! - [`figures`] / [`html`]: what the report page draws, and the page.
 //!
 //! The SLAM poses (keyframes, or frames without depth) are associated with
 //! the reference by time and `T_world_slam` is fitted; the keyframes are
@@ -15,6 +17,8 @@
 //! (OctoMap semantics): each keyframe's points are inserted as one scan from
 //! that keyframe's camera centre in the world frame.
 
+pub mod figures;
+pub mod html;
 pub mod imu;
 pub mod options;
 pub mod outputs;
@@ -35,7 +39,7 @@ use crate::map::{MapParams, OccupancyMap, VoxelState};
 use crate::trajectory::Trajectory;
 
 pub use options::ConvertOptions;
-pub use outputs::{CLOUD_PLY, MAP_BT, REPORT_JSON, WORLD_MCAP};
+pub use outputs::{CLOUD_PLY, MAP_BT, REPORT_HTML, REPORT_JSON, WORLD_MCAP};
 pub use poses::PoseFit;
 pub use report::Report;
 pub use source::{Recording, Source, SourceInfo};
@@ -78,6 +82,9 @@ pub struct Conversion {
     pub cloud: PointCloud,
     /// The SLAM poses (`T_world_cam`) in the world frame, by time.
     pub slam_trajectory: Trajectory,
+    /// The same poses in the SLAM frame (`T_slam_cam`), the rows the fit's
+    /// pairs index.
+    pub slam_frame: Trajectory,
     /// The reference trajectory (`T_world_body`), when there is one.
     pub reference: Option<Trajectory>,
     /// The report.
@@ -320,6 +327,7 @@ pub fn convert(rec: &Recording, opts: &ConvertOptions) -> Result<Conversion> {
         world,
         cloud,
         slam_trajectory: world_slam,
+        slam_frame: slam,
         reference: rec.reference.clone(),
         report,
         octree,

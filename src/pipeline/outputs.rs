@@ -1,5 +1,5 @@
 //! The files a conversion writes: `world.mcap` (Foxglove or ROS 2),
-//! `cloud.ply`, `map.bt` (with an octree) and `report.json`, as one
+//! `cloud.ply`, `map.bt` (with an octree), `report.json` and `report.html`, as one
 //! [`OutputSet`]: all written under temporary names, then published together,
 //! the names of [`OUTPUT_NAMES`] this run did not write removed; never over an
 //! input of the run.
@@ -12,7 +12,9 @@ use crate::io::atomic::{Committed, OutputSet};
 use crate::io::mcap::{write_world_mcap_into, WorldFlavor, WorldScene};
 use crate::map::{OccupancyMap, VoxelState};
 
-use super::report::{to_json_bytes, Report};
+use super::figures::{FigureData, FigureOptions};
+use super::html::{render, Page, Summary};
+use super::report::{to_json_bytes, DemoReport, Report};
 use super::Conversion;
 
 /// The world cloud, both trajectories, `world → slam` and the occupied voxels.
@@ -23,11 +25,23 @@ pub const CLOUD_PLY: &str = "cloud.ply";
 pub const REPORT_JSON: &str = "report.json";
 /// The occupancy octree (OctoMap binary), written when the conversion has one.
 pub const MAP_BT: &str = "map.bt";
+/// The report page (self-contained HTML: summary, paths, errors, cloud, voxels).
+pub const REPORT_HTML: &str = "report.html";
+
+/// What `report.html` adds to the conversion: the demo's comparison with the
+/// truth, and the limits of what it embeds.
+#[derive(Clone, Copy, Debug, Default)]
+pub struct HtmlOptions<'a> {
+    /// The demo report (its truth card), for `demo`.
+    pub demo: Option<&'a DemoReport>,
+    /// Limits of the embedded cloud and voxels.
+    pub figures: FigureOptions,
+}
 
 /// Every name a conversion may write into its output folder. A writer that
 /// adds an output adds its name here: a later run that does not produce it
 /// removes the stale one.
-pub const OUTPUT_NAMES: &[&str] = &[WORLD_MCAP, CLOUD_PLY, MAP_BT, REPORT_JSON];
+pub const OUTPUT_NAMES: &[&str] = &[WORLD_MCAP, CLOUD_PLY, MAP_BT, REPORT_JSON, REPORT_HTML];
 
 /// The output set of a conversion in `dir`: the names of [`OUTPUT_NAMES`],
 /// none of which may be one of `inputs` (the log, the reference, the cloud).
@@ -135,9 +149,42 @@ impl Conversion {
         set.commit().map(|_| ())
     }
 
-    /// Writes `world.mcap`, `cloud.ply`, `report.json` and, with an octree,
-    /// `map.bt` into `dir` (created when missing); the written report carries
-    /// the write time. All or nothing: when one fails (or the run is
+    /// Writes `report.html` with `octree`'s voxels (through a temporary file,
+    /// renamed).
+    pub fn write_html_with(
+        &self,
+        path: impl AsRef<Path>,
+        octree: Option<&OccupancyMap>,
+        opts: &HtmlOptions<'_>,
+    ) -> Result<()> {
+        let mut set = OutputSet::new().with_inputs([&self.report.input]);
+        set.write_bytes(
+            path.as_ref(),
+            self.page(&self.report, octree, opts)?.as_bytes(),
+        )?;
+        set.commit().map(|_| ())
+    }
+
+    /// The text of `report.html` summarising `report`.
+    fn page(
+        &self,
+        report: &Report,
+        octree: Option<&OccupancyMap>,
+        opts: &HtmlOptions<'_>,
+    ) -> Result<String> {
+        let figures = FigureData::of_conversion(self, octree, &opts.figures)?;
+        let title = report.input.display().to_string();
+        render(&Page {
+            title: &title,
+            summary: Summary::Convert(report),
+            demo: opts.demo,
+            figures: &figures,
+        })
+    }
+
+    /// Writes `world.mcap`, `cloud.ply`, `report.json`, `report.html` and,
+    /// with an octree, `map.bt` into `dir` (created when missing); the written
+    /// report (in both files the same) carries the write time. All or nothing: when one fails (or the run is
     /// interrupted), the previous outputs in `dir` stay as they were; on
     /// success, a `map.bt` of an earlier run is removed when this one has no
     /// octree. Never writes over the conversion's input.
@@ -153,8 +200,19 @@ impl Conversion {
         flavor: WorldFlavor,
         octree: Option<&OccupancyMap>,
     ) -> Result<Committed> {
+        self.write_all_html(dir, flavor, octree, &HtmlOptions::default())
+    }
+
+    /// [`Conversion::write_all_with`] with what `report.html` adds.
+    pub fn write_all_html(
+        &self,
+        dir: impl AsRef<Path>,
+        flavor: WorldFlavor,
+        octree: Option<&OccupancyMap>,
+        html: &HtmlOptions<'_>,
+    ) -> Result<Committed> {
         let mut set = output_set(dir.as_ref(), [&self.report.input])?;
-        self.write_into(&mut set, flavor, octree)?;
+        self.write_into_html(&mut set, flavor, octree, html)?;
         set.commit()
     }
 
@@ -166,9 +224,20 @@ impl Conversion {
         flavor: WorldFlavor,
         octree: Option<&OccupancyMap>,
     ) -> Result<()> {
+        self.write_into_html(set, flavor, octree, &HtmlOptions::default())
+    }
+
+    /// [`Conversion::write_into`] with what `report.html` adds.
+    pub fn write_into_html(
+        &self,
+        set: &mut OutputSet,
+        flavor: WorldFlavor,
+        octree: Option<&OccupancyMap>,
+        html: &HtmlOptions<'_>,
+    ) -> Result<()> {
         let t = Instant::now();
-        let [world, cloud, bt, json] =
-            [WORLD_MCAP, CLOUD_PLY, MAP_BT, REPORT_JSON].map(|n| set.path(n));
+        let [world, cloud, bt, json, page] =
+            [WORLD_MCAP, CLOUD_PLY, MAP_BT, REPORT_JSON, REPORT_HTML].map(|n| set.path(n));
         self.world_mcap_into(set, &world, flavor, octree)?;
         self.ply_into(set, &cloud)?;
         if octree.is_some() {
@@ -176,6 +245,7 @@ impl Conversion {
         }
         let mut report = self.report.clone();
         report.timing.write_s = t.elapsed().as_secs_f64();
+        set.write_bytes(&page, self.page(&report, octree, html)?.as_bytes())?;
         set.write_bytes(&json, &to_json_bytes(&report)?)
     }
 }

@@ -143,8 +143,28 @@ impl PyConversion {
         py.detach(|| self.inner.write_report(&path))?;
         Ok(())
     }
-    /// Writes `world.mcap`, `cloud.ply`, `report.json` and, with an octree,
-    /// `map.bt` into `directory`.
+    /// Writes `report.html`: the summary, the paths, the errors, the cloud
+    /// (at most `max_points`, every n-th) and the octree's occupied voxels (at
+    /// most `max_cubes` cubes, coarser levels beyond) in one self-contained page.
+    #[pyo3(signature = (path, *, max_points=300_000, max_cubes=200_000))]
+    fn write_html(
+        &self,
+        py: Python<'_>,
+        path: PathBuf,
+        max_points: usize,
+        max_cubes: usize,
+    ) -> PyResult<()> {
+        let opts = pipeline::outputs::HtmlOptions {
+            demo: None,
+            figures: pipeline::figures::FigureOptions {
+                max_points,
+                max_voxels: max_cubes,
+            },
+        };
+        self.with_octree(py, |c, m| c.write_html_with(&path, m, &opts))
+    }
+    /// Writes `world.mcap`, `cloud.ply`, `report.json`, `report.html` and,
+    /// with an octree, `map.bt` into `directory`.
     #[pyo3(signature = (directory, *, ros2=false))]
     fn write_all(&self, py: Python<'_>, directory: PathBuf, ros2: bool) -> PyResult<()> {
         self.with_octree(py, |c, m| {

@@ -76,6 +76,43 @@ def test_bad_input_is_refused(tmp_path: Path) -> None:
     assert not list(tmp_path.iterdir())
 
 
+def test_octree_figure(tmp_path: Path) -> None:
+    # A floor of 0.1 m voxels with a 0.4 m cube standing on it, one pruned 0.2 m leaf.
+    xs = np.arange(-2.0, 2.0, 0.1) + 0.05
+    floor = np.array([[x, y, 0.05, 0.1] for x in xs for y in xs])
+    cube = np.array(
+        [[x, y, z, 0.1] for x in xs[:4] for y in xs[:4] for z in np.arange(0.15, 0.5, 0.1)]
+    )
+    pruned = np.array([[1.1, 1.1, 0.3, 0.2]])
+    out = plot.plot_octree(
+        np.vstack([floor, cube, pruned]),
+        tmp_path / "octree.png",
+        resolution=0.1,
+        cube_min=[[-2.0, -2.0, 0.0]],
+        cube_size=0.4,
+        plane_half=(2.0, 2.0),
+    )
+    check_png(out)
+    # The pruned leaf counts as its eight voxels.
+    idx = plot._finest_voxels(pruned, 0.1)
+    assert idx.shape == (8, 3)
+    assert sorted({tuple(i) for i in idx}) == [
+        (a, b, c) for a in (10, 11) for b in (10, 11) for c in (2, 3)
+    ]
+    # A lone voxel shows five faces (not its bottom); two stacked ones nine (4 + 5).
+    assert plot._exposed_faces(np.array([[0, 0, 0]]))[0].shape == (5, 4, 3)
+    assert plot._exposed_faces(np.array([[0, 0, 0], [0, 0, 1]]))[0].shape == (9, 4, 3)
+    with pytest.raises(ValueError, match=r"\(N, 4\)"):
+        plot.plot_octree(
+            np.zeros((3, 3)),
+            tmp_path / "x.png",
+            resolution=0.1,
+            cube_min=[[0, 0, 0]],
+            cube_size=1.0,
+            plane_half=(1, 1),
+        )
+
+
 def test_demo_folder_missing_is_an_error(tmp_path: Path) -> None:
     assert plot.main([str(tmp_path)]) == 1
     assert plot.main([]) == 2
@@ -87,6 +124,13 @@ def test_demo_writes_its_figures(tmp_path: Path, monkeypatch: pytest.MonkeyPatch
     monkeypatch.setenv("SLAM2WORLD_PYTHON", sys.executable)
     out = tmp_path / "demo"
     assert s2w._slam2world.run_cli(["slam2world", "demo", "-o", str(out), "--reduced", "8"]) == 0
-    for name in ("paths.png", "scale_factors.png", "cloud.png", "error_histogram.png"):
+    for name in (
+        "paths.png",
+        "scale_factors.png",
+        "cloud.png",
+        "error_histogram.png",
+        "octree.png",
+    ):
         check_png(out / name)
+    assert (out / "map.bt").stat().st_size > 1000
     assert (out / "demo.json").stat().st_size > 1000

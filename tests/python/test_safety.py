@@ -153,7 +153,12 @@ def test_outputs_of_a_conversion_never_replace_its_input(tmp_path: Path) -> None
         conv.write_all(log)
     out = tmp_path / "out"
     conv.write_all(out)
-    assert sorted(p.name for p in out.iterdir()) == ["cloud.ply", "report.json", "world.mcap"]
+    assert sorted(p.name for p in out.iterdir()) == [
+        "cloud.ply",
+        "report.html",
+        "report.json",
+        "world.mcap",
+    ]
     assert conv.report["points_non_finite"] == 0
 
 
