@@ -8,7 +8,8 @@ Usage::
 Areas (rows in ``benches/peers/``): align (numpy vectorised Umeyama, evo),
 transform (numpy float32/float64, Open3D when installed, a copy of the same
 bytes), backproject (numpy viewer rules), octree (OctoMap ``insertPointCloud``,
-memory per leaf), mcap (Python ``mcap`` + ros1 decoding; plain zstd).
+memory per leaf), mcap (Python ``mcap`` + ros1 decoding; plain zstd), rosbag
+(``rosbags`` reader + deserialisation; plain lz4 / bz2 decompression).
 
 Each row runs our function and a peer's on the same input and reports the
 median wall time of each, ``ratio = peer / ours`` per element (above 1: we are
@@ -66,6 +67,7 @@ def load_rows() -> None:
     import peers.core  # noqa: F401
     import peers.mcap  # noqa: F401
     import peers.octree  # noqa: F401
+    import peers.rosbag  # noqa: F401
 
 
 @dataclass

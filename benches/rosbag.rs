@@ -5,11 +5,14 @@
 //!   as the mapping (messages/s). The bag is kept at
 //!   `target/bench-data/poses_1e6_lz4.bag` for `benches/rosbag_peer.py`, which
 //!   times the Python `rosbags` reader + deserialiser on it and prints the ratio.
+//!   `read_log_pose_stamped_lz4` is the same bag through `io::read_log` (the
+//!   reference trajectory built, sorted and checked).
 //! - `rosbag_keyframes_{lz4,bz2}`: bags of 640×480 LSD-SLAM keyframes scanned
 //!   with the keyframe decoder, keeping a copy of each point cloud (`scan_decode`)
 //!   or only looking at it (`scan_decode_borrow`: the container's own cost),
-//!   beside plain parallel decompression of the same chunks (the limit), in
-//!   decompressed bytes/s.
+//!   through `io::read_log` (`read_log`: the clouds split straight from the
+//!   decompressed chunk into the keyframes' arrays), beside plain parallel
+//!   decompression of the same chunks (the limit), in decompressed bytes/s.
 //!
 //! The bags are written here by a small ROS 1 writer (test support only: the
 //! correctness tests read bags written by `rosbags`). `cargo test` runs each
@@ -23,6 +26,7 @@ use std::time::Duration;
 
 use criterion::{criterion_group, criterion_main, BenchmarkId, Criterion, Throughput};
 use rayon::prelude::*;
+use slam2world::io::log::{read_log, ReadOptions};
 use slam2world::io::mcap::decode::{keyframe_ros1, pose_sample, MessageKind};
 use slam2world::io::rosbag::Ros1Bag;
 
@@ -357,6 +361,18 @@ fn bench(c: &mut Criterion) {
             })
         },
     );
+    g.bench_with_input(
+        BenchmarkId::new("read_log_pose_stamped_lz4", n),
+        &path,
+        |b, path| {
+            b.iter(|| {
+                let log = read_log(black_box(path), &ReadOptions::default()).expect("read_log");
+                let r = log.reference.expect("a reference");
+                assert_eq!(r.len() as u64, n);
+                black_box(r.len())
+            })
+        },
+    );
     g.finish();
 
     let (w, h) = (640u32, 480u32);
@@ -401,6 +417,13 @@ fn bench(c: &mut Criterion) {
                     .expect("scan");
                 assert!(scan.messages.iter().all(|m| m.value.is_some()));
                 black_box(scan.messages.len())
+            })
+        });
+        g.bench_function(format!("read_log_{k}_keyframes_640x480"), |b| {
+            b.iter(|| {
+                let log = read_log(black_box(&kf_path), &ReadOptions::default()).expect("read_log");
+                assert_eq!(log.keyframes.len(), k);
+                black_box(log.keyframes.len())
             })
         });
         g.bench_function("peer_plain_parallel_decompress", |b| {

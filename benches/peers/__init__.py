@@ -4,4 +4,4 @@ Each module registers its rows with :func:`benches.peers.registry.register`;
 ``compare.py`` imports them all and runs them in one process.
 """
 
-AREAS = ("align", "transform", "backproject", "octree", "mcap")
+AREAS = ("align", "transform", "backproject", "octree", "mcap", "rosbag")

@@ -1,6 +1,7 @@
 //! The ROS 1 bag reader on arbitrary files (the version line is prepended,
 //! unless the input has one, so that it gets past the first check; the
-//! fixtures of tests/data/rosbag seed the corpus): open, scan, count.
+//! fixtures of tests/data/rosbag seed the corpus): open, scan, count, and
+//! the whole log assembly with its decoders (`read_log`).
 #![no_main]
 
 use libfuzzer_sys::fuzz_target;
@@ -18,5 +19,6 @@ fuzz_target!(|data: &[u8]| {
             let _ = bag.scan_map(|_| true, |_, m| m.data.len());
             let _ = bag.inventory();
         }
+        let _ = slam2world::io::read_log(&path, &Default::default());
     }
 });

@@ -565,6 +565,12 @@ class Log:
     @property
     def path(self) -> pathlib.Path: ...
     @property
+    def format(self) -> str: ...
+    @property
+    def frames(self) -> Trajectory | None: ...
+    @property
+    def est_topic(self) -> str | None: ...
+    @property
     def keyframes(self) -> list[Keyframe]: ...
     @property
     def reference(self) -> Trajectory | None: ...
@@ -592,6 +598,17 @@ def read_mcap(
     imu_topic: str | None = None,
     tf_parent: str | None = None,
     tf_child: str | None = None,
+) -> Log: ...
+def read_log(
+    path: str | os.PathLike[str],
+    *,
+    keyframe_topic: str | None = None,
+    graph_topic: str | None = None,
+    pose_topic: str | None = None,
+    imu_topic: str | None = None,
+    tf_parent: str | None = None,
+    tf_child: str | None = None,
+    est_topic: str | None = None,
 ) -> Log: ...
 def write_world_mcap(
     path: str | os.PathLike[str],
@@ -697,6 +714,7 @@ def convert(
     keyframe_topic: str | None = None,
     graph_topic: str | None = None,
     pose_topic: str | None = None,
+    est_topic: str | None = None,
     tf_parent: str | None = None,
     tf_child: str | None = None,
     max_diff: float = 0.01,

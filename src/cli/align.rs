@@ -1,6 +1,8 @@
 //! `slam2world align EST REF`: associate two trajectory files by time, fit
 //! `T_ref_est` (Sim(3); SE(3) with `--no-scale`; `--dof` for the others) and
 //! print it with the absolute position error statistics (as `evo_ape … -as`).
+//! `slam2world align LOG --est-topic T --ref-topic T` does the same with two
+//! pose topics of one log of any container (as `evo_ape bag LOG REF EST`).
 
 use std::path::PathBuf;
 
@@ -11,11 +13,13 @@ use super::args::{fit_text, print, print_json, FitArgs};
 use crate::align::dof::Dof;
 use crate::align::handeye::estimate_body_from_cam_trajectories;
 use crate::align::trajectories::align_trajectories;
-use crate::error::Result;
+use crate::error::{Error, Result};
+use crate::io::log::{read_log, ReadOptions};
 use crate::io::text::TrajectoryFormat;
 use crate::pipeline::figures::FigureData;
 use crate::pipeline::html::{write_html, Page, Summary};
 use crate::pipeline::report::{AlignReport, ApeReport, FitReport, HandEyeReport};
+use crate::trajectory::Trajectory;
 
 /// clap parser of a trajectory format.
 pub(crate) fn format(s: &str) -> std::result::Result<TrajectoryFormat, String> {
@@ -25,12 +29,30 @@ pub(crate) fn format(s: &str) -> std::result::Result<TrajectoryFormat, String> {
 /// Options of `slam2world align`.
 #[derive(Args, Debug)]
 pub struct AlignArgs {
-    /// Estimated (SLAM) trajectory file.
-    #[arg(value_name = "EST")]
+    /// Estimated (SLAM) trajectory file; with --est-topic, the log (MCAP, ROS 1
+    /// bag, rosbag2 folder or .db3) holding both topics.
+    #[arg(value_name = "EST|LOG")]
     est: PathBuf,
-    /// Reference (ground truth, IMU) trajectory file.
-    #[arg(value_name = "REF")]
-    reference: PathBuf,
+    /// Reference (ground truth, IMU) trajectory file (none with --est-topic).
+    #[arg(value_name = "REF", required_unless_present = "est_topic")]
+    reference: Option<PathBuf>,
+    /// The estimate's pose topic in LOG (PoseStamped, Odometry, TransformStamped, TF, …).
+    #[arg(
+        long,
+        value_name = "TOPIC",
+        requires = "ref_topic",
+        conflicts_with = "reference"
+    )]
+    est_topic: Option<String>,
+    /// The reference's pose topic in LOG.
+    #[arg(long, value_name = "TOPIC", requires = "est_topic")]
+    ref_topic: Option<String>,
+    /// TF parent frame of the reference, when --ref-topic is a tf2_msgs/TFMessage topic.
+    #[arg(long, requires = "ref_topic")]
+    tf_parent: Option<String>,
+    /// TF child frame of the reference, when --ref-topic is a tf2_msgs/TFMessage topic.
+    #[arg(long, requires = "ref_topic")]
+    tf_child: Option<String>,
     /// Format of EST (and of REF unless --ref-format is given): tum or euroc.
     #[arg(long, value_name = "tum|euroc", default_value = "tum", value_parser = format)]
     format: TrajectoryFormat,
@@ -66,11 +88,7 @@ pub struct AlignArgs {
 pub fn run(args: AlignArgs) -> Result<()> {
     let opts = args.fit.options();
     opts.check()?;
-    let est = args.format.read(&args.est)?;
-    let reference = args
-        .ref_format
-        .unwrap_or(args.format)
-        .read(&args.reference)?;
+    let (est, reference, est_name, ref_name) = inputs(&args)?;
     let r = align_trajectories(&est, &reference, &opts)?;
     // The extrinsic at the offset the fit used (given plus estimated).
     let hand_eye = if args.estimate_body_from_cam {
@@ -86,8 +104,8 @@ pub fn run(args: AlignArgs) -> Result<()> {
     let t = r.transform();
     let rot = t.rotation_matrix();
     let report = AlignReport {
-        est: args.est.display().to_string(),
-        reference: args.reference.display().to_string(),
+        est: est_name,
+        reference: ref_name,
         n_est: est.len(),
         n_ref: reference.len(),
         n_pairs: r.pairs.len(),
@@ -132,6 +150,49 @@ pub fn run(args: AlignArgs) -> Result<()> {
         return print_json(&report);
     }
     print(&(text(&report) + &written))
+}
+
+/// The estimate and the reference, from two files or from two topics of a
+/// log, with the names the report gives them (`LOG:TOPIC` for topics).
+fn inputs(args: &AlignArgs) -> Result<(Trajectory, Trajectory, String, String)> {
+    let (Some(est_topic), Some(ref_topic)) = (&args.est_topic, &args.ref_topic) else {
+        let Some(reference) = &args.reference else {
+            return Err(Error::invalid(
+                "REF",
+                "a reference file, or --est-topic and --ref-topic",
+            ));
+        };
+        let est = args.format.read(&args.est)?;
+        let r = args.ref_format.unwrap_or(args.format).read(reference)?;
+        return Ok((
+            est,
+            r,
+            args.est.display().to_string(),
+            reference.display().to_string(),
+        ));
+    };
+    let log = read_log(
+        &args.est,
+        &ReadOptions {
+            est_topic: Some(est_topic.clone()),
+            pose_topic: Some(ref_topic.clone()),
+            tf_parent: args.tf_parent.clone(),
+            tf_child: args.tf_child.clone(),
+            ..ReadOptions::default()
+        },
+    )?;
+    let named = |t: &str| format!("{}:{t}", args.est.display());
+    match (log.frames, log.reference) {
+        (Some(est), Some(r)) => Ok((est, r, named(est_topic), named(ref_topic))),
+        // read_log gives both topics it was asked for (or an error).
+        _ => Err(Error::invalid(
+            "--est-topic/--ref-topic",
+            format!(
+                "{}: the log gave no poses for both topics",
+                args.est.display()
+            ),
+        )),
+    }
 }
 
 /// The report as the text `align` prints.

@@ -11,7 +11,8 @@ use super::args::{finite, parse_transform, positive, print, FitArgs};
 use crate::cloud::PointFilter;
 use crate::defaults;
 use crate::error::Result;
-use crate::io::mcap::{ReadOptions, WorldFlavor};
+use crate::io::log::ReadOptions;
+use crate::io::mcap::WorldFlavor;
 use crate::map::MapParams;
 use crate::pipeline::outputs::output_set;
 use crate::pipeline::report::ImuReport;
@@ -20,7 +21,8 @@ use crate::pipeline::{convert_source, source, ConvertOptions};
 /// Arguments of `convert`.
 #[derive(Args, Debug)]
 pub struct ConvertArgs {
-    /// The log (MCAP) with LSD-SLAM keyframes and reference poses or raw IMU.
+    /// The log with LSD-SLAM keyframes and reference poses or raw IMU: MCAP,
+    /// ROS 1 bag, rosbag2 folder or .db3 (found from the bytes).
     pub log: PathBuf,
     /// Output folder (created when missing).
     #[arg(short, long)]
@@ -34,6 +36,10 @@ pub struct ConvertArgs {
     /// Reference pose topic (default: the first pose schema found).
     #[arg(long)]
     pub pose_topic: Option<String>,
+    /// SLAM poses without depth (any pose type) instead of keyframes: the
+    /// estimate's topic, for logs without LSD-SLAM keyframes.
+    #[arg(long)]
+    pub est_topic: Option<String>,
     /// Raw IMU topic (`sensor_msgs/Imu`; default: found by schema). Without a
     /// reference pose topic, `T_world_slam` comes from the IMU (metric scale and
     /// gravity from preintegration); with one, the report compares both.
@@ -112,6 +118,7 @@ impl ConvertArgs {
                 imu_topic: self.imu_topic.clone(),
                 tf_parent: self.tf_parent.clone(),
                 tf_child: self.tf_child.clone(),
+                est_topic: self.est_topic.clone(),
             },
             align: self.fit.options(),
             filter: if self.no_filter {

@@ -1,17 +1,21 @@
-//! `slam2world inspect LOG.mcap`: topics, schemas, encodings, counts, time
-//! range, and what slam2world can use.
+//! `slam2world inspect LOG`: the container, then every topic with its type,
+//! encoding, count and time range (from the index where the container has
+//! one), and what slam2world can use. LOG is an MCAP file, a ROS 1 bag, a
+//! rosbag2 folder or `.db3`.
 
 use std::path::PathBuf;
 
 use clap::Args;
 
+use super::args::print;
 use crate::error::Result;
-use crate::io::mcap::{inspect_mcap, ReadMode};
+use crate::io::log::{inspect_log, Inspection};
+use crate::io::messages::ReadMode;
 
 /// Arguments of `inspect`.
 #[derive(Args, Debug)]
 pub struct InspectArgs {
-    /// The MCAP log.
+    /// The log: MCAP, ROS 1 bag, rosbag2 folder (or its metadata.yaml) or .db3.
     pub log: PathBuf,
 }
 
@@ -21,14 +25,20 @@ fn seconds(ns: u64) -> String {
 
 /// Prints the inventory of the log to stdout.
 pub fn run(args: &InspectArgs) -> Result<()> {
-    let inv = inspect_mcap(&args.log)?;
-    let mode = match inv.mode {
-        ReadMode::Indexed => "indexed",
-        ReadMode::Linear => "linear scan",
+    print(&text(&inspect_log(&args.log)?))
+}
+
+/// The inventory as `inspect` prints it.
+pub fn text(inv: &Inspection) -> String {
+    let mode = match (inv.mode, inv.from_index) {
+        (ReadMode::Indexed, true) => "indexed (counts from the index)",
+        (ReadMode::Indexed, false) => "indexed",
+        (ReadMode::Linear, _) => "linear scan (no usable index)",
     };
-    println!("{}", args.log.display());
-    println!(
-        "profile: {}   read: {mode}",
+    let mut s = format!("{}\n", inv.path.display());
+    s += &format!(
+        "container: {}   profile: {}   read: {mode}\n",
+        inv.container.name(),
         if inv.profile.is_empty() {
             "-"
         } else {
@@ -38,17 +48,17 @@ pub fn run(args: &InspectArgs) -> Result<()> {
     let all: Vec<(u64, u64)> = inv.topics.iter().filter_map(|t| t.time_range).collect();
     if let (Some(start), Some(end)) = (all.iter().map(|r| r.0).min(), all.iter().map(|r| r.1).max())
     {
-        println!(
-            "time: {} .. {} s ({:.3} s)",
+        s += &format!(
+            "time: {} .. {} s ({:.3} s)\n",
             seconds(start),
             seconds(end),
             (end - start) as f64 * 1e-9
         );
     }
-    println!();
-    println!(
-        "{:<32} {:<46} {:<10} {:>8}  {:<33} use",
-        "topic", "schema (encoding)", "messages", "count", "time range (s)"
+    s += "\n";
+    s += &format!(
+        "{:<32} {:<46} {:<10} {:>8}  {:<33} use\n",
+        "topic", "type (schema encoding)", "messages", "count", "time range (s)"
     );
     for t in &inv.topics {
         let schema = if t.schema_name.is_empty() {
@@ -67,17 +77,17 @@ pub fn run(args: &InspectArgs) -> Result<()> {
             Some(_) => format!("unsupported encoding {}", t.message_encoding),
             None => "-".into(),
         };
-        println!(
-            "{:<32} {:<46} {:<10} {:>8}  {:<33} {usage}",
+        s += &format!(
+            "{:<32} {:<46} {:<10} {:>8}  {:<33} {usage}\n",
             t.topic, schema, t.message_encoding, t.count, range
         );
     }
-    println!();
+    s += "\n";
     if inv.picks.is_empty() {
-        println!("slam2world finds nothing it can use in this log");
+        s += "slam2world finds nothing it can use in this log\n";
     }
     for (role, topic) in &inv.picks {
-        println!("default {role:<10} {topic}");
+        s += &format!("default {role:<10} {topic}\n");
     }
-    Ok(())
+    s
 }

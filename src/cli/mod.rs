@@ -31,13 +31,13 @@ pub struct Cli {
 
 #[derive(Subcommand, Debug)]
 enum Command {
-    /// Fit the Sim(3) between two trajectory files and print the error statistics.
+    /// Fit the Sim(3) between two trajectory files (or two pose topics of a log) and print the error statistics.
     Align(Box<align::AlignArgs>),
     /// Metric scale, gravity direction and IMU biases of SLAM keyframes from raw IMU samples.
     ImuInit(imu_init::ImuInitArgs),
-    /// Convert an MCAP log into world.mcap, cloud.ply and report.json.
+    /// Convert a log (MCAP, ROS 1 bag, rosbag2) into world.mcap, cloud.ply and report.json.
     Convert(Box<convert::ConvertArgs>),
-    /// List the topics of an MCAP log and what slam2world can use.
+    /// List the topics of a log (MCAP, ROS 1 bag, rosbag2) and what slam2world can use.
     Inspect(inspect::InspectArgs),
     /// Simulate the paper's experiment and write the LSD-SLAM log (MCAP) and its truth.
     Simulate(sim::SimulateArgs),

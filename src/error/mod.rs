@@ -5,9 +5,11 @@
 use std::path::PathBuf;
 
 mod bag;
+mod log;
 mod wire;
 
 pub use bag::{BagError, ContainerError};
+pub use log::LogError;
 pub use wire::WireError;
 
 /// Everything that can go wrong in slam2world, with the data that says what.
@@ -275,6 +277,17 @@ pub enum Error {
         offset: Option<u64>,
         /// What was expected and what was found.
         reason: BagError,
+    },
+    /// A log whose topics cannot give what was asked (any container): a
+    /// named topic that is missing, of a type slam2world does not decode or
+    /// cannot read in that role, samples that make no trajectory.
+    #[error("{}: {reason}", path.display())]
+    Log {
+        /// The log file (or rosbag2 folder).
+        path: PathBuf,
+        /// The topic, its type and what was expected (boxed: it is the
+        /// largest reason, and every `Result` carries the error's size).
+        reason: Box<LogError>,
     },
     /// A path that is no log slam2world reads (see [`crate::io::container::detect`]).
     #[error("{}: {reason}", path.display())]

@@ -14,7 +14,8 @@ use std::io::Read;
 use std::path::{Path, PathBuf};
 
 use crate::error::{Error, Result};
-use crate::io::mcap::{ChannelInfo, MappedScan, McapFile, RawMessage, ReadMode};
+use crate::io::mcap::reader::McapFile;
+use crate::io::messages::{ChannelInfo, MappedScan, RawMessage, ReadMode};
 use crate::io::rosbag::{Ros1Bag, Ros2Bag};
 
 /// The first line of a ROS 1 bag of version 2.0.
@@ -36,6 +37,19 @@ pub enum Container {
 }
 
 pub use crate::error::ContainerError;
+
+impl Container {
+    /// The name reports and `inspect` give the container (`mcap`, `ros1 bag`,
+    /// `rosbag2 folder`, `rosbag2 db3`).
+    pub fn name(self) -> &'static str {
+        match self {
+            Container::Mcap => "mcap",
+            Container::Ros1Bag => "ros1 bag",
+            Container::Ros2Folder => "rosbag2 folder",
+            Container::Ros2Sqlite => "rosbag2 db3",
+        }
+    }
+}
 
 fn container_err(path: &Path, reason: ContainerError) -> Error {
     Error::Container {

@@ -2,6 +2,11 @@
 //! (PLY, x y z text; LAS/LAZ with a CRS and PCD out), MCAP logs, ROS bags (ROS 1
 //! `.bag`, rosbag2), GNSS fixes (NMEA, CSV), reconstructions (COLMAP models,
 //! DROID-SLAM arrays), nav2 `map_server` grids.
+//!
+//! Logs of every container are read through one door, [`read_log`]
+//! ([`log`]): the container is found from the bytes ([`container`]), its
+//! reader ([`mcap`], [`rosbag`]) gives [`messages`], and one set of decoders
+//! and one assembly make the [`Log`].
 
 pub mod atomic;
 pub mod colmap;
@@ -9,11 +14,15 @@ pub mod container;
 pub mod droid;
 pub mod gnss;
 pub mod las;
+pub mod log;
 pub mod mapped;
 pub mod mcap;
+pub mod messages;
 pub mod nav2;
 pub mod npy;
 pub mod pcd;
 pub mod ply;
 pub mod rosbag;
 pub mod text;
+
+pub use log::{inspect_log, read_log, Inspection, Log, LogError, ReadOptions, TopicInfo};

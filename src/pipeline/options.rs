@@ -6,7 +6,7 @@ use crate::cloud::PointFilter;
 use crate::defaults;
 use crate::error::{Error, Result};
 use crate::imu::ImuInitOptions;
-use crate::io::mcap::ReadOptions;
+use crate::io::log::ReadOptions;
 use crate::map::MapParams;
 
 /// Everything `convert` can be told.

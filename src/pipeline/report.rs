@@ -527,9 +527,9 @@ impl HandEyeReport {
 /// What `align --json` prints.
 #[derive(Clone, Debug, PartialEq, Serialize, JsonSchema)]
 pub struct AlignReport {
-    /// The estimate file.
+    /// The estimate file (`LOG:TOPIC` for a topic of a log).
     pub est: String,
-    /// The reference file.
+    /// The reference file (`LOG:TOPIC` for a topic of a log).
     #[serde(rename = "ref")]
     pub reference: String,
     /// Poses of the estimate.

@@ -4,15 +4,16 @@
 //! trajectory, a point cloud); a [`Source`] turns one kind of input into a
 //! `Recording`, and [`crate::pipeline::convert`] never asks which it was.
 //! Adding an input format means writing its reader in `io/` and one `Source`
-//! here. The two sources of today are the examples:
+//! here. Two of the sources are the examples:
 //!
 //! ```no_run
-//! use slam2world::pipeline::source::{McapSource, Source, TrajectoryFiles};
-//! use slam2world::io::mcap::ReadOptions;
+//! use slam2world::pipeline::source::{LogSource, Source, TrajectoryFiles};
+//! use slam2world::io::log::ReadOptions;
 //! use slam2world::io::text::TrajectoryFormat;
 //!
-//! // An MCAP log of LSD-SLAM keyframes, graph updates, reference poses, IMU.
-//! let log = McapSource { path: "run.mcap".into(), read: ReadOptions::default() }.read()?;
+//! // A log of LSD-SLAM keyframes, graph updates, reference poses, IMU: MCAP,
+//! // a ROS 1 bag or a rosbag2 bag (the container is found from the bytes).
+//! let log = LogSource { path: "run.bag".into(), read: ReadOptions::default() }.read()?;
 //! assert!(!log.keyframes.is_empty());
 //!
 //! // Text files: SLAM keyframe poses (TUM), a metric reference (EuRoC CSV) and
@@ -39,7 +40,8 @@ use std::path::{Path, PathBuf};
 use crate::cloud::PointCloud;
 use crate::error::{Error, Result};
 use crate::imu::ImuSamples;
-use crate::io::mcap::{read_mcap, Log, ReadOptions, TopicInfo};
+use crate::io::container::detect;
+use crate::io::log::{read_log, Log, ReadOptions, TopicInfo};
 use crate::io::text::TrajectoryFormat;
 use crate::keyframe::Keyframe;
 use crate::trajectory::Trajectory;
@@ -49,12 +51,15 @@ use crate::trajectory::Trajectory;
 pub struct SourceInfo {
     /// The input (a log, or the SLAM trajectory file).
     pub path: PathBuf,
-    /// The input's format, as the report names it (`mcap`, `trajectory files`).
+    /// The input's format, as the report names it (`mcap`, `ros1 bag`,
+    /// `rosbag2 folder`, `rosbag2 db3`, `trajectory files`).
     pub format: String,
     /// Topic of the keyframes.
     pub keyframe_topic: Option<String>,
     /// Topic of the graph updates.
     pub graph_topic: Option<String>,
+    /// Topic of the SLAM poses without depth (a log's estimate topic).
+    pub est_topic: Option<String>,
     /// Topic of the reference poses.
     pub reference_topic: Option<String>,
     /// Topic of the raw IMU.
@@ -99,9 +104,10 @@ impl From<Log> for Recording {
         Recording {
             source: SourceInfo {
                 path: log.path,
-                format: "mcap".into(),
+                format: log.container.map_or("log", |c| c.name()).to_string(),
                 keyframe_topic: log.keyframe_topic,
                 graph_topic: log.graph_topic,
+                est_topic: log.est_topic,
                 reference_topic: log.reference_topic,
                 imu_topic: log.imu_topic,
                 reference_path: None,
@@ -113,7 +119,7 @@ impl From<Log> for Recording {
                 indexed: log.indexed,
             },
             keyframes: log.keyframes,
-            frames: None,
+            frames: log.frames,
             cloud: None,
             reference: log.reference,
             imu: log.imu,
@@ -127,19 +133,23 @@ pub trait Source {
     fn read(&self) -> Result<Recording>;
 }
 
-/// An MCAP log (`lsd_slam_viewer` keyframes and graph updates, a pose topic,
-/// raw IMU), topics found by schema unless named.
+/// A log of any container ([`read_log`]: MCAP, ROS 1 bag, rosbag2 folder or
+/// `.db3`): `lsd_slam_viewer` keyframes and graph updates or an estimate
+/// topic, a pose topic, raw IMU; topics found by type unless named.
 #[derive(Clone, Debug, PartialEq)]
-pub struct McapSource {
-    /// The log.
+pub struct LogSource {
+    /// The log (a file, or a rosbag2 folder).
     pub path: PathBuf,
     /// Topics to read.
     pub read: ReadOptions,
 }
 
-impl Source for McapSource {
+/// The name of [`LogSource`] from when logs were MCAP only.
+pub type McapSource = LogSource;
+
+impl Source for LogSource {
     fn read(&self) -> Result<Recording> {
-        read_mcap(&self.path, &self.read).map(Recording::from)
+        read_log(&self.path, &self.read).map(Recording::from)
     }
 }
 
@@ -185,31 +195,17 @@ impl Source for TrajectoryFiles {
     }
 }
 
-/// The source of a log file, found from its first bytes (MCAP today) by
-/// [`crate::io::container::detect`], which refuses folders without a bag,
-/// FIFOs and devices without opening them.
+/// The source of a log, its container found from its first bytes (or a
+/// rosbag2 folder's `metadata.yaml`): MCAP, ROS 1 bag, rosbag2 folder, `.db3`.
 ///
 /// Errors: [`Error::Io`] when it cannot be opened, [`Error::Container`] when
-/// it is no log slam2world reads.
+/// its content is no log slam2world reads.
 pub fn open_log(path: &Path, read: &ReadOptions) -> Result<Box<dyn Source>> {
-    use crate::io::container::{detect, Container};
-    match detect(path)? {
-        Container::Mcap => Ok(Box::new(McapSource {
-            path: path.to_path_buf(),
-            read: read.clone(),
-        })),
-        other => Err(Error::Mcap {
-            path: path.to_path_buf(),
-            reason: format!(
-                "{}: convert reads MCAP logs (expected an MCAP file)",
-                match other {
-                    Container::Ros1Bag => "a ROS 1 bag",
-                    Container::Ros2Folder => "a rosbag2 folder",
-                    _ => "a rosbag2 database",
-                }
-            ),
-        }),
-    }
+    detect(path)?;
+    Ok(Box::new(LogSource {
+        path: path.to_path_buf(),
+        read: read.clone(),
+    }))
 }
 
 impl Recording {
@@ -238,8 +234,8 @@ impl Recording {
     pub(crate) fn missing_slam(&self) -> Error {
         let reason = match &self.source.keyframe_topic {
             Some(t) => format!("topic {t}: no keyframe with a point cloud"),
-            None if self.source.format == "mcap" => {
-                "no lsd_slam_viewer/keyframeMsg topic in the log".into()
+            None if self.is_log() => {
+                "no lsd_slam_viewer/keyframeMsg topic in the log (a topic of SLAM poses without depth can be named: est_topic)".into()
             }
             None => "no SLAM poses in the input".into(),
         };
@@ -247,5 +243,13 @@ impl Recording {
             path: self.source.path.clone(),
             reason,
         }
+    }
+
+    /// True when the recording came from a log (any container), not from files.
+    pub(crate) fn is_log(&self) -> bool {
+        matches!(
+            self.source.format.as_str(),
+            "mcap" | "ros1 bag" | "rosbag2 folder" | "rosbag2 db3" | "log"
+        )
     }
 }

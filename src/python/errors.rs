@@ -123,6 +123,7 @@ impl From<Error> for PyErr {
                 | Error::BinaryFormat { .. }
                 | Error::Reconstruction { .. }
                 | Error::Bag { .. }
+                | Error::Log { .. }
                 | Error::Container { .. } => &c.format,
                 Error::Io { source, .. } => {
                     // OSError(errno, strerror) keeps .errno usable; without an errno,

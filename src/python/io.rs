@@ -1,4 +1,5 @@
-//! Logs for Python: `read_mcap(...) -> Log`, `write_world_mcap(...)`.
+//! Logs for Python: `read_log(...) -> Log` (every container), `read_mcap(...)`,
+//! `write_world_mcap(...)`.
 
 use std::path::PathBuf;
 
@@ -11,10 +12,11 @@ use super::geometry::PySim3;
 use super::imu::PyImuSamples;
 use super::trajectory::PyTrajectory;
 use crate::geometry::Sim3;
-use crate::io::mcap::{self as io_mcap, ReadOptions, WorldFlavor, WorldScene};
+use crate::io::log::{read_log, ReadOptions};
+use crate::io::mcap::{self as io_mcap, WorldFlavor, WorldScene};
 use crate::pipeline::Recording;
 
-/// A log read by `read_mcap`: the recording a conversion reads.
+/// A log read by `read_log` or `read_mcap`: the recording a conversion reads.
 #[pyclass(name = "Log", module = "slam2world._slam2world", frozen)]
 pub struct PyLog {
     pub(crate) log: Recording,
@@ -24,10 +26,28 @@ pub struct PyLog {
 
 #[pymethods]
 impl PyLog {
-    /// The file read.
+    /// The file (or rosbag2 folder) read.
     #[getter]
     fn path(&self) -> PathBuf {
         self.log.source.path.clone()
+    }
+    /// The container: `mcap`, `ros1 bag`, `rosbag2 folder` or `rosbag2 db3`.
+    #[getter]
+    fn format(&self) -> String {
+        self.log.source.format.clone()
+    }
+    /// SLAM poses without depth (`T_slam_cam`) from `est_topic`, or None.
+    #[getter]
+    fn frames(&self) -> Option<PyTrajectory> {
+        self.log
+            .frames
+            .as_ref()
+            .map(|f| PyTrajectory { inner: f.clone() })
+    }
+    /// Topic of the SLAM poses without depth, or None.
+    #[getter]
+    fn est_topic(&self) -> Option<String> {
+        self.log.source.est_topic.clone()
     }
     /// Keyframes: latest version of each id, in order of first arrival.
     #[getter]
@@ -129,8 +149,42 @@ fn read_mcap_py(
         imu_topic,
         tf_parent,
         tf_child,
+        est_topic: None,
     };
     let log = py.detach(|| io_mcap::read_mcap(&path, &options))?;
+    Ok(PyLog {
+        log: Recording::from(log),
+        keyframes: PyOnceLock::new(),
+    })
+}
+
+/// Reads a log of any container, found from its bytes: MCAP, ROS 1 bag,
+/// rosbag2 folder (or its `metadata.yaml`) or `.db3` (see the Rust
+/// `io::read_log`); the GIL is released.
+#[pyfunction(name = "read_log")]
+#[pyo3(signature = (path, *, keyframe_topic=None, graph_topic=None, pose_topic=None, imu_topic=None, tf_parent=None, tf_child=None, est_topic=None))]
+#[allow(clippy::too_many_arguments)]
+fn read_log_py(
+    py: Python<'_>,
+    path: PathBuf,
+    keyframe_topic: Option<String>,
+    graph_topic: Option<String>,
+    pose_topic: Option<String>,
+    imu_topic: Option<String>,
+    tf_parent: Option<String>,
+    tf_child: Option<String>,
+    est_topic: Option<String>,
+) -> PyResult<PyLog> {
+    let options = ReadOptions {
+        keyframe_topic,
+        graph_topic,
+        pose_topic,
+        imu_topic,
+        tf_parent,
+        tf_child,
+        est_topic,
+    };
+    let log = py.detach(|| read_log(&path, &options))?;
     Ok(PyLog {
         log: Recording::from(log),
         keyframes: PyOnceLock::new(),
@@ -196,6 +250,7 @@ fn write_world_mcap_py(
 pub fn register(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_class::<PyLog>()?;
     m.add_function(wrap_pyfunction!(read_mcap_py, m)?)?;
+    m.add_function(wrap_pyfunction!(read_log_py, m)?)?;
     m.add_function(wrap_pyfunction!(write_world_mcap_py, m)?)?;
     Ok(())
 }

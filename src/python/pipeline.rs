@@ -12,7 +12,8 @@ use super::imu::PyImuAlignment;
 use super::io::PyLog;
 use super::map::PyOccupancyMap;
 use super::trajectory::PyTrajectory;
-use crate::io::mcap::{ReadOptions, WorldFlavor};
+use crate::io::log::ReadOptions;
+use crate::io::mcap::WorldFlavor;
 use crate::map::MapParams;
 use crate::pipeline::{self, ConvertOptions};
 
@@ -173,7 +174,9 @@ impl PyConversion {
 }
 
 /// Aligns a log's keyframes with its reference and builds the world cloud.
-/// `log_or_path` is a `Log` or a path (read with the topic arguments);
+/// `log_or_path` is a `Log` or a path of any container (MCAP, ROS 1 bag,
+/// rosbag2 folder or `.db3`, read with the topic arguments; `est_topic`: SLAM
+/// poses without depth instead of keyframes);
 /// `filter=None` means the LSD-SLAM viewer's defaults. `octree_resolution`
 /// (metres) also builds the occupancy octree, each keyframe's points inserted
 /// from its camera centre, with OctoMap's `prob_hit`, `prob_miss`,
@@ -191,9 +194,9 @@ impl PyConversion {
 /// `fit_checks` are `align_trajectories`'s (degrees of freedom, pinned first
 /// pair, pairing rule, gravity check, fit-quality refusals).
 #[pyfunction(name = "convert")]
-#[pyo3(signature = (log_or_path, *, keyframe_topic=None, graph_topic=None, pose_topic=None, tf_parent=None, tf_child=None, max_diff=0.01, offset=0.0, n_to_align=None, scale=true, method="horn", filter=None, octree_resolution=None, octree_max_range=None, prob_hit=0.7, prob_miss=0.4, clamp_min=0.1192, clamp_max=0.971, skip_init=None, robust=None, inlier_threshold=None, loss="huber", use_orientations=false, estimate_offset=false, max_offset=0.5, body_from_cam=None, compare_windowed=None, windowed_cloud=false, imu_topic=None, imu_from_cam=None, gravity=9.81, level=0.95, dof="sim3", anchor=None, association="evo", max_tilt_deg=Some(crate::defaults::MAX_TILT_DEG), reference_noise=None, fit_checks=true),
+#[pyo3(signature = (log_or_path, *, keyframe_topic=None, graph_topic=None, pose_topic=None, est_topic=None, tf_parent=None, tf_child=None, max_diff=0.01, offset=0.0, n_to_align=None, scale=true, method="horn", filter=None, octree_resolution=None, octree_max_range=None, prob_hit=0.7, prob_miss=0.4, clamp_min=0.1192, clamp_max=0.971, skip_init=None, robust=None, inlier_threshold=None, loss="huber", use_orientations=false, estimate_offset=false, max_offset=0.5, body_from_cam=None, compare_windowed=None, windowed_cloud=false, imu_topic=None, imu_from_cam=None, gravity=9.81, level=0.95, dof="sim3", anchor=None, association="evo", max_tilt_deg=Some(crate::defaults::MAX_TILT_DEG), reference_noise=None, fit_checks=true),
        text_signature = "(log_or_path, *, keyframe_topic=None, graph_topic=None, pose_topic=None, \
-                         tf_parent=None, tf_child=None, max_diff=0.01, offset=0.0, n_to_align=None, \
+                         est_topic=None, tf_parent=None, tf_child=None, max_diff=0.01, offset=0.0, n_to_align=None, \
                          scale=True, method='horn', filter=None, octree_resolution=None, \
                          octree_max_range=None, prob_hit=0.7, prob_miss=0.4, clamp_min=0.1192, \
                          clamp_max=0.971, skip_init=None, robust=None, inlier_threshold=None, \
@@ -209,6 +212,7 @@ fn convert_py(
     keyframe_topic: Option<String>,
     graph_topic: Option<String>,
     pose_topic: Option<String>,
+    est_topic: Option<String>,
     tf_parent: Option<String>,
     tf_child: Option<String>,
     max_diff: f64,
@@ -279,6 +283,7 @@ fn convert_py(
             imu_topic,
             tf_parent,
             tf_child,
+            est_topic,
         },
         align,
         filter: filter.map(|f| f.inner).unwrap_or_default(),

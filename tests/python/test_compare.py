@@ -13,7 +13,7 @@ import pytest
 
 REPO = Path(__file__).resolve().parents[2]
 COMPARE = REPO / "benches" / "compare.py"
-AREAS = {"align", "transform", "backproject", "octree", "mcap"}
+AREAS = {"align", "transform", "backproject", "octree", "mcap", "rosbag"}
 
 
 def run(*args: str) -> subprocess.CompletedProcess[str]:

@@ -15,46 +15,10 @@ use mcap::records::{self, op, Record};
 use rayon::prelude::*;
 
 use crate::error::{Error, Result};
+pub use crate::io::messages::{ChannelInfo, RawMessage, ReadMode};
 
 /// The 8 bytes every MCAP file starts and ends with.
 pub const MAGIC: &[u8; 8] = b"\x89MCAP0\r\n";
-
-/// A channel of the log with its schema (empty name and encoding when schemaless).
-#[derive(Clone, Debug, Default, PartialEq, Eq)]
-pub struct ChannelInfo {
-    /// Channel id, unique in the file.
-    pub id: u16,
-    /// Topic name, e.g. `/lsd_slam/keyframes`.
-    pub topic: String,
-    /// Message encoding: `ros1`, `cdr`, `protobuf`, `json`, …
-    pub message_encoding: String,
-    /// Schema id (0 for none).
-    pub schema_id: u16,
-    /// Schema name, e.g. `geometry_msgs/PoseStamped`; empty without a schema.
-    pub schema_name: String,
-    /// Schema encoding: `ros1msg`, `ros2msg`, `protobuf`, `jsonschema`, …
-    pub schema_encoding: String,
-    /// Schema data (message definition text, or a protobuf FileDescriptorSet).
-    pub schema_data: Vec<u8>,
-    /// Channel metadata.
-    pub metadata: BTreeMap<String, String>,
-}
-
-/// One Message record; `data` borrows from the memory map (messages outside
-/// chunks) or from the decompressed chunk held by the [`Scan`].
-#[derive(Clone, Copy, Debug)]
-pub struct RawMessage<'a> {
-    /// Channel id (see [`Scan::channels`]).
-    pub channel_id: u16,
-    /// Publisher sequence number.
-    pub sequence: u32,
-    /// Log time, nanoseconds.
-    pub log_time: u64,
-    /// Publish time, nanoseconds.
-    pub publish_time: u64,
-    /// The serialised message.
-    pub data: &'a [u8],
-}
 
 /// Where a message's bytes are: buffer `MAP` is the file, others a decompressed chunk.
 #[derive(Clone, Copy, Debug)]
@@ -69,15 +33,6 @@ pub(super) struct Entry {
 }
 
 const MAP: u32 = u32::MAX;
-
-/// How the messages were found.
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
-pub enum ReadMode {
-    /// Through the summary's chunk index.
-    Indexed,
-    /// Record by record from the start of the file.
-    Linear,
-}
 
 /// Every message (or every wanted message) of a log, in file order.
 #[derive(Debug)]
@@ -281,7 +236,8 @@ impl McapFile {
         })
     }
 
-    pub(super) fn profile(&self) -> String {
+    /// The `profile` field of the Header record (`ros1`, `ros2`, …; empty without one).
+    pub fn profile(&self) -> String {
         let buf = &self.map[MAGIC.len()..];
         match frame(buf) {
             Some((op::HEADER, body, _)) => match parse_record(op::HEADER, body) {

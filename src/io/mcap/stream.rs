@@ -1,45 +1,15 @@
 //! [`McapFile::scan_map`]: every message mapped to a compact value inside the
 //! parallel chunk tasks, so that a chunk's decompressed buffer is reused for the
-//! next chunk instead of being kept (the memory-lean path of [`super::read_mcap`]).
+//! next chunk instead of being kept (the memory-lean path of [`crate::io::log`]).
 
 use std::collections::BTreeMap;
 
 use mcap::records::{self, Record};
 use rayon::prelude::*;
 
-use super::reader::{
-    channel_info, expand_chunk, walk_chunk, ChannelInfo, ChunkItem, Def, Item, McapFile,
-    RawMessage, ReadMode,
-};
+use super::reader::{channel_info, expand_chunk, walk_chunk, ChunkItem, Def, Item, McapFile};
 use crate::error::Result;
-
-/// One message after mapping: its record fields and the mapped value.
-#[derive(Clone, Debug)]
-pub struct MappedMessage<T> {
-    /// Channel id.
-    pub channel_id: u16,
-    /// Publisher sequence number.
-    pub sequence: u32,
-    /// Log time, nanoseconds.
-    pub log_time: u64,
-    /// Publish time, nanoseconds.
-    pub publish_time: u64,
-    /// What the map made of the message.
-    pub value: T,
-}
-
-/// The result of [`McapFile::scan_map`].
-#[derive(Debug)]
-pub struct MappedScan<T> {
-    /// Channels by id.
-    pub channels: BTreeMap<u16, ChannelInfo>,
-    /// The wanted messages in file order.
-    pub messages: Vec<MappedMessage<T>>,
-    /// Indexed or linear.
-    pub mode: ReadMode,
-    /// The Header record's profile.
-    pub profile: String,
-}
+use crate::io::messages::{ChannelInfo, MappedMessage, MappedScan, RawMessage, ReadMode};
 
 /// What one item gives: its definitions, its messages (mapped, or holding
 /// `T::default()` until mapped after the merge) and the bytes of the messages

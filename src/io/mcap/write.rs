@@ -8,11 +8,11 @@ use std::io::{BufWriter, Write};
 use std::path::Path;
 
 use super::schemas;
-use super::wire::PbWriter;
 use crate::error::{Error, Result};
 use crate::geometry::Sim3;
 use crate::imu::ImuSamples;
 use crate::io::atomic::OutputSet;
+use crate::io::messages::wire::PbWriter;
 use crate::keyframe::Keyframe;
 use crate::trajectory::Trajectory;
 
@@ -884,7 +884,7 @@ pub fn write_slam_log_into(
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::io::mcap::wire::pb_fields;
+    use crate::io::messages::wire::pb_fields;
 
     #[test]
     fn height_colors_run_from_blue_to_red() {

@@ -9,7 +9,7 @@
 //!
 //! Both readers have the MCAP reader's `scan_map` (see
 //! [`crate::io::container::MessageSource`]): channels are
-//! [`crate::io::mcap::ChannelInfo`], messages [`crate::io::mcap::RawMessage`]
+//! [`crate::io::messages::ChannelInfo`], messages [`crate::io::messages::RawMessage`]
 //! with `log_time` = `publish_time` = the record time in nanoseconds.
 
 pub mod ros1;
@@ -19,7 +19,7 @@ pub use crate::error::BagError;
 pub use ros1::{BagHeader, Ros1Bag};
 pub use ros2::{Ros2Bag, Ros2Compression, Ros2Storage};
 
-use crate::io::mcap::MappedMessage;
+use crate::io::messages::MappedMessage;
 
 /// Sorts messages by record time, keeping file order among equal times (a
 /// stable sort: linear when the messages are already in order, as they are in

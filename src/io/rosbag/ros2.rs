@@ -31,7 +31,8 @@ use crate::error::{Error, Result};
 use crate::io::container::{
     classify, folder_of, ChannelCount, Container, Inventory, MessageSource,
 };
-use crate::io::mcap::{ChannelInfo, MappedMessage, MappedScan, McapFile, RawMessage, ReadMode};
+use crate::io::mcap::reader::McapFile;
+use crate::io::messages::{ChannelInfo, MappedMessage, MappedScan, RawMessage, ReadMode};
 
 /// The largest decompressed message accepted in `MESSAGE` mode (1 GiB).
 pub const MAX_MESSAGE: u64 = 1 << 30;
@@ -238,6 +239,12 @@ impl Ros2Bag {
         self.compression
     }
 
+    /// True when [`Ros2Bag::inventory`] counts from the index without reading
+    /// a message (`.db3` storage, not compressed per file).
+    pub fn counts_from_index(&self) -> bool {
+        self.storage == Ros2Storage::Sqlite3 && self.compression != Ros2Compression::File
+    }
+
     /// The data files, in the order `metadata.yaml` lists them.
     pub fn files(&self) -> &[PathBuf] {
         &self.files
@@ -372,7 +379,7 @@ impl Ros2Bag {
         Ok(Inventory {
             channels,
             mode: ReadMode::Indexed,
-            from_index: self.compression != Ros2Compression::File,
+            from_index: self.counts_from_index(),
         })
     }
 }

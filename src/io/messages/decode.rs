@@ -1,10 +1,11 @@
 //! Message decoders: LSD-SLAM keyframes and graphs (ROS 1), reference poses
-//! (`geometry_msgs/PoseStamped`, `PoseWithCovarianceStamped`, `nav_msgs/Odometry`,
-//! `tf2_msgs/TFMessage` in ROS 1 and ROS 2 CDR; `foxglove.PoseInFrame` and
+//! (`geometry_msgs/PoseStamped`, `PoseWithCovarianceStamped`, `TransformStamped`,
+//! `nav_msgs/Odometry`, `tf2_msgs/TFMessage` in ROS 1 and ROS 2 CDR; `foxglove.PoseInFrame` and
 //! `foxglove.PosesInFrame` in protobuf and JSON) and `sensor_msgs/Imu`.
 //!
 //! Decoders return a [`WireError`] saying what was wrong and where in the
-//! message; [`super::log`] adds the file, topic and message index.
+//! message; the log assembly ([`crate::io::log`]) adds the file, topic and
+//! message index. The same decoders serve MCAP files and ROS bags.
 
 use super::wire::{pb_fields, Cdr, PbValue, Ros1, WireError, WireResult};
 
@@ -25,6 +26,8 @@ pub enum MessageKind {
     PoseWithCovarianceStamped,
     /// `nav_msgs/Odometry`.
     Odometry,
+    /// `geometry_msgs/TransformStamped` (`T_frame_child`, e.g. a motion-capture body).
+    TransformStamped,
     /// `foxglove.PoseInFrame`.
     PoseInFrame,
     /// `foxglove.PosesInFrame` (the last pose of each message is taken).
@@ -33,9 +36,9 @@ pub enum MessageKind {
     Tf,
     /// `sensor_msgs/Imu`.
     Imu,
-    /// `sensor_msgs/NavSatFix` (decoded by [`super::gnss_decode`]).
+    /// `sensor_msgs/NavSatFix` (decoded by [`crate::io::mcap::gnss_decode`]).
     NavSatFix,
-    /// `foxglove.LocationFix` (decoded by [`super::gnss_decode`]).
+    /// `foxglove.LocationFix` (decoded by [`crate::io::mcap::gnss_decode`]).
     LocationFix,
 }
 
@@ -49,6 +52,7 @@ impl MessageKind {
             "geometry_msgs/PoseStamped" => MessageKind::PoseStamped,
             "geometry_msgs/PoseWithCovarianceStamped" => MessageKind::PoseWithCovarianceStamped,
             "nav_msgs/Odometry" => MessageKind::Odometry,
+            "geometry_msgs/TransformStamped" => MessageKind::TransformStamped,
             "foxglove.PoseInFrame" => MessageKind::PoseInFrame,
             "foxglove.PosesInFrame" => MessageKind::PosesInFrame,
             "tf2_msgs/TFMessage" => MessageKind::Tf,
@@ -66,6 +70,7 @@ impl MessageKind {
             MessageKind::PoseStamped
                 | MessageKind::PoseWithCovarianceStamped
                 | MessageKind::Odometry
+                | MessageKind::TransformStamped
                 | MessageKind::PoseInFrame
                 | MessageKind::PosesInFrame
                 | MessageKind::Tf
@@ -193,15 +198,25 @@ pub fn keyframe_ros1(data: &[u8]) -> WireResult<KeyframeMsg<'_>> {
 
 /// Splits an LSD-SLAM point cloud into inverse depth, its variance and RGB
 /// (the fourth colour byte is dropped).
+///
+/// One pass over the message bytes (a decompressed chunk, or the memory map)
+/// straight into the three arrays, which are allocated zeroed (fresh pages from
+/// the system for a large image) and filled in place, without a bounds check
+/// or a length update per point.
 pub fn split_pointcloud(pc: &[u8]) -> (Vec<f32>, Vec<f32>, Vec<u8>) {
     let n = pc.len() / POINT_BYTES;
-    let mut idepth = Vec::with_capacity(n);
-    let mut var = Vec::with_capacity(n);
-    let mut color = Vec::with_capacity(3 * n);
-    for p in pc.chunks_exact(POINT_BYTES) {
-        idepth.push(f32::from_le_bytes([p[0], p[1], p[2], p[3]]));
-        var.push(f32::from_le_bytes([p[4], p[5], p[6], p[7]]));
-        color.extend_from_slice(&p[8..11]);
+    let mut idepth = vec![0f32; n];
+    let mut var = vec![0f32; n];
+    let mut color = vec![0u8; 3 * n];
+    for (((p, d), v), c) in pc
+        .chunks_exact(POINT_BYTES)
+        .zip(&mut idepth)
+        .zip(&mut var)
+        .zip(color.chunks_exact_mut(3))
+    {
+        *d = f32::from_le_bytes([p[0], p[1], p[2], p[3]]);
+        *v = f32::from_le_bytes([p[4], p[5], p[6], p[7]]);
+        c.copy_from_slice(&p[8..11]);
     }
     (idepth, var, color)
 }
@@ -344,7 +359,8 @@ pub type PoseSample = (f64, [f64; 3], [f64; 4]);
 
 fn ros_sample<R: Prim>(kind: MessageKind, r: &mut R) -> WireResult<PoseSample> {
     let time = r.stamp_skip_frame()?;
-    if kind == MessageKind::Odometry {
+    // Odometry and TransformStamped have the child frame before the pose.
+    if matches!(kind, MessageKind::Odometry | MessageKind::TransformStamped) {
         r.skip_string()?;
     }
     let (p, q) = pose_fields(r)?;
@@ -358,13 +374,15 @@ pub fn pose_sample(kind: MessageKind, encoding: &str, data: &[u8]) -> WireResult
         (
             MessageKind::PoseStamped
             | MessageKind::PoseWithCovarianceStamped
-            | MessageKind::Odometry,
+            | MessageKind::Odometry
+            | MessageKind::TransformStamped,
             "ros1",
         ) => ros_sample(kind, &mut Ros1::new(data)),
         (
             MessageKind::PoseStamped
             | MessageKind::PoseWithCovarianceStamped
-            | MessageKind::Odometry,
+            | MessageKind::Odometry
+            | MessageKind::TransformStamped,
             "cdr",
         ) => ros_sample(kind, &mut Cdr::new(data)?),
         _ => {
@@ -396,7 +414,9 @@ fn ros_pose<R: Prim>(kind: MessageKind, r: &mut R) -> WireResult<Vec<StampedPose
                 orientation,
             }])
         }
-        MessageKind::Odometry => {
+        // `TransformStamped`: header, child_frame_id, translation, rotation —
+        // the layout of Odometry's first fields and of one TF entry.
+        MessageKind::Odometry | MessageKind::TransformStamped => {
             let (time, frame_id) = r.header()?;
             let child_frame_id = r.string()?;
             let (position, orientation) = pose_fields(r)?;

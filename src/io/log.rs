@@ -1,0 +1,983 @@
+//! [`read_log`]: a SLAM log (keyframes, graph updates, reference poses, IMU)
+//! read into the crate's types from any container: an MCAP file, a ROS 1 bag,
+//! a rosbag2 folder or `.db3` ([`crate::io::container::detect`] tells which
+//! from the bytes). [`inspect_log`] lists what a log holds.
+//!
+//! The assembly is written once over [`MessageSource`]: messages are decoded
+//! inside the readers' parallel chunk tasks by the decoders of
+//! [`crate::io::messages::decode`] (the same for every container), keyframes
+//! keep their latest version per id with the graph updates applied, the
+//! reference and the IMU are sorted by time. Times in the log are `u64`
+//! nanoseconds; the results are in seconds and metres.
+
+use std::collections::{BTreeMap, HashMap};
+use std::path::{Path, PathBuf};
+use std::sync::atomic::{AtomicU8, Ordering};
+
+use nalgebra::{Quaternion, UnitQuaternion, Vector3};
+use rayon::prelude::*;
+
+pub use crate::error::LogError;
+use crate::error::{Error, Result, WireError};
+use crate::geometry::{PinholeCamera, Sim3};
+use crate::imu::ImuSamples;
+use crate::io::container::{AnyContainer, ChannelCount, Container, Inventory, MessageSource};
+use crate::io::messages::decode::{self, KeyframeMsg, MessageKind, StampedPose};
+use crate::io::messages::{ChannelInfo, MappedMessage, RawMessage, ReadMode};
+use crate::keyframe::Keyframe;
+use crate::trajectory::Trajectory;
+
+/// Which topics to read. `None` finds the topic by its schema (type) name.
+#[derive(Clone, Debug, Default, PartialEq, Eq)]
+pub struct ReadOptions {
+    /// Topic of `lsd_slam_viewer/keyframeMsg`.
+    pub keyframe_topic: Option<String>,
+    /// Topic of `lsd_slam_viewer/keyframeGraphMsg`.
+    pub graph_topic: Option<String>,
+    /// Topic of the reference poses `T_world_body` (any supported pose type).
+    pub pose_topic: Option<String>,
+    /// Topic of `sensor_msgs/Imu`.
+    pub imu_topic: Option<String>,
+    /// For `tf2_msgs/TFMessage` references: the parent frame (the world side).
+    pub tf_parent: Option<String>,
+    /// For `tf2_msgs/TFMessage` references: the child frame (the body).
+    pub tf_child: Option<String>,
+    /// Topic of the SLAM estimate as poses without depth (`T_slam_cam`, any
+    /// pose type; a TF topic gives its most frequent frame pair), as
+    /// `evo_ape bag LOG REF EST` takes it. Never found by type: with it and
+    /// without `keyframe_topic`, no keyframes are read, and the reference is
+    /// never this topic.
+    pub est_topic: Option<String>,
+}
+
+/// One topic of the log, as [`read_log`] and `slam2world inspect` list it.
+#[derive(Clone, Debug, PartialEq)]
+pub struct TopicInfo {
+    /// Topic name.
+    pub topic: String,
+    /// Schema (type) name, e.g. `geometry_msgs/PoseStamped`; empty when schemaless.
+    pub schema_name: String,
+    /// Schema encoding (`ros1msg`, `ros2msg`, `protobuf`, …).
+    pub schema_encoding: String,
+    /// Message encoding (`ros1`, `cdr`, `protobuf`, `json`, …).
+    pub message_encoding: String,
+    /// Messages on the topic: from the container's index where it has one
+    /// (a ROS 1 bag's index, a `.db3`'s tables), else those read (0 when an
+    /// MCAP index let its chunks be skipped).
+    pub count: u64,
+    /// First and last log (record) time, nanoseconds.
+    pub time_range: Option<(u64, u64)>,
+    /// What slam2world makes of the type, when anything.
+    pub kind: Option<MessageKind>,
+}
+
+/// A SLAM log: keyframes, SLAM poses, reference poses, IMU and the topic inventory.
+#[derive(Clone, Debug, Default)]
+pub struct Log {
+    /// The file (or rosbag2 folder) read.
+    pub path: PathBuf,
+    /// The container, when the log was read from one ([`read_log`] sets it).
+    pub container: Option<Container>,
+    /// Keyframes, the latest version of each id, in order of first arrival; each
+    /// pose is the latest of the keyframe message and the graph messages after it.
+    /// Timestamps are the messages' own `time`.
+    pub keyframes: Vec<Keyframe>,
+    /// SLAM poses without depth (`T_slam_cam`, sorted by header time), from
+    /// [`ReadOptions::est_topic`].
+    pub frames: Option<Trajectory>,
+    /// Reference poses `T_world_body`, sorted by time.
+    pub reference: Option<Trajectory>,
+    /// Raw IMU samples, sorted by time (samples with a repeated time dropped).
+    pub imu: Option<ImuSamples>,
+    /// Topic the keyframes came from.
+    pub keyframe_topic: Option<String>,
+    /// Topic the graph updates came from.
+    pub graph_topic: Option<String>,
+    /// Topic the SLAM poses without depth came from.
+    pub est_topic: Option<String>,
+    /// Topic the reference came from.
+    pub reference_topic: Option<String>,
+    /// Topic the IMU came from.
+    pub imu_topic: Option<String>,
+    /// Keyframe messages read (all versions) and graph messages applied.
+    pub keyframe_messages: usize,
+    /// Graph messages read.
+    pub graph_messages: usize,
+    /// Keyframe poses overwritten by graph messages.
+    pub graph_updates: usize,
+    /// Every topic of the log.
+    pub topics: Vec<TopicInfo>,
+    /// True when the log was read through its index (false: a linear scan).
+    pub indexed: bool,
+}
+
+fn log_err(path: &Path, reason: LogError) -> Error {
+    Error::Log {
+        path: path.to_path_buf(),
+        reason: Box::new(reason),
+    }
+}
+
+/// Reference pose kinds in the order they are preferred.
+const POSE_KINDS: [MessageKind; 7] = [
+    MessageKind::PoseStamped,
+    MessageKind::PoseWithCovarianceStamped,
+    MessageKind::Odometry,
+    MessageKind::TransformStamped,
+    MessageKind::PoseInFrame,
+    MessageKind::PosesInFrame,
+    MessageKind::Tf,
+];
+
+fn kind_of(c: &ChannelInfo) -> Option<MessageKind> {
+    MessageKind::from_schema(&c.schema_name)
+}
+
+fn topic_info(c: &ChannelInfo, count: u64, time_range: Option<(u64, u64)>) -> TopicInfo {
+    TopicInfo {
+        topic: c.topic.clone(),
+        schema_name: c.schema_name.clone(),
+        schema_encoding: c.schema_encoding.clone(),
+        message_encoding: c.message_encoding.clone(),
+        count,
+        time_range,
+        kind: kind_of(c),
+    }
+}
+
+/// Counts and time ranges per channel, as topics and as a count map;
+/// `messages` yields `(channel id, log time)`.
+fn topic_inventory(
+    channels: &BTreeMap<u16, ChannelInfo>,
+    messages: impl Iterator<Item = (u16, u64)>,
+) -> (Vec<TopicInfo>, HashMap<u16, u64>) {
+    // (count, first, last) per channel id
+    let mut stats = vec![(0u64, u64::MAX, 0u64); 1 << 16];
+    for (id, t) in messages {
+        let s = &mut stats[id as usize];
+        s.0 += 1;
+        s.1 = s.1.min(t);
+        s.2 = s.2.max(t);
+    }
+    let topics = channels
+        .values()
+        .map(|c| {
+            let (count, first, last) = stats[c.id as usize];
+            topic_info(c, count, (count > 0).then_some((first, last)))
+        })
+        .collect();
+    let counts = channels
+        .keys()
+        .map(|id| (*id, stats[*id as usize].0))
+        .collect();
+    (topics, counts)
+}
+
+/// The topics and counts of a container's inventory.
+fn inventory_topics(inv: &Inventory) -> (Vec<TopicInfo>, HashMap<u16, u64>) {
+    let topics = inv
+        .channels
+        .iter()
+        .map(|c: &ChannelCount| topic_info(&c.channel, c.count, c.time_range))
+        .collect();
+    let counts = inv
+        .channels
+        .iter()
+        .map(|c| (c.channel.id, c.count))
+        .collect();
+    (topics, counts)
+}
+
+fn kinds_text(kinds: &[MessageKind]) -> String {
+    kinds
+        .iter()
+        .map(|k| format!("{k:?}"))
+        .collect::<Vec<_>>()
+        .join(", ")
+}
+
+/// Picks the channel for a role: the named topic (which must exist and carry
+/// one of `kinds`), else the channel of the first kind in `kinds` present (most
+/// messages first, then topic name), never `exclude`.
+fn choose<'c>(
+    path: &Path,
+    role: &'static str,
+    named: Option<&str>,
+    kinds: &[MessageKind],
+    channels: &'c BTreeMap<u16, ChannelInfo>,
+    counts: &HashMap<u16, u64>,
+    exclude: Option<u16>,
+) -> Result<Option<&'c ChannelInfo>> {
+    if let Some(topic) = named {
+        let Some(c) = channels.values().find(|c| c.topic == topic) else {
+            return Err(log_err(
+                path,
+                LogError::NoTopic {
+                    role,
+                    topic: topic.to_string(),
+                    topics: channels.values().map(|c| c.topic.clone()).collect(),
+                },
+            ));
+        };
+        return match kind_of(c) {
+            Some(k) if kinds.contains(&k) => Ok(Some(c)),
+            Some(_) => Err(log_err(
+                path,
+                LogError::WrongType {
+                    role,
+                    topic: topic.to_string(),
+                    type_name: c.schema_name.clone(),
+                    expected: kinds_text(kinds),
+                },
+            )),
+            None => Err(log_err(
+                path,
+                LogError::UnknownType {
+                    role,
+                    topic: topic.to_string(),
+                    type_name: c.schema_name.clone(),
+                    expected: kinds_text(kinds),
+                },
+            )),
+        };
+    }
+    for k in kinds {
+        let mut cands: Vec<&ChannelInfo> = channels
+            .values()
+            .filter(|c| kind_of(c) == Some(*k) && Some(c.id) != exclude)
+            .collect();
+        // LSD-SLAM also publishes live frames (pose only) as keyframeMsg, more often
+        // than keyframes: a topic named like that comes last.
+        let live = |c: &ChannelInfo| c.topic.contains("liveframe");
+        cands.sort_by(|a, b| {
+            let ca = counts.get(&a.id).copied().unwrap_or(0);
+            let cb = counts.get(&b.id).copied().unwrap_or(0);
+            live(a)
+                .cmp(&live(b))
+                .then(cb.cmp(&ca))
+                .then_with(|| a.topic.cmp(&b.topic))
+        });
+        if let Some(c) = cands.first() {
+            return Ok(Some(c));
+        }
+    }
+    Ok(None)
+}
+
+fn check_encoding(path: &Path, c: &ChannelInfo, kind: MessageKind) -> Result<()> {
+    if kind.encodings().contains(&c.message_encoding.as_str()) {
+        Ok(())
+    } else {
+        Err(log_err(
+            path,
+            LogError::Encoding {
+                topic: c.topic.clone(),
+                type_name: c.schema_name.clone(),
+                encoding: c.message_encoding.clone(),
+                expected: kind.encodings().join(" or "),
+            },
+        ))
+    }
+}
+
+/// The channels each role reads.
+struct Picks<'c> {
+    keyframes: Option<&'c ChannelInfo>,
+    graph: Option<&'c ChannelInfo>,
+    est: Option<&'c ChannelInfo>,
+    pose: Option<&'c ChannelInfo>,
+    imu: Option<&'c ChannelInfo>,
+}
+
+impl<'c> Picks<'c> {
+    fn all(&self) -> impl Iterator<Item = &'c ChannelInfo> {
+        [self.keyframes, self.graph, self.est, self.pose, self.imu]
+            .into_iter()
+            .flatten()
+    }
+}
+
+fn pick<'c>(
+    path: &Path,
+    options: &ReadOptions,
+    channels: &'c BTreeMap<u16, ChannelInfo>,
+    counts: &HashMap<u16, u64>,
+) -> Result<Picks<'c>> {
+    use MessageKind as K;
+    let est = match options.est_topic.as_deref() {
+        Some(t) => choose(
+            path,
+            "estimate",
+            Some(t),
+            &POSE_KINDS,
+            channels,
+            counts,
+            None,
+        )?,
+        None => None,
+    };
+    let keyframes = if est.is_some() && options.keyframe_topic.is_none() {
+        None
+    } else {
+        choose(
+            path,
+            "keyframe",
+            options.keyframe_topic.as_deref(),
+            &[K::Keyframe],
+            channels,
+            counts,
+            None,
+        )?
+    };
+    let graph = if keyframes.is_some() || options.graph_topic.is_some() {
+        choose(
+            path,
+            "graph",
+            options.graph_topic.as_deref(),
+            &[K::KeyframeGraph],
+            channels,
+            counts,
+            None,
+        )?
+    } else {
+        None
+    };
+    let pose = choose(
+        path,
+        "pose",
+        options.pose_topic.as_deref(),
+        &POSE_KINDS,
+        channels,
+        counts,
+        est.map(|c| c.id),
+    )?;
+    let imu = choose(
+        path,
+        "imu",
+        options.imu_topic.as_deref(),
+        &[K::Imu],
+        channels,
+        counts,
+        None,
+    )?;
+    let picks = Picks {
+        keyframes,
+        graph,
+        est,
+        pose,
+        imu,
+    };
+    for c in picks.all() {
+        if let Some(k) = kind_of(c) {
+            check_encoding(path, c, k)?;
+        }
+    }
+    Ok(picks)
+}
+
+/// Reads a log of any container (detected from its bytes: MCAP, ROS 1 bag,
+/// rosbag2 folder or `.db3`). Keyframes come from `lsd_slam_viewer/keyframeMsg`
+/// (+ graph updates), the reference from the first pose type present in the
+/// order PoseStamped, PoseWithCovarianceStamped, Odometry, TransformStamped,
+/// PoseInFrame, PosesInFrame, TFMessage (unless a topic is named), the IMU
+/// from `sensor_msgs/Imu`; SLAM poses without depth from
+/// [`ReadOptions::est_topic`] when given.
+///
+/// Where the container has an index (a closed ROS 1 bag, a `.db3`), the
+/// topics are chosen from it and only their messages are read; otherwise
+/// every message is read and counted.
+///
+/// Errors: [`Error::Container`] for a path that is no log slam2world reads;
+/// the readers' own ([`Error::Mcap`], [`Error::Bag`]) on damaged files;
+/// [`Error::Log`] (naming the file, the topic and its type) for a named topic
+/// that is missing, of a type slam2world does not decode or that cannot be
+/// read in that role, and for samples that make no trajectory;
+/// [`Error::Decode`] (file, topic, message index, log time, byte offset) for
+/// a message that does not decode.
+pub fn read_log(path: impl AsRef<Path>, options: &ReadOptions) -> Result<Log> {
+    let source = AnyContainer::open(path.as_ref())?;
+    let counts = match &source {
+        // A closed bag's index and a .db3's tables count without reading messages.
+        AnyContainer::Ros1(b) if b.mode() == ReadMode::Indexed => Some(b.inventory()?),
+        AnyContainer::Ros2(b) if b.counts_from_index() => Some(b.inventory()?),
+        _ => None,
+    };
+    read_log_from(&source, Some(source.kind()), counts, options)
+}
+
+/// [`read_log`] over an opened source. With `counts` (the source's
+/// inventory), the topics are chosen from it and only the chosen channels
+/// are read; without, every message is read, counted and (when of a known
+/// type) decoded.
+pub fn read_log_from<S: MessageSource>(
+    source: &S,
+    container: Option<Container>,
+    counts: Option<Inventory>,
+    options: &ReadOptions,
+) -> Result<Log> {
+    let path = source.path();
+    // The kind of each channel, found once (0 not yet, 1 none, 2 + index in KINDS).
+    let kinds: Vec<AtomicU8> = (0..1 << 16).map(|_| AtomicU8::new(0)).collect();
+    let kind_cached = |c: &ChannelInfo| {
+        let slot = &kinds[c.id as usize];
+        match slot.load(Ordering::Relaxed) {
+            0 => {
+                let k = kind_of(c);
+                let code = k
+                    .and_then(|k| KINDS.iter().position(|x| *x == k))
+                    .map_or(1, |i| i as u8 + 2);
+                slot.store(code, Ordering::Relaxed);
+                k
+            }
+            1 => None,
+            code => KINDS.get(code as usize - 2).copied(),
+        }
+    };
+    let decode = |c: &ChannelInfo, m: &RawMessage<'_>| decode_message(kind_cached(c), c, m);
+    let (scan, topics, counts) = match counts {
+        Some(inv) => {
+            // Choose from the index, then read the chosen channels alone.
+            let (topics, counts) = inventory_topics(&inv);
+            let channels: BTreeMap<u16, ChannelInfo> = inv
+                .channels
+                .into_iter()
+                .map(|c| (c.channel.id, c.channel))
+                .collect();
+            let wanted: Vec<u16> = pick(path, options, &channels, &counts)?
+                .all()
+                .map(|c| c.id)
+                .collect();
+            let scan = source.scan_map(|c| wanted.contains(&c.id), decode)?;
+            (scan, topics, counts)
+        }
+        None => {
+            // Every message is counted; those of a known type are decoded inside the
+            // parallel chunk tasks (decompressed buffers are reused, not kept).
+            let scan = source.scan_map(|_| true, decode)?;
+            let (topics, counts) = topic_inventory(
+                &scan.channels,
+                scan.messages.iter().map(|m| (m.channel_id, m.log_time)),
+            );
+            (scan, topics, counts)
+        }
+    };
+    let ch = &scan.channels;
+    let picks = pick(path, options, ch, &counts)?;
+    let mut log = Log {
+        path: path.to_path_buf(),
+        container,
+        keyframe_topic: picks.keyframes.map(|c| c.topic.clone()),
+        graph_topic: picks.graph.map(|c| c.topic.clone()),
+        est_topic: picks.est.map(|c| c.topic.clone()),
+        reference_topic: picks.pose.map(|c| c.topic.clone()),
+        imu_topic: picks.imu.map(|c| c.topic.clone()),
+        topics,
+        indexed: scan.mode == ReadMode::Indexed,
+        ..Log::default()
+    };
+    let mut messages = scan.messages;
+    if let Some(kf) = picks.keyframes {
+        read_keyframes(path, &mut messages, kf, picks.graph, &mut log)?;
+    }
+    if let Some(c) = picks.est {
+        log.frames = Some(read_poses(path, &messages, c, (&None, &None))?);
+    }
+    if let Some(c) = picks.pose {
+        log.reference = Some(read_poses(
+            path,
+            &messages,
+            c,
+            (&options.tf_parent, &options.tf_child),
+        )?);
+    }
+    if let Some(c) = picks.imu {
+        log.imu = Some(read_imu(path, &messages, c)?);
+    }
+    Ok(log)
+}
+
+/// A keyframe message without its point cloud, and the cloud split into
+/// inverse depth, variance and RGB (for keyframes; live frames have none).
+type DecodedKeyframe = (KeyframeMsg<'static>, Option<(Vec<f32>, Vec<f32>, Vec<u8>)>);
+
+/// What a message becomes inside the chunk task. Errors keep what and where
+/// in the message; the file, topic and message index are added when the
+/// message is used.
+#[derive(Default)]
+enum Decoded {
+    Keyframe(Box<std::result::Result<DecodedKeyframe, WireError>>),
+    Graph(std::result::Result<Vec<(i32, [f64; 7])>, WireError>),
+    /// A checked, normalised pose sample.
+    Pose(decode::PoseSample),
+    Tf(Vec<StampedPose>),
+    Imu(decode::ImuMsg),
+    Error(WireError),
+    #[default]
+    Other,
+}
+
+/// Every kind, for the per-channel cache of [`read_log_from`].
+const KINDS: [MessageKind; 10] = [
+    MessageKind::Keyframe,
+    MessageKind::KeyframeGraph,
+    MessageKind::PoseStamped,
+    MessageKind::PoseWithCovarianceStamped,
+    MessageKind::Odometry,
+    MessageKind::TransformStamped,
+    MessageKind::PoseInFrame,
+    MessageKind::PosesInFrame,
+    MessageKind::Tf,
+    MessageKind::Imu,
+];
+
+fn decode_message(kind: Option<MessageKind>, c: &ChannelInfo, m: &RawMessage<'_>) -> Decoded {
+    use MessageKind as K;
+    let enc = c.message_encoding.as_str();
+    let err = Decoded::Error;
+    match kind {
+        // The point cloud goes from the (decompressed) message bytes straight
+        // into the keyframe's arrays: no copy of the message is kept.
+        Some(K::Keyframe) => Decoded::Keyframe(Box::new(decode::keyframe_ros1(m.data).map(|k| {
+            let arrays = k
+                .is_keyframe
+                .then(|| decode::split_pointcloud(k.pointcloud));
+            (
+                KeyframeMsg {
+                    pointcloud: &[],
+                    ..k
+                },
+                arrays,
+            )
+        }))),
+        Some(K::KeyframeGraph) => Decoded::Graph(decode::graph_ros1(m.data)),
+        Some(K::Tf) => match decode::poses(K::Tf, enc, m.data) {
+            Ok(v) => Decoded::Tf(v),
+            Err(e) => err(e),
+        },
+        Some(K::Imu) => match decode::imu(enc, m.data) {
+            Ok(s) => Decoded::Imu(s),
+            Err(e) => err(e),
+        },
+        Some(k) if k.is_pose() => {
+            match decode::pose_sample(k, enc, m.data).and_then(checked_sample) {
+                Ok(s) => Decoded::Pose(s),
+                Err(e) => err(e),
+            }
+        }
+        _ => Decoded::Other,
+    }
+}
+
+type Mapped = MappedMessage<Decoded>;
+
+/// The decode error of message `i` of `topic`.
+fn at(path: &Path, topic: &str, i: usize, log_time: u64, e: WireError) -> Error {
+    Error::Decode {
+        path: path.to_path_buf(),
+        topic: topic.to_string(),
+        index: i,
+        log_time,
+        source: e,
+    }
+}
+
+struct Entry {
+    msg: KeyframeMsg<'static>,
+    arrays: (Vec<f32>, Vec<f32>, Vec<u8>),
+    topic_index: usize,
+    pose: [f64; 7],
+    pose_source: String,
+}
+
+fn read_keyframes(
+    path: &Path,
+    messages: &mut [Mapped],
+    kf: &ChannelInfo,
+    graph: Option<&ChannelInfo>,
+    log: &mut Log,
+) -> Result<()> {
+    let graph_id = graph.map(|g| g.id);
+    let graph_topic = graph.map(|g| g.topic.as_str()).unwrap_or_default();
+    let mut order: Vec<i32> = Vec::new();
+    let mut latest: HashMap<i32, Entry> = HashMap::new();
+    let mut kf_index = 0usize;
+    let mut graph_index = 0usize;
+    for m in messages.iter_mut() {
+        if m.channel_id == kf.id {
+            let i = kf_index;
+            kf_index += 1;
+            let log_time = m.log_time;
+            let fail = |e: WireError| at(path, &kf.topic, i, log_time, e);
+            let (msg, arrays) = match &mut m.value {
+                Decoded::Keyframe(r) => match r.as_mut() {
+                    Ok((msg, arrays)) => (msg, arrays),
+                    Err(e) => return Err(fail(e.clone())),
+                },
+                _ => return Err(fail(WireError::schema("not a keyframe message"))),
+            };
+            // Moved out: each version's arrays are used once (the latest wins).
+            let Some(arrays) = arrays.take() else {
+                continue;
+            };
+            if !latest.contains_key(&msg.id) {
+                order.push(msg.id);
+            }
+            latest.insert(
+                msg.id,
+                Entry {
+                    msg: msg.clone(),
+                    arrays,
+                    topic_index: i,
+                    pose: msg.cam_to_world,
+                    pose_source: format!("topic {}: message {i}", kf.topic),
+                },
+            );
+        } else if Some(m.channel_id) == graph_id {
+            let i = graph_index;
+            graph_index += 1;
+            let frames = match &m.value {
+                Decoded::Graph(Ok(f)) => f,
+                Decoded::Graph(Err(e)) => {
+                    return Err(at(path, graph_topic, i, m.log_time, e.clone()))
+                }
+                _ => {
+                    return Err(at(
+                        path,
+                        graph_topic,
+                        i,
+                        m.log_time,
+                        WireError::schema("not a graph message"),
+                    ))
+                }
+            };
+            for (id, c2w) in frames {
+                if let Some(e) = latest.get_mut(id) {
+                    e.pose = *c2w;
+                    e.pose_source = format!("topic {graph_topic}: message {i}");
+                    log.graph_updates += 1;
+                }
+            }
+        }
+    }
+    log.keyframe_messages = kf_index;
+    log.graph_messages = graph_index;
+    let mut entries: Vec<Entry> = order.iter().filter_map(|id| latest.remove(id)).collect();
+    let keyframes: Result<Vec<Keyframe>> = entries
+        .par_iter_mut()
+        .map(|e| to_keyframe(path, &kf.topic, e))
+        .collect();
+    log.keyframes = keyframes?;
+    Ok(())
+}
+
+fn to_keyframe(path: &Path, topic: &str, e: &mut Entry) -> Result<Keyframe> {
+    let m = &e.msg;
+    let what = |what: String| {
+        log_err(
+            path,
+            LogError::Keyframe {
+                topic: topic.to_string(),
+                index: e.topic_index,
+                id: m.id,
+                what,
+            },
+        )
+    };
+    if e.pose.iter().any(|v| !v.is_finite()) {
+        return Err(what(format!(
+            "non-finite camToWorld {:?} (from {})",
+            e.pose, e.pose_source
+        )));
+    }
+    let pose = Sim3::from_lsd_slam(&e.pose)
+        .map_err(|err| what(format!("camToWorld {:?}: {err}", e.pose)))?;
+    let camera = PinholeCamera::try_new(m.fx, m.fy, m.cx, m.cy, m.width, m.height)
+        .map_err(|err| what(format!("camera: {err}")))?;
+    let (idepth, var, color) = std::mem::take(&mut e.arrays);
+    Keyframe::try_new(m.id, m.time, pose, camera, idepth, Some(var), Some(color))
+        .map_err(|err| what(err.to_string()))
+}
+
+fn samples_err(path: &Path, topic: &str, what: String) -> Error {
+    log_err(
+        path,
+        LogError::Samples {
+            topic: topic.to_string(),
+            what,
+        },
+    )
+}
+
+/// The pose samples of a pose channel, with TF narrowed to one frame pair
+/// (`tf`: the parent and child asked for; the most frequent pair that fits).
+fn read_poses(
+    path: &Path,
+    messages: &[Mapped],
+    c: &ChannelInfo,
+    tf: (&Option<String>, &Option<String>),
+) -> Result<Trajectory> {
+    let mine = messages.iter().filter(|m| m.channel_id == c.id);
+    if kind_of(c) != Some(MessageKind::Tf) {
+        let mut times: Vec<f64> = Vec::new();
+        let mut positions: Vec<Vector3<f64>> = Vec::new();
+        let mut orientations: Vec<UnitQuaternion<f64>> = Vec::new();
+        for (i, m) in mine.enumerate() {
+            match &m.value {
+                Decoded::Pose((t, p, [x, y, z, w])) => {
+                    times.push(*t);
+                    positions.push(Vector3::from(*p));
+                    orientations.push(UnitQuaternion::new_unchecked(Quaternion::new(
+                        *w, *x, *y, *z,
+                    )));
+                }
+                Decoded::Error(e) => return Err(at(path, &c.topic, i, m.log_time, e.clone())),
+                _ => {
+                    return Err(at(
+                        path,
+                        &c.topic,
+                        i,
+                        m.log_time,
+                        WireError::schema("not a pose message"),
+                    ))
+                }
+            }
+        }
+        if !times.is_sorted_by(|a, b| a <= b) {
+            let mut order: Vec<usize> = (0..times.len()).collect();
+            order.sort_by(|&a, &b| times[a].total_cmp(&times[b]));
+            times = order.iter().map(|&k| times[k]).collect();
+            positions = order.iter().map(|&k| positions[k]).collect();
+            orientations = order.iter().map(|&k| orientations[k]).collect();
+        }
+        return Trajectory::try_new(times, positions, Some(orientations))
+            .map_err(|e| samples_err(path, &c.topic, e.to_string()));
+    }
+    let mut decoded: Vec<&Vec<StampedPose>> = Vec::new();
+    for (i, m) in mine.enumerate() {
+        match &m.value {
+            Decoded::Tf(v) => decoded.push(v),
+            Decoded::Error(e) => return Err(at(path, &c.topic, i, m.log_time, e.clone())),
+            _ => {
+                return Err(at(
+                    path,
+                    &c.topic,
+                    i,
+                    m.log_time,
+                    WireError::schema("not a TF message"),
+                ))
+            }
+        }
+    }
+    let no_transform = || {
+        log_err(
+            path,
+            LogError::NoTransform {
+                topic: c.topic.clone(),
+                parent: tf.0.clone(),
+                child: tf.1.clone(),
+            },
+        )
+    };
+    let pair = match tf {
+        (Some(p), Some(ch)) => (p.clone(), ch.clone()),
+        (p, ch) => {
+            let mut freq: BTreeMap<(String, String), usize> = BTreeMap::new();
+            for s in decoded.iter().copied().flatten() {
+                let ok_p = p.as_ref().is_none_or(|p| *p == s.frame_id);
+                let ok_c = ch.as_ref().is_none_or(|ch| *ch == s.child_frame_id);
+                if ok_p && ok_c {
+                    *freq
+                        .entry((s.frame_id.clone(), s.child_frame_id.clone()))
+                        .or_default() += 1;
+                }
+            }
+            match freq
+                .into_iter()
+                .max_by(|a, b| a.1.cmp(&b.1).then_with(|| b.0.cmp(&a.0)))
+            {
+                Some((pair, _)) => pair,
+                None => return Err(no_transform()),
+            }
+        }
+    };
+    let mut samples: Vec<(usize, &StampedPose)> = Vec::new();
+    for (i, v) in decoded.iter().enumerate() {
+        for s in v.iter() {
+            if s.frame_id == pair.0 && s.child_frame_id == pair.1 {
+                samples.push((i, s));
+            }
+        }
+    }
+    if samples.is_empty() {
+        return Err(log_err(
+            path,
+            LogError::NoTransform {
+                topic: c.topic.clone(),
+                parent: Some(pair.0),
+                child: Some(pair.1),
+            },
+        ));
+    }
+    samples.sort_by(|a, b| a.1.time.total_cmp(&b.1.time));
+    trajectory_of(
+        path,
+        &c.topic,
+        samples
+            .iter()
+            .map(|(i, s)| (*i, s.time, s.position, s.orientation)),
+    )
+}
+
+/// Checks a pose sample (finite, non-zero quaternion) and normalises its quaternion.
+fn checked_sample(s: decode::PoseSample) -> std::result::Result<decode::PoseSample, WireError> {
+    let (time, position, orientation) = s;
+    let finite = time.is_finite()
+        && position
+            .iter()
+            .chain(orientation.iter())
+            .all(|v| v.is_finite());
+    let [x, y, z, w] = orientation;
+    let norm = (x * x + y * y + z * z + w * w).sqrt();
+    if !finite || norm < 1e-9 {
+        return Err(WireError::value(format!(
+            "{} pose (time {}, position {position:?}, orientation {orientation:?})",
+            if finite {
+                "zero-quaternion"
+            } else {
+                "non-finite"
+            },
+            crate::error::num(time)
+        )));
+    }
+    Ok((time, position, [x / norm, y / norm, z / norm, w / norm]))
+}
+
+/// Checks and converts `(message index, time, position, orientation xyzw)` samples.
+fn trajectory_of(
+    path: &Path,
+    topic: &str,
+    samples: impl ExactSizeIterator<Item = (usize, f64, [f64; 3], [f64; 4])>,
+) -> Result<Trajectory> {
+    let n = samples.len();
+    let mut times = Vec::with_capacity(n);
+    let mut positions = Vec::with_capacity(n);
+    let mut orientations = Vec::with_capacity(n);
+    for (i, time, position, orientation) in samples {
+        let (time, position, [x, y, z, w]) = checked_sample((time, position, orientation))
+            .map_err(|e| samples_err(path, topic, format!("message {i}: {e}")))?;
+        times.push(time);
+        positions.push(Vector3::from(position));
+        orientations.push(UnitQuaternion::new_unchecked(Quaternion::new(w, x, y, z)));
+    }
+    Trajectory::try_new(times, positions, Some(orientations))
+        .map_err(|e| samples_err(path, topic, e.to_string()))
+}
+
+fn read_imu(path: &Path, messages: &[Mapped], c: &ChannelInfo) -> Result<ImuSamples> {
+    let mut samples: Vec<&decode::ImuMsg> = Vec::new();
+    for (i, m) in messages.iter().filter(|m| m.channel_id == c.id).enumerate() {
+        match &m.value {
+            Decoded::Imu(s) => {
+                if !s.time.is_finite()
+                    || s.gyro.iter().chain(s.accel.iter()).any(|v| !v.is_finite())
+                {
+                    return Err(at(
+                        path,
+                        &c.topic,
+                        i,
+                        m.log_time,
+                        WireError::value(format!("non-finite IMU sample {s:?}")),
+                    ));
+                }
+                samples.push(s);
+            }
+            Decoded::Error(e) => return Err(at(path, &c.topic, i, m.log_time, e.clone())),
+            _ => {
+                return Err(at(
+                    path,
+                    &c.topic,
+                    i,
+                    m.log_time,
+                    WireError::schema("not an IMU message"),
+                ))
+            }
+        }
+    }
+    samples.sort_by(|a, b| a.time.total_cmp(&b.time));
+    samples.dedup_by(|b, a| a.time == b.time);
+    ImuSamples::try_new(
+        samples.iter().map(|s| s.time).collect(),
+        samples.iter().map(|s| Vector3::from(s.gyro)).collect(),
+        samples.iter().map(|s| Vector3::from(s.accel)).collect(),
+    )
+    .map_err(|e| samples_err(path, &c.topic, e.to_string()))
+}
+
+/// What `slam2world inspect` shows of a log of any container.
+#[derive(Clone, Debug)]
+pub struct Inspection {
+    /// The file or folder.
+    pub path: PathBuf,
+    /// Its container.
+    pub container: Container,
+    /// The MCAP Header record's profile (`ros1`, `ros2`, …); `ros1` / `ros2` for bags.
+    pub profile: String,
+    /// Indexed or linear reading.
+    pub mode: ReadMode,
+    /// True when the counts came from the index without reading a chunk.
+    pub from_index: bool,
+    /// Every topic, with its count and time range.
+    pub topics: Vec<TopicInfo>,
+    /// `(role, topic)` for keyframes, graph, reference and imu, where one is found.
+    pub picks: Vec<(&'static str, String)>,
+}
+
+/// The topics of `source` with their counts (from the index where there is
+/// one) and the topics [`read_log`] would use by default.
+pub fn inspect_source<S: MessageSource>(
+    source: &S,
+    container: Container,
+    profile: String,
+) -> Result<Inspection> {
+    let inv = source.inventory()?;
+    let (topics, counts) = inventory_topics(&inv);
+    let channels: BTreeMap<u16, ChannelInfo> = inv
+        .channels
+        .into_iter()
+        .map(|c| (c.channel.id, c.channel))
+        .collect();
+    use MessageKind as K;
+    let roles: [(&'static str, &[MessageKind]); 4] = [
+        ("keyframes", &[K::Keyframe]),
+        ("graph", &[K::KeyframeGraph]),
+        ("reference", &POSE_KINDS),
+        ("imu", &[K::Imu]),
+    ];
+    let mut picks = Vec::new();
+    for (role, kinds) in roles {
+        if let Some(c) = choose(source.path(), role, None, kinds, &channels, &counts, None)? {
+            picks.push((role, c.topic.clone()));
+        }
+    }
+    Ok(Inspection {
+        path: source.path().to_path_buf(),
+        container,
+        profile,
+        mode: inv.mode,
+        from_index: inv.from_index,
+        topics,
+        picks,
+    })
+}
+
+/// Lists the topics of the log at `path` (any container), their types,
+/// counts and time ranges, and what slam2world would read from it.
+pub fn inspect_log(path: impl AsRef<Path>) -> Result<Inspection> {
+    let source = AnyContainer::open(path.as_ref())?;
+    let profile = match &source {
+        AnyContainer::Mcap(f) => f.profile(),
+        AnyContainer::Ros1(_) => "ros1".into(),
+        AnyContainer::Ros2(_) => "ros2".into(),
+    };
+    inspect_source(&source, source.kind(), profile)
+}
