@@ -1,13 +1,16 @@
 //! The files a conversion writes: `world.mcap` (Foxglove or ROS 2),
-//! `cloud.ply`, `map.bt` (with an octree) and `report.json`.
+//! `cloud.ply`, `trajectory.txt`, `map.bt` (with an octree), the input's own
+//! model (`model/`, a COLMAP model folder in the input's flavour) and
+//! `report.json`.
 
-use std::path::{Path, PathBuf};
+use std::path::Path;
 use std::time::Instant;
 
 use crate::error::{Error, Result};
 use crate::io::mcap::{write_world_mcap_with_octomap, WorldFlavor, WorldScene};
 use crate::map::{OccupancyMap, VoxelState};
 
+use super::native::NativeModel;
 use super::report::{to_json_bytes, Report};
 use super::Conversion;
 
@@ -19,6 +22,11 @@ pub const CLOUD_PLY: &str = "cloud.ply";
 pub const REPORT_JSON: &str = "report.json";
 /// The occupancy octree (OctoMap binary), written when the conversion has one.
 pub const MAP_BT: &str = "map.bt";
+/// The SLAM poses in the world frame (`T_world_cam`), TUM format.
+pub const TRAJECTORY_TUM: &str = "trajectory.txt";
+/// The input's own model carried into the world frame (a COLMAP model
+/// folder, same flavour), written when the input has one.
+pub const COLMAP_MODEL: &str = "model";
 
 impl Conversion {
     /// Writes `world.mcap` (cloud, both trajectories, `world → slam`, and the
@@ -71,10 +79,37 @@ impl Conversion {
         write_report(&self.report, path.as_ref())
     }
 
-    /// Writes `world.mcap`, `cloud.ply`, `report.json` and, with an octree,
-    /// `map.bt` into `dir` (created when missing); the written report carries
-    /// the write time. When one fails, the outputs written by this call are
-    /// removed.
+    /// Writes the SLAM poses in the world frame (`T_world_cam`, the frames'
+    /// stamps) as a TUM file, atomically.
+    pub fn write_tum(&self, path: impl AsRef<Path>) -> Result<()> {
+        crate::io::text::write_tum(&self.slam_trajectory, path)
+    }
+
+    /// Writes the input's own model in the world frame into the folder
+    /// `path` (COLMAP: `format`, default the input's flavour). Error when the
+    /// input had no model of its own.
+    pub fn write_model(
+        &self,
+        path: impl AsRef<Path>,
+        format: Option<crate::io::colmap::ColmapFormat>,
+    ) -> Result<()> {
+        match &self.native {
+            Some(NativeModel::Colmap(m)) => m.write(path.as_ref(), format),
+            None => Err(Error::invalid(
+                "model",
+                "the input has no model of its own to write (only COLMAP models have one)",
+            )),
+        }
+    }
+
+    /// Writes `world.mcap`, `cloud.ply`, `trajectory.txt`, `report.json`,
+    /// with an octree `map.bt`, and with a model of the input's own `model/`
+    /// into `dir` (created when missing), as one set: everything is written
+    /// into a temporary folder inside `dir` first and moved under its final
+    /// name once all is written (`report.json` last), so a failure leaves the
+    /// previous outputs as they were; a `map.bt` or `model/` of an earlier
+    /// run that this set does not have is removed with them. The written
+    /// report carries the write time.
     pub fn write_all(&self, dir: impl AsRef<Path>, flavor: WorldFlavor) -> Result<()> {
         self.write_all_with(dir, flavor, self.octree.as_ref())
     }
@@ -90,32 +125,42 @@ impl Conversion {
         let dir = dir.as_ref();
         std::fs::create_dir_all(dir).map_err(|e| Error::io(dir, e))?;
         let t = Instant::now();
-        let mut written: Vec<PathBuf> = Vec::new();
-        let result = (|| {
-            let p = dir.join(WORLD_MCAP);
-            self.write_world_mcap_with(&p, flavor, octree)?;
-            written.push(p);
-            let p = dir.join(CLOUD_PLY);
-            self.write_ply(&p)?;
-            written.push(p);
-            if octree.is_some() {
-                let p = dir.join(MAP_BT);
-                write_bt(octree, &p)?;
-                written.push(p);
+        let stage = tempfile::Builder::new()
+            .prefix(".slam2world-")
+            .tempdir_in(dir)
+            .map_err(|e| Error::io(dir, e))?;
+        let s = stage.path();
+        let mut names = vec![WORLD_MCAP, CLOUD_PLY, TRAJECTORY_TUM];
+        self.write_world_mcap_with(s.join(WORLD_MCAP), flavor, octree)?;
+        self.write_ply(s.join(CLOUD_PLY))?;
+        self.write_tum(s.join(TRAJECTORY_TUM))?;
+        if octree.is_some() {
+            write_bt(octree, &s.join(MAP_BT))?;
+            names.push(MAP_BT);
+        }
+        if self.native.is_some() {
+            self.write_model(s.join(COLMAP_MODEL), None)?;
+            names.push(COLMAP_MODEL);
+        }
+        let mut report = self.report.clone();
+        report.timing.write_s = t.elapsed().as_secs_f64();
+        write_report(&report, &s.join(REPORT_JSON))?;
+        names.push(REPORT_JSON);
+        // Stale outputs of an earlier run that this set does not have.
+        let stale = [MAP_BT, COLMAP_MODEL].into_iter().filter(|n| !names.contains(n));
+        for name in stale.chain(names.iter().copied()) {
+            let dst = dir.join(name);
+            if dst.is_dir() || (dst.exists() && !s.join(name).exists()) {
+                // Moved into the stage, removed with it.
+                let old = s.join(format!(".old-{name}"));
+                std::fs::rename(&dst, &old).map_err(|e| Error::io(&dst, e))?;
             }
-            let mut report = self.report.clone();
-            report.timing.write_s = t.elapsed().as_secs_f64();
-            let p = dir.join(REPORT_JSON);
-            write_report(&report, &p)?;
-            written.push(p);
-            Ok(())
-        })();
-        if result.is_err() {
-            for p in &written {
-                let _ = std::fs::remove_file(p);
+            let src = s.join(name);
+            if src.exists() {
+                std::fs::rename(&src, &dst).map_err(|e| Error::io(&dst, e))?;
             }
         }
-        result
+        stage.close().map_err(|e| Error::io(dir, e))
     }
 }
 
