@@ -32,7 +32,7 @@ enum Command {
     Align(Box<align::AlignArgs>),
     /// Metric scale, gravity direction and IMU biases of SLAM keyframes from raw IMU samples.
     ImuInit(imu_init::ImuInitArgs),
-    /// Convert an MCAP log into world.mcap, cloud.ply and report.json.
+    /// Convert a log (MCAP) or a reconstruction (COLMAP, DROID-SLAM, DPVO, MASt3R-SLAM, DSO, ORB-SLAM3) into metric, gravity-aligned outputs.
     Convert(Box<convert::ConvertArgs>),
     /// List the topics of an MCAP log and what slam2world can use.
     Inspect(inspect::InspectArgs),
