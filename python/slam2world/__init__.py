@@ -24,6 +24,7 @@ from slam2world._slam2world import (
     PinholeCamera,
     PointCloud,
     PointFilter,
+    Reconstruction,
     Sim3,
     Simulation,
     Slam2WorldError,
@@ -54,6 +55,7 @@ from slam2world._slam2world import (
     read_mcap,
     read_name_positions,
     read_ply,
+    read_reconstruction,
     read_trajectory,
     read_xyz_text,
     scale_factors,
@@ -116,4 +118,6 @@ __all__ = [
     "depth_consistency_counts",
     "filter_consistent",
     "read_trajectory",
+    "Reconstruction",
+    "read_reconstruction",
 ]

@@ -18,6 +18,7 @@ mod imu;
 mod io;
 mod map;
 mod pipeline;
+mod reconstruction;
 mod sim;
 mod text;
 mod trajectory;
@@ -40,5 +41,6 @@ fn _slam2world(m: &Bound<'_, PyModule>) -> PyResult<()> {
     colmap::register(m)?;
     droid::register(m)?;
     text::register(m)?;
+    reconstruction::register(m)?;
     Ok(())
 }
