@@ -4,21 +4,46 @@ VENV ?= .venv
 PY := $(VENV)/bin/python
 export CARGO_TERM_COLOR ?= never
 
-.PHONY: install demo test test-rust test-python lint fmt bench compare fuzz clean
+DIST ?= dist
+# glibc 2.17 (manylinux2014): the oldest glibc the Rust toolchain supports, so the wheel
+# installs on every Linux with pip >= 19.3 (RHEL/CentOS 7 and later, Debian 8+, Ubuntu 14.04+).
+MANYLINUX ?= manylinux2014
+
+.PHONY: install build-tools wheel sdist demo test test-rust test-python test-install lint fmt \
+	bench compare fuzz clean
 
 $(PY):
 	python3 -m venv $(VENV)
 	$(PY) -m pip install --quiet --upgrade pip
 
-# The wheel (release build) and every test dependency, into .venv.
-install: $(PY)
-	$(PY) -m pip install --quiet -e '.[test]'
+# maturin with zig (links against glibc 2.17 symbols on any host) and auditwheel: the
+# `build` dependency group of pyproject.toml.
+build-tools: $(PY)
+	$(PY) -m pip install --quiet --group build
+
+# The portable wheel (release, abi3, manylinux) and the sdist, into dist/. maturin finds zig as
+# `python -m ziglang` through PATH, hence the venv first on it.
+wheel: build-tools sdist
+	rm -f $(DIST)/slam2world-*.whl
+	PATH="$(abspath $(VENV))/bin:$$PATH" $(PY) -m maturin build --release --zig \
+		--compatibility $(MANYLINUX) --out $(DIST)
+
+sdist: build-tools
+	rm -f $(DIST)/slam2world-*.tar.gz
+	$(PY) -m maturin sdist --out $(DIST)
+
+# That wheel and every test dependency, into .venv (one release build serves the tests, the
+# demo and the install check). After Rust changes: `make install` again, or
+# `$(VENV)/bin/pip install -e . --no-deps --no-build-isolation` for an editable build.
+install: wheel
+	$(PY) -m pip install --quiet "$$(ls $(DIST)/slam2world-*.whl)[test]"
+	$(PY) -m pip install --quiet --no-deps --force-reinstall $(DIST)/slam2world-*.whl
 
 # The main job on the embedded default: simulate the paper's scene, convert, score, write outputs.
 demo: install
 	$(VENV)/bin/slam2world demo -o out/demo
 
-test: lint test-rust test-python
+test: lint test-rust test-install test-python
 
 test-rust:
 	cargo test --all-targets
@@ -26,13 +51,17 @@ test-rust:
 test-python: install
 	$(PY) -m pytest
 
+# The wheel and the sdist installed the way users install them (tests/install/check_install.py).
+test-install: install
+	$(PY) tests/install/check_install.py --dist $(DIST)
+
 lint: install
 	cargo fmt --check
 	cargo clippy --all-targets -- -D warnings
 	cargo clippy --all-targets --features python -- -D warnings
 	$(PY) -m ruff check python tests benches
 	$(PY) -m ruff format --check python tests benches
-	$(PY) -m mypy python/slam2world tests/python/typing_example.py
+	$(PY) -m mypy python/slam2world tests/python/typing_example.py tests/install/check_install.py
 	$(PY) -m mypy.stubtest slam2world._slam2world --allowlist .mypy-stubtest-allowlist
 
 fmt: $(PY)
@@ -55,4 +84,4 @@ fuzz:
 
 clean:
 	cargo clean
-	rm -rf $(VENV) out
+	rm -rf $(VENV) out $(DIST)

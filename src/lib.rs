@@ -20,6 +20,7 @@ pub mod cli;
 pub mod cloud;
 pub mod defaults;
 pub mod error;
+pub mod geo;
 pub mod geometry;
 pub mod imu;
 pub mod io;

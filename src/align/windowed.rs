@@ -63,8 +63,8 @@ impl Default for WindowedOptions {
     fn default() -> Self {
         WindowedOptions {
             window: Window::default(),
-            max_diff: 0.01,
-            offset: 0.0,
+            max_diff: crate::defaults::MAX_DIFF,
+            offset: crate::defaults::OFFSET,
             scale: true,
         }
     }

@@ -35,34 +35,7 @@ pub enum Container {
     Ros2Sqlite,
 }
 
-/// Why a path is no log that [`detect`] knows.
-#[derive(Debug, thiserror::Error)]
-pub enum ContainerError {
-    /// A file of zero bytes.
-    #[error("the file is empty")]
-    Empty,
-    /// A FIFO, a socket or a device: not read, so that nothing blocks.
-    #[error("not a regular file or folder (a {kind})")]
-    NotAFile {
-        /// `FIFO`, `socket`, `character device`, `block device` or `special file`.
-        kind: &'static str,
-    },
-    /// A folder without `metadata.yaml` (the file every rosbag2 folder has).
-    #[error("a folder without metadata.yaml is not a rosbag2 bag")]
-    NoMetadata,
-    /// A ROS bag of a version other than 2.0.
-    #[error("ROS bag version {version:?}: only 2.0 is read")]
-    BagVersion {
-        /// What follows `#ROSBAG V` on the first line.
-        version: String,
-    },
-    /// Bytes that are none of the known magics.
-    #[error("unknown container: the file starts with {head:?} (not MCAP, a ROS bag or SQLite)")]
-    Unknown {
-        /// The first bytes (up to 16), lossy UTF-8 with escapes.
-        head: String,
-    },
-}
+pub use crate::error::ContainerError;
 
 fn container_err(path: &Path, reason: ContainerError) -> Error {
     Error::Container {

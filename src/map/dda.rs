@@ -12,6 +12,7 @@
 //! strides, instead of three keys.
 
 use super::key::{key_to_coord, point_to_key, Key};
+use crate::simd::Isa;
 
 /// Longest ray, in voxels, that the batched tracer takes. Up to this length
 /// the rounding of the `f32` direction moves the ray's end by far less than a
@@ -53,7 +54,12 @@ pub(crate) fn ray_keys(
         return true;
     }
     visit(ko);
-    let (dir, length) = direction(origin, end);
+    // OctoMap's f32 direction, widened exactly; in f64 where its f32
+    // arithmetic breaks down (see `direction`).
+    let (dir, length) = match direction(origin, end) {
+        Some((d, l)) => (d.map(f64::from), l),
+        None => direction_f64(origin, end),
+    };
     let mut step = [0i32; 3];
     let mut t_max = [f64::MAX; 3];
     let mut t_delta = [f64::MAX; 3];
@@ -77,6 +83,11 @@ pub(crate) fn ray_keys(
         } else {
             2
         };
+        if step[dim] == 0 {
+            // Every axis the ray moves along is beyond f64::MAX: no crossing
+            // left (only reachable through overflow; OctoMap would spin).
+            return true;
+        }
         cur[dim] += step[dim];
         t_max[dim] += t_delta[dim];
         if cur == end_k {
@@ -91,19 +102,39 @@ pub(crate) fn ray_keys(
 }
 
 /// OctoMap's normalised `f32` direction of `end − origin` and the segment's
-/// length (the `f32` norm, widened to `f64`).
+/// length (the `f32` norm, widened to `f64`), or `None` where that `f32`
+/// arithmetic breaks down: a squared length that underflows to zero (a
+/// segment shorter than about 1e-19 m, e.g. from `(0, 0, 0)` to
+/// `(-1e-30, 1e-30, 0)`, which still crosses a voxel face) or overflows, or
+/// a squared length below `f32::MIN_POSITIVE`, whose root is too coarse to
+/// normalise with. OctoMap divides by the zero or infinite length there and
+/// steps a NaN direction forever.
 #[inline]
-fn direction(origin: [f32; 3], end: [f32; 3]) -> ([f32; 3], f64) {
+fn direction(origin: [f32; 3], end: [f32; 3]) -> Option<([f32; 3], f64)> {
     let mut dir = [end[0] - origin[0], end[1] - origin[1], end[2] - origin[2]];
+    let sq = dir[0] * dir[0] + dir[1] * dir[1] + dir[2] * dir[2];
+    if !(sq >= f32::MIN_POSITIVE && sq.is_finite()) {
+        return None;
+    }
     let length = f32_norm(dir) as f32;
     for d in &mut dir {
         *d /= length;
     }
-    (dir, length as f64)
+    Some((dir, length as f64))
+}
+
+/// The direction and length of `end − origin` in `f64`, where the `f32`
+/// arithmetic of [`direction`] breaks down: exact differences of the `f32`
+/// points, whose squares neither underflow nor overflow in `f64`. Finite,
+/// and non-zero along every axis where the points differ.
+fn direction_f64(origin: [f32; 3], end: [f32; 3]) -> ([f64; 3], f64) {
+    let d = [0, 1, 2].map(|i| f64::from(end[i]) - f64::from(origin[i]));
+    let length = (d[0] * d[0] + d[1] * d[1] + d[2] * d[2]).sqrt();
+    (d.map(|v| v / length), length)
 }
 
 #[inline]
-fn step_sign(d: f32) -> i32 {
+fn step_sign(d: f64) -> i32 {
     if d > 0.0 {
         1
     } else if d < 0.0 {
@@ -116,13 +147,10 @@ fn step_sign(d: f32) -> i32 {
 /// Distance to the first crossing of axis `i` and between crossings
 /// (OctoMap's `tMax` / `tDelta`) for a ray leaving voxel key `k`.
 #[inline]
-fn crossings(k: u16, origin: f32, dir: f32, step: i32, resolution: f64) -> (f64, f64) {
+fn crossings(k: u16, origin: f32, dir: f64, step: i32, resolution: f64) -> (f64, f64) {
     let mut border = key_to_coord(k, resolution);
     border += (step as f64 * resolution * 0.5) as f32 as f64;
-    (
-        (border - origin as f64) / dir as f64,
-        resolution / (dir as f64).abs(),
-    )
+    ((border - origin as f64) / dir, resolution / dir.abs())
 }
 
 /// A box of keys laid out as a bitset: x fastest, each x row padded to whole
@@ -222,7 +250,7 @@ pub(crate) struct Lane {
 
 /// What the batched tracer can do with one ray.
 #[derive(Debug)]
-pub(crate) enum Prepared {
+pub(crate) enum PreparedRay {
     /// OctoMap's ray holds no voxel (an end outside the tree, or origin and
     /// end in the same voxel).
     Empty,
@@ -255,23 +283,26 @@ impl Lane {
         ke: Option<Key>,
         resolution: f64,
         layout: &Layout,
-    ) -> Prepared {
+    ) -> PreparedRay {
         let Some(ke) = ke else {
-            return Prepared::Empty;
+            return PreparedRay::Empty;
         };
         if ko == ke {
-            return Prepared::Empty;
+            return PreparedRay::Empty;
         }
-        let (dir, len) = direction(origin, end);
+        // Rays whose f32 direction breaks down go through `ray_keys`.
+        let Some((dir, len)) = direction(origin, end) else {
+            return PreparedRay::Slow;
+        };
         if len > MAX_BATCHED_VOXELS * resolution
             || !len.is_finite()
             || !layout.holds_around(ko, LAYOUT_MARGIN)
             || !layout.holds_around(ke, LAYOUT_MARGIN)
         {
-            return Prepared::Slow;
+            return PreparedRay::Slow;
         }
         let (Some(idx), Some(end)) = (layout.index(ko), layout.index(ke)) else {
-            return Prepared::Slow;
+            return PreparedRay::Slow;
         };
         let stride = [1i64, layout.row as i64, (layout.row * layout.dim[1]) as i64];
         let mut lane = Lane {
@@ -283,7 +314,7 @@ impl Lane {
             len,
         };
         // `crossings` for the three axes, its six divisions side by side.
-        let step = dir.map(step_sign);
+        let step = dir.map(|d| step_sign(f64::from(d)));
         let mut num = [resolution; 6];
         let mut den = [1.0f64; 6];
         for i in 0..3 {
@@ -301,7 +332,7 @@ impl Lane {
                 lane.ds[i] = step[i] as i64 * stride[i];
             }
         }
-        Prepared::Lane(lane)
+        PreparedRay::Lane(lane)
     }
 }
 
@@ -309,15 +340,12 @@ impl Lane {
 /// [`ray_keys`] would visit them. Every voxel of a lane lies inside the
 /// layout the lanes were prepared for (see [`LAYOUT_MARGIN`]).
 pub(crate) fn trace_lanes(next: impl FnMut() -> Option<Lane>, bits: &mut [u64]) {
-    #[cfg(target_arch = "x86_64")]
-    {
-        if std::arch::is_x86_feature_detected!("avx2") {
-            // SAFETY: the processor supports AVX2 (checked just above).
-            unsafe { trace_lanes_avx2(next, bits) };
-            return;
-        }
+    match Isa::detect() {
+        // SAFETY: `Isa::Avx2Fma` is only detected on a CPU with AVX2 (and FMA).
+        #[cfg(target_arch = "x86_64")]
+        Isa::Avx2Fma => unsafe { trace_lanes_avx2(next, bits) },
+        _ => trace_lanes_scalar(next, bits),
     }
-    trace_lanes_scalar(next, bits);
 }
 
 /// [`trace_lanes`] one ray after the other.
@@ -566,9 +594,9 @@ mod tests {
                     .iter()
                     .filter_map(|e| {
                         match Lane::prepare(o, ko, *e, point_to_key(*e, rf), res, &layout) {
-                            Prepared::Lane(l) => Some(l),
-                            Prepared::Empty => None,
-                            Prepared::Slow => panic!("short ray {o:?} -> {e:?} taken as slow"),
+                            PreparedRay::Lane(l) => Some(l),
+                            PreparedRay::Empty => None,
+                            PreparedRay::Slow => panic!("short ray {o:?} -> {e:?} taken as slow"),
                         }
                     })
                     .collect();
@@ -577,10 +605,10 @@ mod tests {
                 trace_lanes_scalar(|| it.next(), &mut bits);
                 assert_eq!(keys_of(&bits, &layout), reference, "scalar, origin {o:?}");
                 #[cfg(target_arch = "x86_64")]
-                if std::arch::is_x86_feature_detected!("avx2") {
+                if Isa::available().contains(&Isa::Avx2Fma) {
                     let mut bits = vec![0u64; layout.words()];
                     let mut it = lanes.iter().copied();
-                    // SAFETY: AVX2 is available (checked just above).
+                    // SAFETY: AVX2 is available (`Isa::available` detected it).
                     unsafe { trace_lanes_avx2(|| it.next(), &mut bits) };
                     assert_eq!(keys_of(&bits, &layout), reference, "avx2, origin {o:?}");
                 }
@@ -601,15 +629,15 @@ mod tests {
             Lane::prepare(o, ko, e, point_to_key(e, rf), res, layout)
         };
         let whole = Layout::new([0; 3], [65535; 3]);
-        assert!(matches!(prep(o_far, far, &whole), Prepared::Slow));
-        assert!(matches!(prep(o, edge, &layout), Prepared::Slow));
+        assert!(matches!(prep(o_far, far, &whole), PreparedRay::Slow));
+        assert!(matches!(prep(o, edge, &layout), PreparedRay::Slow));
         assert!(matches!(
             prep(o, [0.01, 0.0, 0.0], &layout),
-            Prepared::Empty
+            PreparedRay::Empty
         ));
         assert!(matches!(
             prep(o, [1.0, 0.5, 0.2], &layout),
-            Prepared::Lane(_)
+            PreparedRay::Lane(_)
         ));
     }
 }

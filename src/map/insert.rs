@@ -10,7 +10,9 @@ use std::collections::BTreeMap;
 
 use rayon::prelude::*;
 
-use super::dda::{f32_norm, ray_keys, set_bit, trace_lanes, Lane, Layout, Prepared, LAYOUT_MARGIN};
+use super::dda::{
+    f32_norm, ray_keys, set_bit, trace_lanes, Lane, Layout, PreparedRay, LAYOUT_MARGIN,
+};
 use super::key::{morton, point_to_key, Key};
 use super::OccupancyMap;
 use crate::error::{Error, Result};
@@ -66,10 +68,15 @@ fn ray_end(p: [f32; 3], origin: [f32; 3], max_range: Option<f64>) -> ([f32; 3], 
             // OctoMap: direction = (p - origin).normalized(); origin + direction * (float) maxrange
             let len = f32_norm(d);
             let l = len as f32;
-            let dir = if len > 0.0 {
+            let dir = if l > 0.0 && l.is_finite() {
                 [d[0] / l, d[1] / l, d[2] / l]
             } else {
-                d
+                // The f32 squared length overflowed (|d| > 1.8e19): OctoMap's
+                // direction would be zero. Normalise in f64 instead (exact
+                // differences of the f32 points).
+                let d64 = [0, 1, 2].map(|i| f64::from(p[i]) - f64::from(origin[i]));
+                let n = (d64[0] * d64[0] + d64[1] * d64[1] + d64[2] * d64[2]).sqrt();
+                d64.map(|v| (v / n) as f32)
             };
             let m = m as f32;
             (
@@ -339,9 +346,9 @@ impl OccupancyMap {
                     marks.lanes.clear();
                     for (j, e) in ends.iter().enumerate() {
                         match Lane::prepare(origin, ko, e.p, e.key, res, &layout) {
-                            Prepared::Lane(l) => marks.lanes.push(l),
-                            Prepared::Slow => slow.push(j),
-                            Prepared::Empty => {}
+                            PreparedRay::Lane(l) => marks.lanes.push(l),
+                            PreparedRay::Slow => slow.push(j),
+                            PreparedRay::Empty => {}
                         }
                     }
                     let mut lanes = marks.lanes.iter().copied();

@@ -215,17 +215,56 @@ impl OccupancyMap {
             ..params
         })
         .map_err(|e| Error::parse(path, line_no, e.to_string()))?;
+        if let Some(size) = size {
+            // Each inner node takes 2 bytes and declares at most 8 children:
+            // a tree of `size` nodes needs at least (size - 1) / 4 bytes.
+            let most = 1 + 4 * data.len() as u64;
+            if size as u64 > most {
+                return Err(Error::parse(
+                    path,
+                    line_no,
+                    format!(
+                        "size {size} declares more nodes than the {} data bytes at byte {pos} \
+                         can hold (at most {most})",
+                        data.len()
+                    ),
+                ));
+            }
+        }
         if size.unwrap_or(0) > 0 && !data.is_empty() {
-            let mut pos = 0usize;
+            // Byte offsets in errors count from the start of the file.
+            let mut pos = pos;
             map.tree.num_nodes = 1;
             let mut root = Node {
                 value: 0.0,
                 child: LEAF,
             };
             let lo = map.lo;
-            read_bt_node(&mut map.tree, &mut root, 0, data, &mut pos, lo.min, lo.max)
-                .map_err(|reason| Error::parse(path, 0, reason))?;
+            read_bt_node(
+                &mut map.tree,
+                &mut root,
+                0,
+                &bytes,
+                &mut pos,
+                lo.min,
+                lo.max,
+            )
+            .map_err(|reason| Error::parse(path, 0, reason))?;
             map.tree.root = root;
+        }
+        // OctoMap's readBinary refuses a tree whose node count differs from
+        // the header's `size`.
+        if let Some(size) = size {
+            if map.tree.num_nodes != size {
+                return Err(Error::parse(
+                    path,
+                    line_no,
+                    format!(
+                        "size {size} in the header, but the data holds {} nodes",
+                        map.tree.num_nodes
+                    ),
+                ));
+            }
         }
         Ok(map)
     }

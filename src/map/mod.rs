@@ -11,6 +11,7 @@
 //! converted cloud); sensor origins are camera centres in that frame.
 
 mod dda;
+pub mod grid;
 mod insert;
 mod io;
 pub mod key;
@@ -20,6 +21,7 @@ mod tree;
 use crate::error::{Error, Result};
 use tree::{LogOdds, Tree};
 
+pub use grid::{CellState, Grid2d, MAX_GRID_CELLS};
 pub use query::VoxelState;
 
 /// Parameters of the sensor model (probabilities in `(0, 1)`).
@@ -62,6 +64,13 @@ impl MapParams {
             return Err(Error::invalid(
                 "resolution",
                 format!("{r} is not a positive length"),
+            ));
+        }
+        // Keys need a finite 1/r, voxel centres a finite extent of the tree.
+        if !((1.0 / r).is_finite() && (r * 65536.0).is_finite()) {
+            return Err(Error::invalid(
+                "resolution",
+                format!("{r} m gives no finite octree (keys or extent overflow)"),
             ));
         }
         let open = |what: &str, p: f64| -> Result<()> {

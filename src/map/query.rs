@@ -95,10 +95,55 @@ impl OccupancyMap {
         out
     }
 
+    /// Number of finest voxels of one state (a pruned leaf at depth `d`
+    /// counts `8^(16 − d)`); at most `2^48`, computed from the leaves.
+    pub fn count_voxels(&self, state: VoxelState) -> u64 {
+        let mut n = 0u64;
+        self.tree.for_each_leaf(|_, depth, v| {
+            if VoxelState::of_logodds(v) == state {
+                n += 1u64 << (3 * (TREE_DEPTH - depth));
+            }
+        });
+        n
+    }
+
     /// Centres (metres) of every finest voxel of one state (pruned leaves
-    /// expanded), depth-first per leaf.
+    /// expanded), depth-first per leaf, or [`Error::TooLarge`] when there are
+    /// more than `max_voxels` of them (checked with [`Self::count_voxels`]
+    /// before anything is allocated: one leaf near the root is `2^45` voxels).
+    /// [`Self::leaves`] gives the same space as leaves with their sizes.
+    pub fn try_voxel_centers(&self, state: VoxelState, max_voxels: u64) -> Result<Vec<[f64; 3]>> {
+        let count = self.count_voxels(state);
+        if count > max_voxels {
+            return Err(Error::TooLarge {
+                what: format!(
+                    "{} voxel centres (use the leaves with their sizes instead)",
+                    match state {
+                        VoxelState::Occupied => "occupied",
+                        VoxelState::Free => "free",
+                        VoxelState::Unknown => "unknown",
+                    }
+                ),
+                count,
+                limit: max_voxels,
+            });
+        }
+        Ok(self.voxel_centers_unbounded(state, count as usize))
+    }
+
+    /// Centres (metres) of every finest voxel of one state (pruned leaves
+    /// expanded), depth-first per leaf. Unbounded: a pruned leaf near the root
+    /// holds up to `2^45` voxels, so maps from untrusted files go through
+    /// [`Self::try_voxel_centers`].
     pub fn voxel_centers(&self, state: VoxelState) -> Vec<[f64; 3]> {
-        let mut out = Vec::new();
+        let count = self.count_voxels(state);
+        // No reservation beyond 2^24 up front: a huge count then fails as
+        // the vector grows, not in one allocation.
+        self.voxel_centers_unbounded(state, count.min(1 << 24) as usize)
+    }
+
+    fn voxel_centers_unbounded(&self, state: VoxelState, reserve: usize) -> Vec<[f64; 3]> {
+        let mut out = Vec::with_capacity(reserve);
         let r = self.params.resolution;
         self.tree.for_each_leaf(|base, depth, v| {
             if VoxelState::of_logodds(v) != state {

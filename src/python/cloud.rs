@@ -493,6 +493,38 @@ impl PyPointCloud {
         Ok(())
     }
 
+    /// Writes LAS 1.4 (LAZ for a `.laz` path) of the cloud taken as ENU metres
+    /// at `origin` (lat, lon, alt), in `crs` "utm" (the origin's zone unless
+    /// `zone` is given) or "ecef", with its CRS record; returns the EPSG code.
+    #[pyo3(signature = (path, *, origin, crs="utm", zone=None, hemisphere=None))]
+    fn write_las(
+        &self,
+        py: Python<'_>,
+        path: PathBuf,
+        origin: &Bound<'_, PyAny>,
+        crs: &str,
+        zone: Option<u8>,
+        hemisphere: Option<&str>,
+    ) -> PyResult<u16> {
+        let colors = self.colors.as_ref().map(|c| c.bind(py).readonly());
+        super::geo::write_las(
+            py,
+            self.points_view(py),
+            colors,
+            path,
+            origin,
+            crs,
+            zone,
+            hemisphere,
+        )
+    }
+
+    /// Writes a binary PCD (x y z, rgb packed as PCL does), atomically.
+    fn write_pcd(&self, py: Python<'_>, path: PathBuf) -> PyResult<()> {
+        let colors = self.colors.as_ref().map(|c| c.bind(py).readonly());
+        super::geo::write_pcd(py, self.points_view(py), colors, path)
+    }
+
     fn __repr__(&self, py: Python<'_>) -> String {
         format!(
             "PointCloud({} points, colors={})",

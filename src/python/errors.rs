@@ -108,7 +108,9 @@ impl From<Error> for PyErr {
                 | Error::Unmatched { .. }
                 | Error::InvalidArgument { .. }
                 | Error::OutOfRange { .. }
-                | Error::GravityTilted { .. } => &c.invalid,
+                | Error::GravityTilted { .. }
+                | Error::InvalidFix { .. }
+                | Error::TooLarge { .. } => &c.invalid,
                 Error::Degenerate { .. } => &c.degenerate,
                 Error::Parse { .. }
                 | Error::Mcap { .. }

@@ -13,6 +13,7 @@ mod colmap;
 mod defaults;
 mod droid;
 mod errors;
+mod geo;
 mod geometry;
 mod imu;
 mod io;
@@ -42,5 +43,6 @@ fn _slam2world(m: &Bound<'_, PyModule>) -> PyResult<()> {
     droid::register(m)?;
     text::register(m)?;
     reconstruction::register(m)?;
+    geo::register(m)?;
     Ok(())
 }

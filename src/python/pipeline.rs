@@ -49,10 +49,12 @@ impl PyConversion {
         f: impl FnOnce(&pipeline::Conversion, Option<&crate::map::OccupancyMap>) -> crate::Result<R>
             + Send,
     ) -> PyResult<R> {
-        let guard = self.octree.as_ref().map(|m| m.borrow(py));
-        let map = guard.as_ref().map(|g| g.core());
         let inner = &self.inner;
-        Ok(py.detach(|| f(inner, map))?)
+        match &self.octree {
+            // Under the map's read lock (other threads' inserts wait).
+            Some(m) => Ok(m.get().read(py, |map| f(inner, Some(map)))?),
+            None => Ok(py.detach(|| f(inner, None))?),
+        }
     }
 }
 

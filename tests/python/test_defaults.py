@@ -30,7 +30,9 @@ def _stub_defaults() -> dict[str, dict[str, Any]]:
             elif isinstance(node, ast.FunctionDef):
                 a = node.args
                 params = a.posonlyargs + a.args
-                pos = dict(zip([p.arg for p in params[len(params) - len(a.defaults) :]], a.defaults))
+                pos = dict(
+                    zip([p.arg for p in params[len(params) - len(a.defaults) :]], a.defaults)
+                )
                 kw = {p.arg: d for p, d in zip(a.kwonlyargs, a.kw_defaults) if d is not None}
                 found = {}
                 for name, d in {**pos, **kw}.items():
@@ -117,5 +119,7 @@ def test_stub_defaults_match_the_signatures_and_the_constants() -> None:
             continue
         for param, value in defaults.items():
             if param in got:
-                assert got[param] == value, f"{qual}({param}): stub {value!r}, runtime {got[param]!r}"
+                assert got[param] == value, (
+                    f"{qual}({param}): stub {value!r}, runtime {got[param]!r}"
+                )
     assert checked >= 20, checked

@@ -11,11 +11,10 @@ from typing import Any
 import jsonschema
 import numpy as np
 import pytest
+from conftest import REPO, data_path
 
 import slam2world as s2w
 from slam2world._slam2world import run_cli
-
-from conftest import REPO, data_path
 
 SCHEMA_DIR = REPO / "schema"
 NAMES = ["report", "align", "imu-init", "evaluate", "demo", "truth"]
@@ -56,7 +55,9 @@ def simulated(tmp_path_factory: pytest.TempPathFactory) -> Path:
     assert run_cli(["slam2world", "simulate", "-o", str(d / "s.mcap"), "--reduced", "4"]) == 0
     args = ["convert", str(d / "s.mcap"), "-o", str(d / "out"), "--octree", "0.2", "-q"]
     assert run_cli(["slam2world", *args, "--skip-init", "auto", "--robust"]) == 0
-    assert run_cli(["slam2world", "demo", "-o", str(d / "demo"), "--reduced", "8", "--no-plots"]) == 0
+    assert (
+        run_cli(["slam2world", "demo", "-o", str(d / "demo"), "--reduced", "8", "--no-plots"]) == 0
+    )
     return d
 
 

@@ -109,3 +109,24 @@ def simulated_experiment() -> tuple[float, float]:
 def test_typed_simulation() -> None:
     scale_error, median = simulated_experiment()
     assert abs(scale_error) < 0.01 and median < 0.05
+
+
+def georeference(tmp: Path) -> tuple[int, float]:
+    fixes = s2w.GnssFixes(
+        [0.0, 1.0, 2.0], [48.0, 48.001, 48.002], [11.0, 11.0, 11.0], [500.0, 500.0, 500.0]
+    )
+    traj, weights, origin = fixes.to_enu("first")
+    assert weights is None and len(fixes) == 3
+    enu: npt.NDArray[np.float64] = s2w.geodetic_to_enu(fixes.lat, fixes.lon, fixes.alt, origin)
+    xyz, zone, hemisphere, epsg = s2w.geodetic_to_utm(fixes.lat, fixes.lon, fixes.alt)
+    lat, lon, alt = s2w.utm_to_geodetic(xyz, zone, hemisphere)
+    cloud = s2w.PointCloud(enu.astype(np.float32))
+    written: int = cloud.write_las(tmp / "map.laz", origin=origin)
+    cloud.write_pcd(tmp / "map.pcd")
+    assert written == epsg
+    return epsg, float(np.max(np.abs(traj.positions - enu)) + np.max(np.abs(lat - fixes.lat)))
+
+
+def test_geo_typing_example(tmp_path: Path) -> None:
+    epsg, err = georeference(tmp_path)
+    assert epsg == 32632 and err < 1e-6

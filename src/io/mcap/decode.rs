@@ -33,6 +33,10 @@ pub enum MessageKind {
     Tf,
     /// `sensor_msgs/Imu`.
     Imu,
+    /// `sensor_msgs/NavSatFix` (decoded by [`super::gnss_decode`]).
+    NavSatFix,
+    /// `foxglove.LocationFix` (decoded by [`super::gnss_decode`]).
+    LocationFix,
 }
 
 impl MessageKind {
@@ -49,6 +53,8 @@ impl MessageKind {
             "foxglove.PosesInFrame" => MessageKind::PosesInFrame,
             "tf2_msgs/TFMessage" => MessageKind::Tf,
             "sensor_msgs/Imu" => MessageKind::Imu,
+            "sensor_msgs/NavSatFix" => MessageKind::NavSatFix,
+            "foxglove.LocationFix" => MessageKind::LocationFix,
             _ => return None,
         })
     }
@@ -70,7 +76,9 @@ impl MessageKind {
     pub fn encodings(self) -> &'static [&'static str] {
         match self {
             MessageKind::Keyframe | MessageKind::KeyframeGraph => &["ros1"],
-            MessageKind::PoseInFrame | MessageKind::PosesInFrame => &["protobuf", "json"],
+            MessageKind::PoseInFrame | MessageKind::PosesInFrame | MessageKind::LocationFix => {
+                &["protobuf", "json"]
+            }
             _ => &["ros1", "cdr"],
         }
     }
@@ -81,6 +89,9 @@ impl MessageKind {
             MessageKind::Keyframe => "SLAM keyframes (pose, camera, inverse depth)",
             MessageKind::KeyframeGraph => "SLAM keyframe pose updates",
             MessageKind::Imu => "raw IMU samples",
+            MessageKind::NavSatFix | MessageKind::LocationFix => {
+                "GNSS fixes (latitude, longitude, altitude)"
+            }
             MessageKind::Tf => "reference poses (one parent/child pair)",
             _ => "reference poses",
         }

@@ -3,13 +3,17 @@
 //! - [`reader`]: the container, over a memory map (indexed or linear, chunks
 //!   decompressed in parallel);
 //! - [`decode`] / [`wire`]: message decoders (ROS 1, ROS 2 CDR, protobuf, JSON);
+//!   [`gnss_decode`]: `NavSatFix` / `LocationFix` into GNSS fixes;
 //! - [`log`]: [`read_mcap`] into [`Log`] (keyframes, reference, IMU, topics);
 //! - [`write`]: `world.mcap` ([`write_world_mcap`]) and the SLAM-side log
-//!   ([`write_slam_log`]).
+//!   ([`write_slam_log`]);
+//! - [`grid_msgs`]: the 2-D grid as `nav_msgs/OccupancyGrid` and `foxglove.Grid`.
 //!
 //! MCAP times are `u64` nanoseconds; everything else is seconds and metres.
 
 pub mod decode;
+pub mod gnss_decode;
+pub mod grid_msgs;
 pub mod log;
 pub mod reader;
 pub mod schemas;

@@ -171,6 +171,14 @@ impl<'a> Cdr<'a> {
         Ok(a)
     }
 
+    /// `uint8` / `int8` / `bool` (no alignment).
+    pub fn u8(&mut self) -> WireResult<u8> {
+        Ok(self.array::<1>()?[0])
+    }
+    /// `uint16`.
+    pub fn u16(&mut self) -> WireResult<u16> {
+        Ok(u16::from_le_bytes(self.array()?))
+    }
     /// `uint32`.
     pub fn u32(&mut self) -> WireResult<u32> {
         Ok(u32::from_le_bytes(self.array()?))

@@ -12,11 +12,10 @@
 //! [`crate::io::mcap::ChannelInfo`], messages [`crate::io::mcap::RawMessage`]
 //! with `log_time` = `publish_time` = the record time in nanoseconds.
 
-mod error;
 pub mod ros1;
 pub mod ros2;
 
-pub use error::BagError;
+pub use crate::error::BagError;
 pub use ros1::{BagHeader, Ros1Bag};
 pub use ros2::{Ros2Bag, Ros2Compression, Ros2Storage};
 
@@ -29,9 +28,4 @@ pub(crate) fn sort_by_time<T>(messages: &mut [MappedMessage<T>]) {
     if !messages.is_sorted_by_key(|m| m.log_time) {
         messages.sort_by_key(|m| m.log_time);
     }
-}
-
-/// ` (byte N)` for an error message, or nothing.
-pub(crate) fn at_offset(offset: Option<u64>) -> String {
-    offset.map_or_else(String::new, |o| format!(" (byte {o})"))
 }

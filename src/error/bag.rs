@@ -1,4 +1,5 @@
-//! What can be wrong with a ROS bag: the `reason` of [`crate::Error::Bag`].
+//! What can be wrong with a ROS bag or a container: the `reason` of
+//! [`crate::Error::Bag`] and [`crate::Error::Container`].
 //!
 //! Each variant carries what was expected and what was found; the file and the
 //! byte offset of the record at fault are on the enclosing [`crate::Error::Bag`].
@@ -175,4 +176,38 @@ pub enum BagError {
         /// `compression_mode`.
         mode: String,
     },
+}
+
+/// Why a path is no log that [`crate::io::container::detect`] knows.
+#[derive(Debug, thiserror::Error)]
+pub enum ContainerError {
+    /// A file of zero bytes.
+    #[error("the file is empty")]
+    Empty,
+    /// A FIFO, a socket or a device: not read, so that nothing blocks.
+    #[error("not a regular file or folder (a {kind})")]
+    NotAFile {
+        /// `FIFO`, `socket`, `character device`, `block device` or `special file`.
+        kind: &'static str,
+    },
+    /// A folder without `metadata.yaml` (the file every rosbag2 folder has).
+    #[error("a folder without metadata.yaml is not a rosbag2 bag")]
+    NoMetadata,
+    /// A ROS bag of a version other than 2.0.
+    #[error("ROS bag version {version:?}: only 2.0 is read")]
+    BagVersion {
+        /// What follows `#ROSBAG V` on the first line.
+        version: String,
+    },
+    /// Bytes that are none of the known magics.
+    #[error("unknown container: the file starts with {head:?} (not MCAP, a ROS bag or SQLite)")]
+    Unknown {
+        /// The first bytes (up to 16), lossy UTF-8 with escapes.
+        head: String,
+    },
+}
+
+/// ` (byte N)` for an error message, or nothing.
+pub(crate) fn at_offset(offset: Option<u64>) -> String {
+    offset.map_or_else(String::new, |o| format!(" (byte {o})"))
 }

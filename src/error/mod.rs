@@ -4,6 +4,12 @@
 
 use std::path::PathBuf;
 
+mod bag;
+mod wire;
+
+pub use bag::{BagError, ContainerError};
+pub use wire::WireError;
+
 /// Everything that can go wrong in slam2world, with the data that says what.
 #[derive(Debug, thiserror::Error)]
 pub enum Error {
@@ -162,6 +168,34 @@ pub enum Error {
         /// What is missing or inconsistent, with the ids and counts involved.
         reason: String,
     },
+    /// A GNSS fix or geodetic position with a field outside its domain (NaN
+    /// latitude, latitude beyond ±90°, non-finite or decreasing time, a
+    /// covariance that is not one).
+    #[error("{what} {index}: {field} = {value}, expected {expected}")]
+    InvalidFix {
+        /// What holds the value (`fix`, `origin`, `position`).
+        what: String,
+        /// Index of the fix or position (0 for a single value).
+        index: usize,
+        /// The field (`time`, `latitude`, `longitude`, `altitude`, `covariance`).
+        field: String,
+        /// The value found.
+        value: f64,
+        /// What was expected.
+        expected: String,
+    },
+    /// A result that would hold more items than a bound allows (a pruned
+    /// octree leaf expanded voxel by voxel, a grid over a huge extent);
+    /// refused before anything is allocated.
+    #[error("{what}: {count} items exceed the limit of {limit}")]
+    TooLarge {
+        /// What would have been built.
+        what: String,
+        /// How many items it would hold.
+        count: u64,
+        /// The bound.
+        limit: u64,
+    },
     /// An MCAP log that cannot be read or decoded.
     #[error("{}: {reason}", path.display())]
     Mcap {
@@ -171,14 +205,14 @@ pub enum Error {
         reason: String,
     },
     /// A ROS 1 bag, a rosbag2 folder or a rosbag2 `.db3` file that cannot be read.
-    #[error("{}{}: {reason}", path.display(), crate::io::rosbag::at_offset(*offset))]
+    #[error("{}{}: {reason}", path.display(), bag::at_offset(*offset))]
     Bag {
         /// The bag file (or the rosbag2 folder, or the file of the folder at fault).
         path: PathBuf,
         /// Byte offset in `path` of the record at fault, when the format has offsets.
         offset: Option<u64>,
         /// What was expected and what was found.
-        reason: crate::io::rosbag::BagError,
+        reason: BagError,
     },
     /// A path that is no log slam2world reads (see [`crate::io::container::detect`]).
     #[error("{}: {reason}", path.display())]
@@ -186,80 +220,8 @@ pub enum Error {
         /// The path given.
         path: PathBuf,
         /// What was found there.
-        reason: crate::io::container::ContainerError,
+        reason: ContainerError,
     },
-}
-
-/// What was wrong with a message's bytes (offsets are bytes from the start of
-/// the message; for CDR, from the end of its 4-byte header). The readers add
-/// the file, topic and message index ([`Error::Decode`]).
-#[derive(Clone, Debug, PartialEq, Eq, thiserror::Error)]
-pub enum WireError {
-    /// Fewer bytes than a field needs.
-    #[error(
-        "message too short: {need} bytes needed at offset {offset}, {len} bytes in the message"
-    )]
-    Truncated {
-        /// Where the field starts.
-        offset: usize,
-        /// Bytes the field needs.
-        need: usize,
-        /// Bytes in the message.
-        len: usize,
-    },
-    /// A field whose value is not allowed (an encapsulation, a wire type, a
-    /// length that does not fit).
-    #[error("offset {offset}: {what}")]
-    Malformed {
-        /// Where the field starts.
-        offset: usize,
-        /// What was wrong.
-        what: String,
-    },
-    /// A field of another type than the schema says, a missing field, or a
-    /// message that is not what its schema says (protobuf, JSON).
-    #[error("{what}")]
-    Schema {
-        /// What was expected and found.
-        what: String,
-    },
-    /// A well-formed value that is not allowed (a non-finite pose, a zero
-    /// quaternion).
-    #[error("{what}")]
-    Value {
-        /// The value and why it is refused.
-        what: String,
-    },
-}
-
-impl WireError {
-    /// A [`WireError::Malformed`] at `offset`.
-    pub fn malformed(offset: usize, what: impl Into<String>) -> Self {
-        WireError::Malformed {
-            offset,
-            what: what.into(),
-        }
-    }
-
-    /// A [`WireError::Schema`].
-    pub fn schema(what: impl Into<String>) -> Self {
-        WireError::Schema { what: what.into() }
-    }
-
-    /// A [`WireError::Value`].
-    pub fn value(what: impl Into<String>) -> Self {
-        WireError::Value { what: what.into() }
-    }
-
-    /// The byte offset of the problem, when it has one.
-    pub fn offset(&self) -> Option<usize> {
-        match self {
-            WireError::Truncated { offset, .. } | WireError::Malformed { offset, .. } => {
-                Some(*offset)
-            }
-            WireError::Schema { .. } | WireError::Value { .. } => None,
-        }
-    }
 }
 
 /// Result with the crate's [`Error`].
