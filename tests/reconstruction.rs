@@ -15,9 +15,10 @@ use std::path::{Path, PathBuf};
 use nalgebra::{UnitQuaternion, Vector3};
 use slam2world::cloud::PointCloud;
 use slam2world::io::colmap::{
-    read_colmap, CameraModel, ColmapCamera, ColmapFormat, ColmapImage, ColmapModel,
-    ColmapPoint3D, Point2D, Rigid3, TrackElement,
+    read_colmap, CameraModel, ColmapCamera, ColmapFormat, ColmapImage, ColmapModel, ColmapPoint3D,
+    Point2D, Rigid3, TrackElement,
 };
+use slam2world::io::ply::write_ply;
 use slam2world::io::text::{read_trajectory, write_tum, TimeUnit};
 use slam2world::map::MapParams;
 use slam2world::pipeline::native::{FrameTimes, ReconstructionKind, ReferenceFormat};
@@ -141,7 +142,10 @@ fn secret() -> Sim3 {
 /// The scene in the secret SLAM frame, written in `format` under `dir/sparse`.
 fn disguised(dir: &Path, truth: &ColmapModel, format: ColmapFormat) -> PathBuf {
     let p = dir.join("sparse");
-    truth.transformed(&secret()).write(&p, Some(format)).unwrap();
+    truth
+        .transformed(&secret())
+        .write(&p, Some(format))
+        .unwrap();
     p
 }
 
@@ -212,17 +216,22 @@ fn detection_from_the_contents() {
     assert_eq!(detect_reconstruction(&mcap, None).unwrap(), None);
     let bag = dir.path().join("bag");
     std::fs::create_dir(&bag).unwrap();
-    std::fs::write(bag.join("metadata.yaml"), "rosbag2_bagfile_information: {}\n").unwrap();
+    std::fs::write(
+        bag.join("metadata.yaml"),
+        "rosbag2_bagfile_information: {}\n",
+    )
+    .unwrap();
     assert_eq!(detect_reconstruction(&bag, None).unwrap(), None);
     // Binary junk is left to the log reader, a PLY alone is refused.
     let junk = dir.path().join("junk");
     std::fs::write(&junk, [0u8, 159, 146, 150, 0, 1]).unwrap();
     assert_eq!(detect_reconstruction(&junk, None).unwrap(), None);
     let ply = dir.path().join("cloud.ply");
-    PointCloud::try_new(vec![0.0; 3], None, None)
-        .unwrap()
-        .write_ply(&ply)
-        .unwrap();
+    write_ply(
+        &ply,
+        &PointCloud::try_new(vec![0.0; 3], None, None).unwrap(),
+    )
+    .unwrap();
     assert!(detect_reconstruction(&ply, None)
         .unwrap_err()
         .to_string()
@@ -255,7 +264,10 @@ fn colmap_by_name_converts_back_to_the_true_model_as_one_output_set() {
         let c = convert_source(&*src, &opts).unwrap();
         assert!(max_matrix_diff(&c.transform(), &secret().inverse()) < 1e-9);
         let r = &c.report;
-        assert_eq!((r.format.as_str(), r.max_diff, r.pairs_fitted), ("colmap", 0.0, 8));
+        assert_eq!(
+            (r.format.as_str(), r.max_diff, r.pairs_fitted),
+            ("colmap", 0.0, 8)
+        );
         assert_eq!(r.frames_dropped, Vec::<i32>::new());
         let names: Vec<_> = r.pairs.iter().filter_map(|p| p.name.clone()).collect();
         assert_eq!(names.len(), 8);
@@ -263,7 +275,10 @@ fn colmap_by_name_converts_back_to_the_true_model_as_one_output_set() {
         assert_eq!(recon.flavour.as_deref(), Some(format.extension()));
         assert!(recon.frame_times.contains("rank"), "{}", recon.frame_times);
         let reference = r.reference_file.as_ref().unwrap();
-        assert_eq!((reference.pairing.as_str(), reference.format_detected), ("name", true));
+        assert_eq!(
+            (reference.pairing.as_str(), reference.format_detected),
+            ("name", true)
+        );
 
         let out = dir.path().join("out");
         c.write_all(&out, slam2world::io::mcap::WorldFlavor::Foxglove)
@@ -275,7 +290,13 @@ fn colmap_by_name_converts_back_to_the_true_model_as_one_output_set() {
         listing.sort();
         assert_eq!(
             listing,
-            [CLOUD_PLY, COLMAP_MODEL, REPORT_JSON, TRAJECTORY_TUM, WORLD_MCAP]
+            [
+                CLOUD_PLY,
+                COLMAP_MODEL,
+                REPORT_JSON,
+                TRAJECTORY_TUM,
+                WORLD_MCAP
+            ]
         );
         let back = read_colmap(&out.join(COLMAP_MODEL), None).unwrap();
         assert_eq!(back.format, format);
@@ -322,7 +343,10 @@ fn output_sets_replace_each_other_whole() {
         .unwrap()
         .write_all(&out, flavor)
         .unwrap();
-    assert!(!out.join(MAP_BT).exists(), "the stale map of the first set is gone");
+    assert!(
+        !out.join(MAP_BT).exists(),
+        "the stale map of the first set is gone"
+    );
     let mut model: Vec<String> = std::fs::read_dir(out.join(COLMAP_MODEL))
         .unwrap()
         .map(|e| e.unwrap().file_name().to_string_lossy().into_owned())
@@ -330,9 +354,11 @@ fn output_sets_replace_each_other_whole() {
     model.sort();
     assert_eq!(model, ["cameras.txt", "images.txt", "points3D.txt"]);
     // No staging folder is left behind.
-    assert!(std::fs::read_dir(&out)
+    assert!(std::fs::read_dir(&out).unwrap().all(|e| !e
         .unwrap()
-        .all(|e| !e.unwrap().file_name().to_string_lossy().starts_with('.')));
+        .file_name()
+        .to_string_lossy()
+        .starts_with('.')));
 }
 
 #[test]
@@ -371,7 +397,10 @@ fn octree_rays_start_at_the_nearest_observing_image() {
         panic!("expected the octree refusal")
     };
     assert_eq!(what, "octree");
-    assert!(reason.contains("point 23") && reason.contains("no ray origin"), "{reason}");
+    assert!(
+        reason.contains("point 23") && reason.contains("no ray origin"),
+        "{reason}"
+    );
     // Without it, every point is occupied in the octree, one scan per nearest image.
     let truth = seen(6);
     let other = tempfile::tempdir().unwrap();
@@ -416,7 +445,14 @@ fn stamped_names_pair_by_time_and_unknown_names_are_counted() {
     attach_reference(&mut timed, &spec(gt_path.clone())).unwrap();
     let c = convert(&timed, &ConvertOptions::default()).unwrap();
     assert!(max_matrix_diff(&c.transform(), &secret().inverse()) < 1e-8);
-    let text = c.report.reference_file.as_ref().unwrap().text.as_ref().unwrap();
+    let text = c
+        .report
+        .reference_file
+        .as_ref()
+        .unwrap()
+        .text
+        .as_ref()
+        .unwrap();
     assert_eq!((text.unit.as_str(), text.unit_detected), ("ns", true));
 
     // By name, with a name the model lacks.
@@ -426,7 +462,14 @@ fn stamped_names_pair_by_time_and_unknown_names_are_counted() {
     let mut named = rec.clone();
     attach_reference(&mut named, &spec(names)).unwrap();
     let c = convert(&named, &ConvertOptions::default()).unwrap();
-    let n = c.report.reference_file.as_ref().unwrap().names.clone().unwrap();
+    let n = c
+        .report
+        .reference_file
+        .as_ref()
+        .unwrap()
+        .names
+        .clone()
+        .unwrap();
     assert_eq!((n.reference_names, n.matched, n.unknown), (8, 7, 1));
     assert_eq!(n.unknown_examples, ["not_an_image.png"]);
     // A time offset does not apply to names.
@@ -463,7 +506,10 @@ fn name_and_time_references_that_cannot_pair_are_refused() {
         panic!("expected TooFew")
     };
     assert_eq!((need, got), (3, 2));
-    assert!(what.contains("\"x.png\"") && what.contains("\"img_000.jpg\""), "{what}");
+    assert!(
+        what.contains("\"x.png\"") && what.contains("\"img_000.jpg\""),
+        "{what}"
+    );
     // A time reference for images named img_000.jpg …
     let tum = dir.path().join("t.txt");
     std::fs::write(&tum, "0 0 0 0 0 0 0 1\n1 1 0 0 0 0 0 1\n2 2 1 0 0 0 0 1\n").unwrap();
@@ -475,8 +521,7 @@ fn name_and_time_references_that_cannot_pair_are_refused() {
     assert_eq!(what, "reference");
     assert!(reason.contains("no time stamps"), "{reason}");
     // No reference at all.
-    let Err(Error::InvalidArgument { what, .. }) = convert(&rec, &ConvertOptions::default())
-    else {
+    let Err(Error::InvalidArgument { what, .. }) = convert(&rec, &ConvertOptions::default()) else {
         panic!("expected the refusal")
     };
     assert_eq!(what, "reference");
@@ -491,7 +536,6 @@ fn trajectory_file_with_its_ply_beside_it() {
         .iter()
         .map(|&t| Vector3::new(t.cos(), t.sin(), 0.2 * t))
         .collect();
-    let gt = Trajectory::try_new(times.clone(), world.clone(), None).unwrap();
     let gt_path = dir.path().join("gt.csv");
     // A comma-separated TUM-order reference with a header.
     let mut text = String::from("t,x,y,z,qx,qy,qz,qw\n");
@@ -499,13 +543,19 @@ fn trajectory_file_with_its_ply_beside_it() {
         text += &format!("{t},{},{},{},0,0,0,1\n", p.x, p.y, p.z);
     }
     std::fs::write(&gt_path, text).unwrap();
-    assert_eq!(detect_reference_format(&gt_path).unwrap(), ReferenceFormat::Tum);
+    assert_eq!(
+        detect_reference_format(&gt_path).unwrap(),
+        ReferenceFormat::Tum
+    );
     // DPVO's layout: saved_trajectories/run.txt and run.ply one folder up.
     let saved = dir.path().join("saved_trajectories");
     std::fs::create_dir(&saved).unwrap();
     let slam = Trajectory::try_new(
         times.iter().map(|t| t * 1e3).collect(),
-        world.iter().map(|p| t_slam_world.transform_point(p)).collect(),
+        world
+            .iter()
+            .map(|p| t_slam_world.transform_point(p))
+            .collect(),
         None,
     )
     .unwrap();
@@ -517,10 +567,11 @@ fn trajectory_file_with_its_ply_beside_it() {
             [q.x as f32, q.y as f32, q.z as f32]
         })
         .collect();
-    PointCloud::try_new(pts, None, None)
-        .unwrap()
-        .write_ply(dir.path().join("run.ply"))
-        .unwrap();
+    write_ply(
+        dir.path().join("run.ply"),
+        &PointCloud::try_new(pts, None, None).unwrap(),
+    )
+    .unwrap();
     let mut rec =
         read_reconstruction(&saved.join("run.txt"), &ReconstructionOptions::default()).unwrap();
     let info = rec.source.reconstruction.as_ref().unwrap();
@@ -534,7 +585,14 @@ fn trajectory_file_with_its_ply_beside_it() {
         let d = (Vector3::new(p[0] as f64, p[1] as f64, p[2] as f64) - want).norm();
         assert!(d < 1e-3, "{d}");
     }
-    let text = c.report.reference_file.as_ref().unwrap().text.clone().unwrap();
+    let text = c
+        .report
+        .reference_file
+        .as_ref()
+        .unwrap()
+        .text
+        .clone()
+        .unwrap();
     assert_eq!((text.delimiter.as_str(), text.header), ("comma", true));
     // The wrong unit given: no pairs, and the error names both files.
     let forced = ReconstructionOptions {
