@@ -389,7 +389,11 @@ pub fn convert(rec: &Recording, opts: &ConvertOptions) -> Result<Conversion> {
             .reconstruction
             .as_ref()
             .map(|r| ReconstructionReport::of(r, slam.len(), rec.source.cloud_path.clone())),
-        reference_file: rec.source.reference_file.as_ref().map(ReferenceReport::from),
+        reference_file: rec
+            .source
+            .reference_file
+            .as_ref()
+            .map(ReferenceReport::from),
     };
     Ok(Conversion {
         world,

@@ -147,7 +147,9 @@ impl Conversion {
         write_report(&report, &s.join(REPORT_JSON))?;
         names.push(REPORT_JSON);
         // Stale outputs of an earlier run that this set does not have.
-        let stale = [MAP_BT, COLMAP_MODEL].into_iter().filter(|n| !names.contains(n));
+        let stale = [MAP_BT, COLMAP_MODEL]
+            .into_iter()
+            .filter(|n| !names.contains(n));
         for name in stale.chain(names.iter().copied()) {
             let dst = dir.join(name);
             if dst.is_dir() || (dst.exists() && !s.join(name).exists()) {

@@ -336,11 +336,8 @@ fn colmap_frames(
 /// (`-1` for a point without observations or an id above `i32::MAX`), and the
 /// image centres by id: the ray origins of an octree.
 fn colmap_cloud(model: &ColmapModel) -> (PointCloud, BTreeMap<i32, Vector3<f64>>) {
-    let centres: HashMap<u32, Vector3<f64>> = model
-        .images
-        .iter()
-        .map(|im| (im.id, im.centre()))
-        .collect();
+    let centres: HashMap<u32, Vector3<f64>> =
+        model.images.iter().map(|im| (im.id, im.centre())).collect();
     let n = model.points3d.len();
     let mut points = Vec::with_capacity(3 * n);
     let mut colors = Vec::with_capacity(3 * n);
@@ -358,7 +355,10 @@ fn colmap_cloud(model: &ColmapModel) -> (PointCloud, BTreeMap<i32, Vector3<f64>>
                 }
             }
         }
-        ids.push(best.and_then(|(_, id)| i32::try_from(id).ok()).unwrap_or(-1));
+        ids.push(
+            best.and_then(|(_, id)| i32::try_from(id).ok())
+                .unwrap_or(-1),
+        );
     }
     let origins = centres
         .iter()
@@ -679,18 +679,13 @@ fn paired_by_name(
     named: &[NamedPosition],
     path: &Path,
 ) -> Result<(Trajectory, NamePairing)> {
-    let frames = match &rec.frames {
-        Some(f) if !rec.frame_info.is_empty() => f,
-        _ => {
-            return Err(Error::invalid(
-                "reference",
-                format!(
-                    "a reference by name needs image names, and {} ({}) has none: give poses by time",
-                    rec.source.path.display(),
-                    rec.source.format
-                ),
-            ))
-        }
+    let Some(frames) = rec.frames.as_ref().filter(|_| !rec.frame_info.is_empty()) else {
+        let why = format!(
+            "a reference by name needs image names, and {} ({}) has none: give poses by time",
+            rec.source.path.display(),
+            rec.source.format
+        );
+        return Err(Error::invalid("reference", why));
     };
     let rows: HashMap<&str, usize> = rec
         .frame_info

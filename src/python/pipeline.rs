@@ -7,10 +7,10 @@ use pyo3::sync::PyOnceLock;
 
 use super::align::{fit_options, window_arg, PyTrajectoryAlignment};
 use super::cloud::{PyPointCloud, PyPointFilter};
+use super::colmap::PyColmapModel;
 use super::geometry::PySim3;
 use super::imu::PyImuAlignment;
 use super::io::PyLog;
-use super::colmap::PyColmapModel;
 use super::map::PyOccupancyMap;
 use super::reconstruction::{reading_options, reference_spec, PyReconstruction};
 use super::trajectory::PyTrajectory;
