@@ -99,9 +99,7 @@ def assert_same_model(a: Any, b: Any, tol: float) -> None:
     for iid, im in a.images.items():
         other = b.images[iid]
         assert (im.name, im.camera_id) == (other.name, other.camera_id)
-        assert_allclose(
-            im.projection_center(), other.projection_center(), rtol=0, atol=tol * span
-        )
+        assert_allclose(im.projection_center(), other.projection_center(), rtol=0, atol=tol * span)
         assert [p.point3D_id for p in im.points2D] == [p.point3D_id for p in other.points2D]
     for pid, p in a.points3D.items():
         q = b.points3D[pid]
@@ -193,8 +191,10 @@ def test_pycolmap_sim3_routines_give_the_same_transform(tmp_path: Path) -> None:
         assert lsq is not None and aligner is not None
         d_lsq = sim3_difference(ours, lsq.matrix())
         d_aligner = sim3_difference(ours, aligner.matrix())
-        print(f"noise {noise} m: |ours - estimate_sim3d| {d_lsq:.3e}, "
-              f"|ours - align_reconstruction_to_locations| {d_aligner:.3e}")
+        print(
+            f"noise {noise} m: |ours - estimate_sim3d| {d_lsq:.3e}, "
+            f"|ours - align_reconstruction_to_locations| {d_aligner:.3e}"
+        )
         if noise == 0.0:
             assert d_lsq < 1e-9 and d_aligner < 1e-9
         else:
@@ -207,7 +207,7 @@ def test_pycolmap_sim3_routines_give_the_same_transform(tmp_path: Path) -> None:
 def test_secret_sim3_by_time_from_stamped_names(tmp_path: Path) -> None:
     truth = synthetic("SIMPLE_RADIAL")
     first = 1403636579763555584
-    for i, image in truth.images.items():
+    for image in truth.images.values():
         image.name = f"cam{image.camera_id}/{first + 50_000_000 * (image.frame_id)}.png"
     theirs, ours = secret()
     slam = pycolmap.Reconstruction(truth)
@@ -368,8 +368,10 @@ def test_droid_folder_of_the_simulated_scene(tmp_path: Path) -> None:
     assert len(conv.cloud.points) == len(truth.points) > 1000
     ev = s2w.evaluate(sim, conv.cloud.points, conv.transform)
     ev_true = s2w.evaluate(sim, truth.points, sim.t_world_slam)
-    print(f"DROID cloud rmse {ev['cloud']['rmse']:.5f} m, "
-          f"with the true transform {ev_true['cloud']['rmse']:.5f} m")
+    print(
+        f"DROID cloud rmse {ev['cloud']['rmse']:.5f} m, "
+        f"with the true transform {ev_true['cloud']['rmse']:.5f} m"
+    )
     assert ev["cloud"]["rmse"] <= 1.1 * ev_true["cloud"]["rmse"]
     report = conv.report
     assert report["reconstruction"]["kind"] == "droid"
