@@ -137,12 +137,11 @@ impl PyConversion {
     /// `T_world_slam`: metres, gravity up), else None.
     #[getter]
     fn model(&self) -> Option<PyColmapModel> {
-        match &self.inner.native {
-            Some(NativeModel::Colmap(m)) => Some(PyColmapModel {
-                inner: (**m).clone(),
-            }),
-            None => None,
-        }
+        self.inner
+            .native
+            .as_ref()
+            .and_then(NativeModel::colmap)
+            .map(|m| PyColmapModel { inner: m.clone() })
     }
     /// Writes the SLAM poses in the world frame (T_world_cam) as a TUM file.
     fn write_tum(&self, py: Python<'_>, path: PathBuf) -> PyResult<()> {

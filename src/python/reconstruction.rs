@@ -167,12 +167,11 @@ impl PyReconstruction {
     /// The input's own model (COLMAP), else None.
     #[getter]
     fn model(&self) -> Option<PyColmapModel> {
-        match &self.rec.native {
-            Some(NativeModel::Colmap(m)) => Some(PyColmapModel {
-                inner: (**m).clone(),
-            }),
-            None => None,
-        }
+        self.rec
+            .native
+            .as_ref()
+            .and_then(NativeModel::colmap)
+            .map(|m| PyColmapModel { inner: m.clone() })
     }
     /// Reference poses or positions attached (`with_reference`), else None.
     #[getter]
