@@ -64,7 +64,7 @@ def true_centres(truth: Any) -> dict[str, npt.NDArray[np.float64]]:
 
 
 def write_names(path: Path, centres: dict[str, npt.NDArray[np.float64]]) -> Path:
-    lines = [f"{n} {float(c[0])!r} {float(c[1])!r} {float(c[2])!r}" for n, c in sorted(centres.items())]
+    lines = [" ".join([n, *(repr(float(v)) for v in c[:3])]) for n, c in sorted(centres.items())]
     path.write_text("\n".join(lines) + "\n")
     return path
 
@@ -91,7 +91,7 @@ def assert_same_model(a: Any, b: Any, tol: float) -> None:
         b.num_points3D(),
         b.compute_num_observations(),
     )
-    span = max(np.linalg.norm(im.projection_center()) for im in a.images.values())
+    span = max(float(np.linalg.norm(im.projection_center())) for im in a.images.values())
     for cid, cam in a.cameras.items():
         other = b.cameras[cid]
         assert (cam.model, cam.width, cam.height) == (other.model, other.width, other.height)
