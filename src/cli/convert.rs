@@ -264,8 +264,13 @@ pub fn run(args: &ConvertArgs) -> Result<()> {
     }
     let r = &c.report;
     let t = &r.t_world_slam;
+    // A reconstruction's poses are frames (images, trajectory rows), DROID-SLAM's keyframes.
+    let rows = match &r.reconstruction {
+        Some(x) if x.kind != "droid" => "frames",
+        _ => "keyframes",
+    };
     let mut s = format!(
-        "{} keyframes, {} matched ({} dropped), fit on {}\n",
+        "{} {rows}, {} matched ({} dropped), fit on {}\n",
         r.keyframes,
         r.frames_used,
         r.frames_dropped.len(),
