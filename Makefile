@@ -10,7 +10,7 @@ DIST ?= dist
 MANYLINUX ?= manylinux2014
 
 .PHONY: install build-tools wheel sdist demo test test-rust test-python test-install lint fmt \
-	bench compare fuzz clean
+	bench compare fuzz fuzz-stable clean
 
 $(PY):
 	python3 -m venv $(VENV)
@@ -81,6 +81,13 @@ fuzz:
 	cd fuzz && cargo +nightly fuzz run decoders -- -max_total_time=$(FUZZ_SECONDS)
 	cd fuzz && cargo +nightly fuzz run mcap_file -- -max_total_time=$(FUZZ_SECONDS)
 	cd fuzz && mkdir -p corpus/ros1_bag && cargo +nightly fuzz run ros1_bag corpus/ros1_bag ../tests/data/rosbag -- -max_total_time=$(FUZZ_SECONDS)
+
+# Without nightly or cargo-fuzz: the MCAP reader on seeded random mutations for
+# FUZZ_STABLE_SECONDS (600 by default), each batch in a worker under a 2 GiB
+# address-space limit, every case checked for panics, aborts, hangs and memory.
+FUZZ_STABLE_SECONDS ?= 600
+fuzz-stable:
+	SLAM2WORLD_MUTATION_SECONDS=$(FUZZ_STABLE_SECONDS) cargo test --release --test mutation mcap_random_run_for_a_while -- --nocapture
 
 clean:
 	cargo clean

@@ -9,6 +9,8 @@
 
 use std::mem::MaybeUninit;
 
+use crate::error::Error;
+
 /// Buffers from this size on are advised to use huge pages (smaller ones come
 /// from the allocator's already-touched pools, where the hint would not help).
 pub const HUGE_PAGE_MIN_BYTES: usize = 8 << 20;
@@ -63,6 +65,37 @@ pub(crate) unsafe fn filled_advised<T: Copy>(
     // elements, and `T: Copy` has no drop glue to run on them.
     unsafe { v.set_len(n) };
     v
+}
+
+/// [`filled_advised`] whose allocation may fail: an [`Error::OutOfMemory`]
+/// naming `what` instead of an abort when the memory cannot be had (an
+/// address-space limit, a huge request).
+///
+/// # Safety
+///
+/// As for [`filled_advised`]: `fill` must initialise every element.
+pub(crate) unsafe fn try_filled_advised<T: Copy>(
+    what: &str,
+    n: usize,
+    fill: impl FnOnce(&mut [MaybeUninit<T>]),
+) -> crate::Result<Vec<T>> {
+    let mut v = try_with_capacity(what, n)?;
+    advise_huge_pages(v.spare_capacity_mut());
+    fill(&mut v.spare_capacity_mut()[..n]);
+    // SAFETY: the caller guarantees that `fill` wrote each of the first `n`
+    // elements, and `T: Copy` has no drop glue to run on them.
+    unsafe { v.set_len(n) };
+    Ok(v)
+}
+
+/// An empty vector with room for `n` elements, or [`Error::OutOfMemory`].
+pub fn try_with_capacity<T>(what: &str, n: usize) -> crate::Result<Vec<T>> {
+    let mut v = Vec::new();
+    v.try_reserve_exact(n).map_err(|_| Error::OutOfMemory {
+        what: what.to_string(),
+        bytes: n as u128 * std::mem::size_of::<T>() as u128,
+    })?;
+    Ok(v)
 }
 
 /// A copy of `src` in a buffer advised to use huge pages.

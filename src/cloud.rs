@@ -193,6 +193,47 @@ impl PointCloud {
         })
     }
 
+    /// Removes the points with a coordinate that is not finite (colours and
+    /// ids kept in step) and says how many there were and whose. One
+    /// parallel scan when every point is finite.
+    pub fn drop_non_finite(&mut self) -> NonFinite {
+        let bad = |p: &[f32]| !(p[0].is_finite() && p[1].is_finite() && p[2].is_finite());
+        let any = self
+            .points
+            .par_chunks(3 * 4096)
+            .any(|block| block.chunks_exact(3).any(bad));
+        if !any {
+            return NonFinite::default();
+        }
+        let mut out = NonFinite::default();
+        let mut keep = 0;
+        let n = self.len();
+        for i in 0..n {
+            if bad(&self.points[3 * i..3 * i + 3]) {
+                out.points += 1;
+                let id = self.keyframe_ids[i];
+                if out.keyframes.last() != Some(&id) && !out.keyframes.contains(&id) {
+                    out.keyframes.push(id);
+                }
+                continue;
+            }
+            if keep != i {
+                self.points.copy_within(3 * i..3 * i + 3, 3 * keep);
+                if let Some(c) = &mut self.colors {
+                    c.copy_within(3 * i..3 * i + 3, 3 * keep);
+                }
+                self.keyframe_ids[keep] = self.keyframe_ids[i];
+            }
+            keep += 1;
+        }
+        self.points.truncate(3 * keep);
+        if let Some(c) = &mut self.colors {
+            c.truncate(3 * keep);
+        }
+        self.keyframe_ids.truncate(keep);
+        out
+    }
+
     /// Carries the cloud by `t` in place (see [`PointCloud::transformed`]).
     pub fn transform_in_place(&mut self, t: &Sim3) -> Result<()> {
         t.transform_points_in_place(&mut self.points)
@@ -325,13 +366,27 @@ fn positive_or_nan(row: &[f32], out: &mut Vec<f32>) {
 ///
 /// Parallel over keyframes and blocks of rows; the output is in keyframe order,
 /// then row-major. Colours are returned when every keyframe has colour.
+///
+/// Points that are not finite (an inverse depth so small, `1e-40`, that its
+/// depth overflows `f32`) are dropped; [`backproject_counted`] says how many.
 pub fn backproject<K: Borrow<Keyframe> + Sync>(
     keyframes: &[K],
     filter: &PointFilter,
     transform: Option<&Sim3>,
 ) -> Result<PointCloud> {
+    backproject_counted(keyframes, filter, transform).map(|r| r.0)
+}
+
+/// [`backproject`], with the non-finite points it dropped.
+pub fn backproject_counted<K: Borrow<Keyframe> + Sync>(
+    keyframes: &[K],
+    filter: &PointFilter,
+    transform: Option<&Sim3>,
+) -> Result<(PointCloud, NonFinite)> {
     let t = transform.copied().unwrap_or_else(Sim3::identity);
-    backproject_with(keyframes, filter, |_| t, Isa::detect())
+    let mut cloud = backproject_with(keyframes, filter, |_| t, Isa::detect())?;
+    let dropped = cloud.drop_non_finite();
+    Ok((cloud, dropped))
 }
 
 /// Like [`backproject`], with its own `T_world_slam` for each keyframe
@@ -341,6 +396,15 @@ pub fn backproject_per_keyframe<K: Borrow<Keyframe> + Sync>(
     filter: &PointFilter,
     transforms: &[Sim3],
 ) -> Result<PointCloud> {
+    backproject_per_keyframe_counted(keyframes, filter, transforms).map(|r| r.0)
+}
+
+/// [`backproject_per_keyframe`], with the non-finite points it dropped.
+pub fn backproject_per_keyframe_counted<K: Borrow<Keyframe> + Sync>(
+    keyframes: &[K],
+    filter: &PointFilter,
+    transforms: &[Sim3],
+) -> Result<(PointCloud, NonFinite)> {
     if transforms.len() != keyframes.len() {
         return Err(Error::ShapeMismatch {
             what: "transforms".into(),
@@ -348,7 +412,18 @@ pub fn backproject_per_keyframe<K: Borrow<Keyframe> + Sync>(
             got: format!("{}", transforms.len()),
         });
     }
-    backproject_with(keyframes, filter, |i| transforms[i], Isa::detect())
+    let mut cloud = backproject_with(keyframes, filter, |i| transforms[i], Isa::detect())?;
+    let dropped = cloud.drop_non_finite();
+    Ok((cloud, dropped))
+}
+
+/// Points a backprojection dropped because a coordinate was not finite.
+#[derive(Clone, Debug, Default, PartialEq, Eq)]
+pub struct NonFinite {
+    /// How many.
+    pub points: usize,
+    /// The keyframes they came from, each once, in cloud order.
+    pub keyframes: Vec<i32>,
 }
 
 /// Two parallel passes: the filter lists the kept columns of each block of rows,

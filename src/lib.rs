@@ -23,6 +23,7 @@ pub mod error;
 pub mod geo;
 pub mod geometry;
 pub mod imu;
+pub mod interrupt;
 pub mod io;
 pub mod keyframe;
 pub mod map;

@@ -10,7 +10,12 @@ def main() -> None:
     """Runs ``slam2world`` with ``sys.argv`` and exits with its code."""
     # `slam2world demo` draws its figures with this interpreter (matplotlib, slam2world.plot).
     os.environ.setdefault("SLAM2WORLD_PYTHON", sys.executable)
-    sys.exit(run_cli(["slam2world", *sys.argv[1:]]))
+    try:
+        code = run_cli(["slam2world", *sys.argv[1:]])
+    except KeyboardInterrupt:
+        # The run said so on stderr and left the previous outputs as they were.
+        code = 130
+    sys.exit(code)
 
 
 if __name__ == "__main__":

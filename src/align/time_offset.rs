@@ -66,7 +66,7 @@ pub fn estimate_time_offset(
         if !(v.is_finite() && v > 0.0) {
             return Err(Error::invalid(
                 what,
-                format!("must be finite and > 0, got {v}"),
+                format!("must be finite and > 0, got {}", crate::error::num(v)),
             ));
         }
     }
@@ -79,6 +79,16 @@ pub fn estimate_time_offset(
     };
     // SLAM poses covered at every candidate offset.
     let m = opts.max_offset;
+    if 2.0 * m >= r1 - r0 {
+        return Err(Error::invalid(
+            "max_offset",
+            format!(
+                "{} s is not below half the reference's span ({} s): no SLAM pose is covered at every offset searched",
+                crate::error::num(m),
+                crate::error::num(r1 - r0)
+            ),
+        ));
+    }
     let used: Vec<usize> = (0..slam.len())
         .filter(|&i| {
             let t = slam.timestamps[i];
@@ -113,7 +123,10 @@ pub fn estimate_time_offset(
         .collect();
     if times.len() < 3 {
         return Err(Error::TooFew {
-            what: format!("SLAM poses covered by the reference at every offset within ±{m} s"),
+            what: format!(
+                "SLAM poses covered by the reference at every offset within ±{} s",
+                crate::error::num(m)
+            ),
             need: 3,
             got: times.len(),
         });

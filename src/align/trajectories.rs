@@ -286,6 +286,35 @@ fn orientations<'a>(t: &'a Trajectory, what: &str) -> Result<&'a [UnitQuaternion
     })
 }
 
+/// Refuses pairs that hold fewer than 3 distinct stamps on either side (a
+/// file whose stamps repeat): the fit would see coincident points and say
+/// less about why.
+fn distinct_stamps(
+    slam: &Trajectory,
+    reference: &Trajectory,
+    pairs: &[(usize, usize)],
+) -> Result<()> {
+    let count = |t: &[f64], idx: &mut dyn Iterator<Item = usize>| {
+        let mut v: Vec<f64> = idx.map(|i| t[i]).collect();
+        v.sort_by(f64::total_cmp);
+        v.dedup();
+        v.len()
+    };
+    let s = count(&slam.timestamps, &mut pairs.iter().map(|p| p.0));
+    let r = count(&reference.timestamps, &mut pairs.iter().map(|p| p.1));
+    if s < 3 || r < 3 {
+        return Err(Error::TooFew {
+            what: format!(
+                "distinct time stamps among the {} matched pairs (SLAM {s}, reference {r}: the stamps repeat)",
+                pairs.len()
+            ),
+            need: 3,
+            got: s.min(r),
+        });
+    }
+    Ok(())
+}
+
 /// The fitted range `fit_start..end` of `n` matched pairs, with the stages
 /// and the reason for the cut.
 fn fit_range(
@@ -354,6 +383,7 @@ pub fn align_trajectories(
         None => None,
     };
     let pairs = matched_pairs(slam, reference, opts.max_diff, offset, 3)?;
+    distinct_stamps(slam, reference, &pairs)?;
     let src: Vec<Vector3<f64>> = pairs.iter().map(|&(s, _)| slam.positions[s]).collect();
     let dst: Vec<Vector3<f64>> = pairs.iter().map(|&(_, r)| reference.positions[r]).collect();
     let need_rot = opts.use_orientations || opts.body_from_cam.is_some();

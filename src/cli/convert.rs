@@ -23,12 +23,10 @@ use crate::io::mcap::{ReadOptions, WorldFlavor};
 use crate::io::text::TimeUnit;
 use crate::map::MapParams;
 use crate::pipeline::native::ReferenceFormat;
+use crate::pipeline::outputs::output_set;
 use crate::pipeline::reconstruction::{open_input, ReconstructionOptions, ReferenceSpec};
 use crate::pipeline::report::{ImuReport, Report, TextInfoReport};
-use crate::pipeline::{
-    convert_source, ConvertOptions, CLOUD_PLY, COLMAP_MODEL, MAP_BT, REPORT_JSON, TRAJECTORY_TUM,
-    WORLD_MCAP,
-};
+use crate::pipeline::{convert_source, ConvertOptions};
 
 fn reference_format(s: &str) -> std::result::Result<ReferenceFormat, String> {
     s.parse().map_err(|e: Error| e.to_string())
@@ -232,8 +230,15 @@ pub fn run(args: &ConvertArgs) -> Result<()> {
         bar.set_style(style);
     }
     let opts = args.options()?;
-    // Bad options fail before the log is read.
+    // Bad options and a bad output folder (a file, the input's folder) fail
+    // before the log is read.
     opts.check()?;
+    let inputs = [
+        Some(&args.log),
+        args.reference.as_ref(),
+        args.cloud.as_ref(),
+    ];
+    let mut outputs = output_set(&args.output, inputs.into_iter().flatten())?;
     let src = open_input(
         &args.log,
         &opts.read,
@@ -253,7 +258,8 @@ pub fn run(args: &ConvertArgs) -> Result<()> {
     } else {
         WorldFlavor::Foxglove
     };
-    c.write_all(&args.output, flavor)?;
+    c.write_into(&mut outputs, flavor, c.octree.as_ref())?;
+    let done = outputs.commit()?;
     bar.inc(1);
     bar.finish_and_clear();
     for w in warnings(&c.report) {
@@ -305,14 +311,14 @@ pub fn run(args: &ConvertArgs) -> Result<()> {
         );
     }
     s += &input_summary(r);
-    for name in [WORLD_MCAP, CLOUD_PLY, TRAJECTORY_TUM, REPORT_JSON] {
-        s += &format!("wrote {}\n", args.output.join(name).display());
+    for p in &done.written {
+        s += &format!("wrote {}\n", p.display());
     }
-    if c.octree.is_some() {
-        s += &format!("wrote {}\n", args.output.join(MAP_BT).display());
-    }
-    if c.native.is_some() {
-        s += &format!("wrote {}\n", args.output.join(COLMAP_MODEL).display());
+    for p in &done.removed {
+        s += &format!(
+            "removed {} (of an earlier run; not produced by this one)\n",
+            p.display()
+        );
     }
     print(&s)
 }

@@ -1,7 +1,9 @@
 //! The `slam2world` command line (clap). The binary `src/bin/slam2world.rs` and
 //! the wheel's console script both call [`main_with_args`].
 //!
-//! Exit codes: 0 success, 1 bad data (one readable line on stderr), 2 usage.
+//! Exit codes: 0 success, 1 bad data (one readable line on stderr), 2 usage,
+//! 130 / 143 stopped by SIGINT / SIGTERM (no output of the run written; the
+//! previous outputs intact; a second signal ends the process at once).
 
 use std::ffi::OsString;
 
@@ -77,8 +79,15 @@ where
             return code;
         }
     };
-    match run(cli) {
+    let guard = crate::interrupt::Guard::new(crate::interrupt::Second::Terminates);
+    let result = run(cli);
+    drop(guard);
+    match result {
         Ok(()) => 0,
+        Err(e @ crate::Error::Interrupted { signal }) => {
+            eprintln!("slam2world: {e}");
+            crate::interrupt::exit_code(signal)
+        }
         Err(e) => {
             eprintln!("slam2world: error: {e}");
             1

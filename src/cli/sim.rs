@@ -23,7 +23,8 @@ use crate::cloud::backproject;
 use crate::error::{Error, Result};
 use crate::geometry::Sim3;
 use crate::io::atomic::write_bytes_atomic;
-use crate::io::mcap::{read_mcap, write_slam_log, SlamLogOptions, WorldFlavor};
+use crate::io::atomic::OutputSet;
+use crate::io::mcap::{read_mcap, write_slam_log_into, SlamLogOptions, WorldFlavor};
 use crate::pipeline::report::{
     to_json_bytes, DemoAlignment, DemoReport, DemoSeconds, DemoTruth, EvaluateReport, FramesReport,
     SceneReport, SimStages, TransformReport, TruthReport,
@@ -186,11 +187,14 @@ fn truth_path_for(log: &Path) -> PathBuf {
     log.with_extension("truth.json")
 }
 
-/// Writes the simulated log (with the reference poses when `reference`) and its truth.
+/// Writes the simulated log (with the reference poses when `reference`) and
+/// its truth, both or neither.
 fn write_log(sim: &Simulation, log: &Path, truth: &Path, reference: bool) -> Result<()> {
     let truth_meta = serde_json::to_string(&truth_report(sim, false))
         .map_err(|e| Error::invalid("json", e.to_string()))?;
-    write_slam_log(
+    let mut set = OutputSet::new();
+    write_slam_log_into(
+        &mut set,
         log,
         &sim.keyframes,
         reference.then_some(&sim.reference),
@@ -198,17 +202,31 @@ fn write_log(sim: &Simulation, log: &Path, truth: &Path, reference: bool) -> Res
         &[("truth".to_string(), truth_meta)],
         &SlamLogOptions::default(),
     )?;
-    write_bytes_atomic(truth, &to_json_bytes(&truth_report(sim, true))?)
+    set.write_bytes(truth, &to_json_bytes(&truth_report(sim, true))?)?;
+    set.commit().map(|_| ())
 }
 
 /// `slam2world simulate`.
 pub fn run_simulate(args: &SimulateArgs) -> Result<()> {
     let cfg = args.run.config()?;
-    let sim = simulate(&cfg)?;
     let truth = args
         .truth
         .clone()
         .unwrap_or_else(|| truth_path_for(&args.output));
+    // Two outputs, never one file: refused before the work.
+    let probe = OutputSet::new();
+    probe.check_output(&args.output)?;
+    probe.check_output(&truth)?;
+    if crate::io::atomic::same_output(&args.output, &truth)? {
+        return Err(Error::Output {
+            path: truth,
+            reason: format!(
+                "is the log output {} too: the truth needs a file of its own",
+                args.output.display()
+            ),
+        });
+    }
+    let sim = simulate(&cfg)?;
     write_log(&sim, &args.output, &truth, !args.no_reference)?;
     println!(
         "wrote {} ({} keyframes, {} reference poses, {} IMU samples) and {}",

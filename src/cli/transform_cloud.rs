@@ -11,6 +11,7 @@ use clap::Args;
 use super::align::format;
 use super::args::{print, FitArgs};
 use crate::error::{Error, Result};
+use crate::io::atomic::OutputSet;
 use crate::io::text::TrajectoryFormat;
 use crate::pipeline::source::TrajectoryFiles;
 use crate::pipeline::{convert_source, ConvertOptions};
@@ -48,6 +49,9 @@ pub fn run(args: TransformCloudArgs) -> Result<()> {
         ..ConvertOptions::default()
     };
     opts.check()?;
+    // The output is none of the inputs: refused before the work.
+    let mut outputs = OutputSet::new().with_inputs([&args.input, est, reference]);
+    outputs.check_output(&args.output)?;
     let source = TrajectoryFiles {
         slam: est.clone(),
         slam_format: args.format,
@@ -55,7 +59,8 @@ pub fn run(args: TransformCloudArgs) -> Result<()> {
         cloud: Some(args.input.clone()),
     };
     let c = convert_source(&source, &opts)?;
-    c.write_ply(&args.output)?;
+    c.ply_into(&mut outputs, &args.output)?;
+    outputs.commit()?;
     let ape = c.report.ape.as_ref().map_or(f64::NAN, |a| a.rmse);
     print(&format!(
         "aligned {} pose pairs: scale {:.9}, APE rmse {:.6} m; wrote {} points to {}\n",

@@ -190,6 +190,12 @@ pub enum ContainerError {
         /// `FIFO`, `socket`, `character device`, `block device` or `special file`.
         kind: &'static str,
     },
+    /// A folder where a log file was expected.
+    #[error("a folder, not a log file (expected {expected})")]
+    Folder {
+        /// What was expected, e.g. `an MCAP file`.
+        expected: &'static str,
+    },
     /// A folder without `metadata.yaml` (the file every rosbag2 folder has).
     #[error("a folder without metadata.yaml is not a rosbag2 bag")]
     NoMetadata,

@@ -222,6 +222,40 @@ pub enum Error {
         /// What was found there.
         reason: ContainerError,
     },
+    /// An output that would destroy or misuse what is at its path: an input
+    /// of the same run, a folder, a block device (see [`crate::io::atomic`]).
+    #[error("{}: {reason}", path.display())]
+    Output {
+        /// The output path given.
+        path: PathBuf,
+        /// What is there and why it is not written.
+        reason: String,
+    },
+    /// An allocation the operation needs was refused (an address-space limit,
+    /// memory exhausted): the operation is abandoned, nothing else is lost.
+    #[error("{what}: cannot allocate {bytes} bytes")]
+    OutOfMemory {
+        /// What the memory was for.
+        what: String,
+        /// Bytes asked for.
+        bytes: u128,
+    },
+    /// The run was stopped by SIGINT (Ctrl-C) or SIGTERM ([`crate::interrupt`]);
+    /// the outputs of the run were not written, the previous ones are intact.
+    #[error("interrupted by {}: no output written", signal_name(*signal))]
+    Interrupted {
+        /// The signal number (2 SIGINT, 15 SIGTERM).
+        signal: i32,
+    },
+}
+
+/// `SIGINT`, `SIGTERM` or `signal N` (the name [`Error::Interrupted`] gives).
+pub fn signal_name(signal: i32) -> String {
+    match signal {
+        2 => "SIGINT".into(),
+        15 => "SIGTERM".into(),
+        s => format!("signal {s}"),
+    }
 }
 
 /// Result with the crate's [`Error`].

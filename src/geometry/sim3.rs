@@ -233,9 +233,11 @@ impl Sim3 {
         check_rows(src.len())?;
         // SAFETY: `transform_uninit` writes one output value per input value,
         // every element of `dst` (`src.len()`, rows checked above).
-        Ok(unsafe {
-            crate::buffer::filled_advised(src.len(), |dst| self.transform_uninit(src, dst))
-        })
+        unsafe {
+            crate::buffer::try_filled_advised("transformed points", src.len(), |dst| {
+                self.transform_uninit(src, dst)
+            })
+        }
     }
 
     /// Maps row-major `(N, 3)` points in place, in parallel.

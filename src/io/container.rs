@@ -61,7 +61,7 @@ pub fn detect(path: impl AsRef<Path>) -> Result<Container> {
         return Err(container_err(
             path,
             ContainerError::NotAFile {
-                kind: special_kind(&meta),
+                kind: crate::io::mapped::special_kind(&meta),
             },
         ));
     }
@@ -74,6 +74,8 @@ pub fn detect(path: impl AsRef<Path>) -> Result<Container> {
         .map_err(|e| Error::io(path, e))?;
     classify(&head).map_err(|r| container_err(path, r))
 }
+
+pub use crate::io::mapped::require_file;
 
 /// The container of a file that starts with `head` (its first 32 bytes or all of it).
 pub fn classify(head: &[u8]) -> std::result::Result<Container, ContainerError> {
@@ -98,28 +100,6 @@ pub fn classify(head: &[u8]) -> std::result::Result<Container, ContainerError> {
     Err(ContainerError::Unknown {
         head: head[..head.len().min(16)].escape_ascii().to_string(),
     })
-}
-
-#[cfg(unix)]
-fn special_kind(meta: &std::fs::Metadata) -> &'static str {
-    use std::os::unix::fs::FileTypeExt;
-    let t = meta.file_type();
-    if t.is_fifo() {
-        "FIFO"
-    } else if t.is_socket() {
-        "socket"
-    } else if t.is_char_device() {
-        "character device"
-    } else if t.is_block_device() {
-        "block device"
-    } else {
-        "special file"
-    }
-}
-
-#[cfg(not(unix))]
-fn special_kind(_meta: &std::fs::Metadata) -> &'static str {
-    "special file"
 }
 
 /// Messages and time range of one channel, as an index or a scan gives them.

@@ -9,6 +9,7 @@ pub mod container;
 pub mod droid;
 pub mod gnss;
 pub mod las;
+pub mod mapped;
 pub mod mcap;
 pub mod nav2;
 pub mod npy;

@@ -21,6 +21,7 @@ use rayon::prelude::*;
 
 use crate::cloud::PointCloud;
 use crate::error::{Error, Result};
+use crate::io::atomic::OutputSet;
 
 /// Vertices per block when encoding or decoding binary data in parallel.
 const VERTICES_PER_TASK: usize = 1 << 14;
@@ -33,6 +34,18 @@ pub fn write_ply(path: impl AsRef<Path>, cloud: &PointCloud) -> Result<()> {
 
 /// [`write_ply`] from the raw buffers: `points` row-major `(N, 3)`, `colors` `(N, 3)` bytes.
 pub fn write_ply_parts(path: &Path, points: &[f32], colors: Option<&[u8]>) -> Result<()> {
+    let mut set = OutputSet::new();
+    write_ply_into(&mut set, path, points, colors)?;
+    set.commit().map(|_| ())
+}
+
+/// [`write_ply_parts`] as one output of `set` (published when the set is committed).
+pub fn write_ply_into(
+    set: &mut OutputSet,
+    path: &Path,
+    points: &[f32],
+    colors: Option<&[u8]>,
+) -> Result<()> {
     if points.len() % 3 != 0 {
         return Err(Error::ShapeMismatch {
             what: "points".into(),
@@ -61,7 +74,7 @@ pub fn write_ply_parts(path: &Path, points: &[f32], colors: Option<&[u8]>) -> Re
     let stride = if colors.is_some() { 15 } else { 12 };
 
     let io_err = |e| Error::io(path, e);
-    crate::io::atomic::write_atomic(path, |file| {
+    set.write(path, |file| {
         let mut w = BufWriter::with_capacity(1 << 20, file);
         w.write_all(header.as_bytes()).map_err(io_err)?;
         // Encode blocks of vertices in parallel, a batch of blocks at a time, and
@@ -69,6 +82,7 @@ pub fn write_ply_parts(path: &Path, points: &[f32], colors: Option<&[u8]>) -> Re
         let batch = VERTICES_PER_TASK * rayon::current_num_threads().max(1);
         let mut buf = Vec::new();
         for start in (0..n).step_by(batch) {
+            crate::interrupt::check()?;
             let end = (start + batch).min(n);
             buf.clear();
             buf.resize((end - start) * stride, 0u8);
@@ -218,6 +232,15 @@ fn parse_header(path: &Path, bytes: &[u8]) -> Result<Header> {
         let Some(nl) = bytes[pos..].iter().position(|&b| b == b'\n') else {
             return Err(err(lineno + 1, "header has no `end_header`".into()));
         };
+        if nl > crate::io::text::MAX_LINE_BYTES {
+            return Err(err(
+                lineno + 1,
+                format!(
+                    "header line longer than {} bytes: not a PLY header",
+                    crate::io::text::MAX_LINE_BYTES
+                ),
+            ));
+        }
         let raw = &bytes[pos..pos + nl];
         pos += nl + 1;
         lineno += 1;
@@ -233,13 +256,21 @@ fn parse_header(path: &Path, bytes: &[u8]) -> Result<Header> {
                     "ascii" => Format::Ascii,
                     "binary_little_endian" => Format::BinaryLe,
                     "binary_big_endian" => Format::BinaryBe,
-                    other => return Err(err(lineno, format!("unknown format `{other}`"))),
+                    other => {
+                        return Err(err(
+                            lineno,
+                            format!("unknown format {}", crate::error::cut(other)),
+                        ))
+                    }
                 });
             }
             ["element", name, count] => {
-                let count = count
-                    .parse::<usize>()
-                    .map_err(|_| err(lineno, format!("bad element count `{count}`")))?;
+                let count = count.parse::<usize>().map_err(|_| {
+                    err(
+                        lineno,
+                        format!("bad element count {}", crate::error::cut(count)),
+                    )
+                })?;
                 elements.push(Element {
                     name: (*name).to_string(),
                     count,
@@ -250,7 +281,10 @@ fn parse_header(path: &Path, bytes: &[u8]) -> Result<Header> {
                 let (Some(c), Some(k)) = (Scalar::parse(count_t), Scalar::parse(item_t)) else {
                     return Err(err(
                         lineno,
-                        format!("unknown list types `{count_t} {item_t}`"),
+                        format!(
+                            "unknown list types {}",
+                            crate::error::cut(&format!("{count_t} {item_t}"))
+                        ),
                     ));
                 };
                 if c.is_float() {
@@ -270,7 +304,10 @@ fn parse_header(path: &Path, bytes: &[u8]) -> Result<Header> {
             }
             ["property", t, name] => {
                 let Some(k) = Scalar::parse(t) else {
-                    return Err(err(lineno, format!("unknown property type `{t}`")));
+                    return Err(err(
+                        lineno,
+                        format!("unknown property type {}", crate::error::cut(t)),
+                    ));
                 };
                 let Some(e) = elements.last_mut() else {
                     return Err(err(lineno, "property before any element".into()));
@@ -282,7 +319,12 @@ fn parse_header(path: &Path, bytes: &[u8]) -> Result<Header> {
                 });
             }
             ["end_header"] => break,
-            _ => return Err(err(lineno, format!("unexpected header line `{line}`"))),
+            _ => {
+                return Err(err(
+                    lineno,
+                    format!("unexpected header line {}", crate::error::cut(line)),
+                ))
+            }
         }
     }
     let format = format.ok_or_else(|| err(lineno, "header has no `format` line".into()))?;
@@ -350,11 +392,28 @@ fn to_byte(v: f64, kind: Scalar) -> u8 {
 /// keyframe ids are `-1`.
 pub fn read_ply(path: impl AsRef<Path>) -> Result<PointCloud> {
     let path = path.as_ref();
+    // A regular file is read whole (its size bounds the memory); a device or
+    // FIFO could stream without end.
+    let meta = fs::metadata(path).map_err(|e| Error::io(path, e))?;
+    if !meta.is_file() {
+        return Err(Error::parse(
+            path,
+            0,
+            "not a regular file (a folder, device or FIFO): expected a PLY file",
+        ));
+    }
     let bytes = fs::read(path).map_err(|e| Error::io(path, e))?;
     let header = parse_header(path, &bytes)?;
     let Some(vi) = header.elements.iter().position(|e| e.name == "vertex") else {
         return Err(Error::parse(path, 0, "no `vertex` element"));
     };
+    if header.elements[vi].count == 0 {
+        return Err(Error::parse(
+            path,
+            0,
+            "no points in the file (element vertex 0)",
+        ));
+    }
     let layout = vertex_layout(path, &header.elements[vi])?;
     match header.format {
         Format::Ascii => read_ascii(path, &bytes, &header, vi, &layout),
@@ -516,8 +575,13 @@ fn read_ascii(
             let t = tokens
                 .next()
                 .ok_or_else(|| Error::parse(path, lineno, format!("missing value for `{what}`")))?;
-            t.parse::<f64>()
-                .map_err(|_| Error::parse(path, lineno, format!("`{t}` is not a number ({what})")))
+            t.parse::<f64>().map_err(|_| {
+                Error::parse(
+                    path,
+                    lineno,
+                    format!("{} is not a number ({what})", crate::error::cut(t)),
+                )
+            })
         };
         for p in &e.properties {
             match p.list_count {
@@ -555,12 +619,11 @@ fn read_ascii(
 /// with `#` are skipped. Keyframe ids are `-1`.
 pub fn read_xyz_text(path: impl AsRef<Path>) -> Result<PointCloud> {
     let path = path.as_ref();
-    let text = fs::read_to_string(path).map_err(|e| Error::io(path, e))?;
     let mut points = Vec::new();
-    for (i, line) in text.lines().enumerate() {
+    crate::io::text::for_each_line(path, "an x y z point file", |i, line| {
         let line = line.trim();
         if line.is_empty() || line.starts_with('#') {
-            continue;
+            return Ok(());
         }
         let mut tokens = line
             .split(|c: char| c.is_whitespace() || c == ',')
@@ -568,12 +631,24 @@ pub fn read_xyz_text(path: impl AsRef<Path>) -> Result<PointCloud> {
         for axis in ["x", "y", "z"] {
             let t = tokens
                 .next()
-                .ok_or_else(|| Error::parse(path, i + 1, format!("missing {axis} (need x y z)")))?;
+                .ok_or_else(|| Error::parse(path, i, format!("missing {axis} (need x y z)")))?;
             let v: f32 = t.parse().map_err(|_| {
-                Error::parse(path, i + 1, format!("`{t}` is not a number ({axis})"))
+                Error::parse(
+                    path,
+                    i,
+                    format!("{} is not a number ({axis})", crate::error::cut(t)),
+                )
             })?;
             points.push(v);
         }
+        Ok(())
+    })?;
+    if points.is_empty() {
+        return Err(Error::parse(
+            path,
+            0,
+            "no points in the file (expected lines of x y z)",
+        ));
     }
     PointCloud::try_new(points, None, None)
 }

@@ -8,7 +8,6 @@
 //! - EuRoC IMU CSV (`imu0/data.csv`): `timestamp [ns], w_x, w_y, w_z [rad/s],
 //!   a_x, a_y, a_z [m/s²]`.
 
-use std::io::Write;
 use std::path::Path;
 
 use nalgebra::{UnitQuaternion, Vector3};
@@ -55,17 +54,17 @@ impl TrajectoryFormat {
     }
 }
 
-/// Reads a file as UTF-8 text, dropping a leading byte-order mark.
-fn read_text(path: &Path) -> Result<String> {
-    let bytes = std::fs::read(path).map_err(|e| Error::io(path, e))?;
-    let bytes = bytes.strip_prefix(b"\xEF\xBB\xBF").unwrap_or(&bytes);
-    String::from_utf8(bytes.to_vec()).map_err(|e| {
-        Error::parse(
-            path,
-            0,
-            format!("not UTF-8 text (byte {})", e.utf8_error().valid_up_to()),
-        )
-    })
+/// Calls `f(line number, line)` for each line of the file at `path`, read
+/// as a stream: lines longer than [`MAX_LINE_BYTES`] (a file without line
+/// breaks, `/dev/zero`) and lines that are not UTF-8 are format errors
+/// naming the line; a leading byte-order mark is dropped.
+pub(crate) fn for_each_line(
+    path: &Path,
+    what: &str,
+    f: impl FnMut(usize, &str) -> Result<()>,
+) -> Result<()> {
+    let file = std::fs::File::open(path).map_err(|e| Error::io(path, e))?;
+    bounded_lines(path, what, std::io::BufReader::new(file), f)
 }
 
 fn parse_fields(path: &Path, line: usize, fields: &[&str]) -> Result<Vec<f64>> {
@@ -77,14 +76,14 @@ fn parse_fields(path: &Path, line: usize, fields: &[&str]) -> Result<Vec<f64>> {
                 Error::parse(
                     path,
                     line,
-                    format!("field {} is not a number: {f:?}", k + 1),
+                    format!("field {} is not a number: {}", k + 1, crate::error::cut(f)),
                 )
             })?;
             if !v.is_finite() {
                 return Err(Error::parse(
                     path,
                     line,
-                    format!("field {} is not finite: {f:?}", k + 1),
+                    format!("field {} is not finite: {}", k + 1, crate::error::cut(f)),
                 ));
             }
             Ok(v)
@@ -117,7 +116,11 @@ impl<'a> Builder<'a> {
                 return Err(Error::parse(
                     self.path,
                     line,
-                    format!("timestamp {t} is earlier than the previous one ({last})"),
+                    format!(
+                        "timestamp {} is earlier than the previous one ({})",
+                        crate::error::num(t),
+                        crate::error::num(last)
+                    ),
                 ));
             }
         }
@@ -137,62 +140,56 @@ impl<'a> Builder<'a> {
     }
 }
 
-/// Reads a TUM trajectory file (`timestamp tx ty tz qx qy qz qw` per line).
+/// Reads a TUM trajectory file (`timestamp tx ty tz qx qy qz qw` per line),
+/// as a stream of lines of at most [`MAX_LINE_BYTES`].
 pub fn read_tum(path: impl AsRef<Path>) -> Result<Trajectory> {
     let path = path.as_ref();
-    let text = read_text(path)?;
     let mut b = Builder::new(path);
-    for (k, raw) in text.lines().enumerate() {
+    for_each_line(path, "a TUM trajectory", |k, raw| {
         let line = raw.trim();
         if line.is_empty() || line.starts_with('#') {
-            continue;
+            return Ok(());
         }
         let fields: Vec<&str> = line.split_whitespace().collect();
         if fields.len() != 8 {
             return Err(Error::parse(
                 path,
-                k + 1,
+                k,
                 format!(
                     "expected 8 values (timestamp tx ty tz qx qy qz qw), got {}",
                     fields.len()
                 ),
             ));
         }
-        let v = parse_fields(path, k + 1, &fields)?;
-        b.push(k + 1, v[0], [v[1], v[2], v[3]], [v[4], v[5], v[6], v[7]])?;
-    }
+        let v = parse_fields(path, k, &fields)?;
+        b.push(k, v[0], [v[1], v[2], v[3]], [v[4], v[5], v[6], v[7]])
+    })?;
     b.finish()
 }
 
 /// Reads EuRoC ground truth CSV (`ns, x, y, z, qw, qx, qy, qz[, …]`).
 pub fn read_euroc(path: impl AsRef<Path>) -> Result<Trajectory> {
     let path = path.as_ref();
-    let text = read_text(path)?;
     let mut b = Builder::new(path);
-    for (k, raw) in text.lines().enumerate() {
+    for_each_line(path, "a EuRoC ground-truth CSV", |k, raw| {
         let line = raw.trim();
         if line.is_empty() || line.starts_with('#') {
-            continue;
+            return Ok(());
         }
         let fields: Vec<&str> = line.split(',').collect();
         if fields.len() < 8 {
             return Err(Error::parse(
                 path,
-                k + 1,
+                k,
                 format!(
                     "expected at least 8 comma-separated values (ns, x, y, z, qw, qx, qy, qz), got {}",
                     fields.len()
                 ),
             ));
         }
-        let v = parse_fields(path, k + 1, &fields[..8])?;
-        b.push(
-            k + 1,
-            v[0] / 1e9,
-            [v[1], v[2], v[3]],
-            [v[5], v[6], v[7], v[4]],
-        )?;
-    }
+        let v = parse_fields(path, k, &fields[..8])?;
+        b.push(k, v[0] / 1e9, [v[1], v[2], v[3]], [v[5], v[6], v[7], v[4]])
+    })?;
     b.finish()
 }
 
@@ -201,26 +198,30 @@ pub fn read_euroc(path: impl AsRef<Path>) -> Result<Trajectory> {
 /// without orientation get the identity quaternion.
 pub fn write_tum(traj: &Trajectory, path: impl AsRef<Path>) -> Result<()> {
     let path = path.as_ref();
+    let bytes = tum_bytes(traj)?;
+    crate::io::atomic::write_bytes_atomic(path, &bytes)
+}
+
+/// The TUM text of `traj` ([`write_tum`]'s content).
+pub fn tum_bytes(traj: &Trajectory) -> Result<Vec<u8>> {
+    use std::fmt::Write as _;
     traj.check_lengths()?;
-    crate::io::atomic::write_atomic(path, |file| {
-        let mut w = std::io::BufWriter::new(file);
-        let io = |e| Error::io(path, e);
-        writeln!(w, "# timestamp tx ty tz qx qy qz qw").map_err(io)?;
-        for i in 0..traj.len() {
-            let p = traj.positions[i];
-            let q = match &traj.orientations {
-                Some(o) => o[i].coords, // (x, y, z, w)
-                None => UnitQuaternion::<f64>::identity().coords,
-            };
-            writeln!(
-                w,
-                "{} {} {} {} {} {} {} {}",
-                traj.timestamps[i], p.x, p.y, p.z, q[0], q[1], q[2], q[3]
-            )
-            .map_err(io)?;
-        }
-        w.flush().map_err(io)
-    })
+    let mut s = String::with_capacity(64 * (traj.len() + 1));
+    s.push_str("# timestamp tx ty tz qx qy qz qw\n");
+    for i in 0..traj.len() {
+        let p = traj.positions[i];
+        let q = match &traj.orientations {
+            Some(o) => o[i].coords, // (x, y, z, w)
+            None => UnitQuaternion::<f64>::identity().coords,
+        };
+        // Writing into a String cannot fail.
+        let _ = writeln!(
+            s,
+            "{} {} {} {} {} {} {} {}",
+            traj.timestamps[i], p.x, p.y, p.z, q[0], q[1], q[2], q[3]
+        );
+    }
+    Ok(s.into_bytes())
 }
 
 /// Reads EuRoC `imu0/data.csv` content: `timestamp [ns], w_x, w_y, w_z
@@ -231,18 +232,17 @@ pub fn write_tum(traj: &Trajectory, path: impl AsRef<Path>) -> Result<()> {
 /// malformed line, and the checks of [`ImuSamples::try_new`].
 pub fn read_euroc_imu(path: impl AsRef<Path>) -> Result<ImuSamples> {
     let path = path.as_ref();
-    let text = read_text(path)?;
     let (mut timestamps, mut gyro, mut accel) = (Vec::new(), Vec::new(), Vec::new());
-    for (k, raw) in text.lines().enumerate() {
+    for_each_line(path, "a EuRoC IMU CSV", |k, raw| {
         let line = raw.trim();
         if line.is_empty() || line.starts_with('#') {
-            continue;
+            return Ok(());
         }
         let fields: Vec<&str> = line.split(',').map(str::trim).collect();
         if fields.len() != 7 {
             return Err(Error::parse(
                 path,
-                k + 1,
+                k,
                 format!(
                     "expected 7 comma-separated values (ns, gyro x y z, accel x y z), got {}",
                     fields.len()
@@ -252,13 +252,14 @@ pub fn read_euroc_imu(path: impl AsRef<Path>) -> Result<ImuSamples> {
         // Integer nanoseconds where they are written so (EuRoC); a float otherwise.
         let t = match fields[0].parse::<i64>() {
             Ok(ns) => ns as f64 * 1e-9,
-            Err(_) => parse_fields(path, k + 1, &fields[..1])?[0] * 1e-9,
+            Err(_) => parse_fields(path, k, &fields[..1])?[0] * 1e-9,
         };
-        let v = parse_fields(path, k + 1, &fields[1..])?;
+        let v = parse_fields(path, k, &fields[1..])?;
         timestamps.push(t);
         gyro.push(Vector3::new(v[0], v[1], v[2]));
         accel.push(Vector3::new(v[3], v[4], v[5]));
-    }
+        Ok(())
+    })?;
     ImuSamples::try_new(timestamps, gyro, accel)
 }
 
@@ -397,9 +398,11 @@ pub fn detect_time_unit(stamps: &[f64]) -> TimeUnit {
         .unwrap_or(TimeUnit::Seconds)
 }
 
-/// Lines of at most [`MAX_LINE_BYTES`], read without holding more than one.
-fn bounded_lines(
+/// Lines of at most [`MAX_LINE_BYTES`], read without holding more than one;
+/// `what` names the kind of file in the error of a long line.
+pub(crate) fn bounded_lines(
     path: &Path,
+    what: &str,
     mut r: impl std::io::BufRead,
     mut f: impl FnMut(usize, &str) -> Result<()>,
 ) -> Result<()> {
@@ -421,7 +424,7 @@ fn bounded_lines(
                 return Err(Error::parse(
                     path,
                     line,
-                    format!("line longer than {MAX_LINE_BYTES} bytes: not a trajectory file"),
+                    format!("line longer than {MAX_LINE_BYTES} bytes: not {what}"),
                 ));
             }
             buf.extend_from_slice(&chunk[..take]);
@@ -437,8 +440,16 @@ fn bounded_lines(
         if line == 1 {
             bytes = bytes.strip_prefix(b"\xEF\xBB\xBF").unwrap_or(bytes);
         }
-        let text =
-            std::str::from_utf8(bytes).map_err(|_| Error::parse(path, line, "not UTF-8 text"))?;
+        let text = std::str::from_utf8(bytes).map_err(|e| {
+            Error::parse(
+                path,
+                line,
+                format!(
+                    "not UTF-8 text (byte {} of the line): not {what}",
+                    e.valid_up_to() + 1
+                ),
+            )
+        })?;
         f(line, text)?;
     }
 }
@@ -468,7 +479,7 @@ pub fn read_trajectory(path: &Path, time_unit: Option<TimeUnit>) -> Result<(Traj
     let mut header = false;
     let mut first = true;
     let mut rows: Vec<(usize, [f64; 8])> = Vec::new();
-    bounded_lines(path, reader, |k, raw| {
+    bounded_lines(path, "a trajectory file", reader, |k, raw| {
         let line = raw.trim();
         if line.is_empty() || line.starts_with('#') {
             return Ok(());

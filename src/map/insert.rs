@@ -222,7 +222,14 @@ impl OccupancyMap {
                     format!("no camera centre for keyframe {id}"),
                 )
             })?;
-            let u = self.insert_scan(pts, *origin)?;
+            crate::interrupt::check()?;
+            let u = self.insert_scan(pts, *origin).map_err(|e| match e {
+                Error::NonFinite { what, index } => Error::NonFinite {
+                    what: format!("keyframe {id} {what}"),
+                    index,
+                },
+                other => other,
+            })?;
             total.free += u.free;
             total.occupied += u.occupied;
         }

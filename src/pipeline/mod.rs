@@ -36,7 +36,7 @@ use std::collections::BTreeMap;
 use std::path::Path;
 use std::time::Instant;
 
-use crate::cloud::{backproject, backproject_per_keyframe, PointCloud};
+use crate::cloud::{backproject_counted, backproject_per_keyframe_counted, PointCloud};
 use crate::error::{Error, Result};
 use crate::geometry::Sim3;
 use crate::imu::ImuAlignment;
@@ -252,17 +252,21 @@ pub fn convert(rec: &Recording, opts: &ConvertOptions) -> Result<Conversion> {
     };
 
     let t1 = Instant::now();
-    let cloud = if !rec.keyframes.is_empty() {
+    crate::interrupt::check()?;
+    let (cloud, non_finite) = if !rec.keyframes.is_empty() {
         match &per_keyframe {
-            Some(ts) => backproject_per_keyframe(&rec.keyframes, &opts.filter, ts)?,
-            None => backproject(&rec.keyframes, &opts.filter, Some(&t))?,
+            Some(ts) => backproject_per_keyframe_counted(&rec.keyframes, &opts.filter, ts)?,
+            None => backproject_counted(&rec.keyframes, &opts.filter, Some(&t))?,
         }
     } else {
-        match &rec.cloud {
+        let mut c = match &rec.cloud {
             Some(c) => c.transformed(&t)?,
             None => PointCloud::default(),
-        }
+        };
+        let dropped = c.drop_non_finite();
+        (c, dropped)
     };
+    crate::interrupt::check()?;
     let backproject_s = secs(t1);
 
     let (octree, octree_report) = match opts.map {
@@ -376,6 +380,8 @@ pub fn convert(rec: &Recording, opts: &ConvertOptions) -> Result<Conversion> {
         fit,
         windowed,
         points: cloud.len(),
+        points_non_finite: non_finite.points,
+        non_finite_keyframes: non_finite.keyframes,
         timing: Timing {
             read_s: 0.0,
             align_s,

@@ -1,13 +1,16 @@
 //! The files a conversion writes: `world.mcap` (Foxglove or ROS 2),
 //! `cloud.ply`, `trajectory.txt`, `map.bt` (with an octree), the input's own
 //! model (`model/`, a COLMAP model folder in the input's flavour) and
-//! `report.json`.
+//! `report.json`, as one [`OutputSet`]: all written under temporary names,
+//! then published together, the names of [`OUTPUT_NAMES`] this run did not
+//! write removed; never over an input of the run.
 
 use std::path::Path;
 use std::time::Instant;
 
 use crate::error::{Error, Result};
-use crate::io::mcap::{write_world_mcap_with_octomap, WorldFlavor, WorldScene};
+use crate::io::atomic::{Committed, OutputSet};
+use crate::io::mcap::{write_world_mcap_into, WorldFlavor, WorldScene};
 use crate::map::{OccupancyMap, VoxelState};
 
 use super::native::NativeModel;
@@ -28,6 +31,42 @@ pub const TRAJECTORY_TUM: &str = "trajectory.txt";
 /// folder, same flavour), written when the input has one.
 pub const COLMAP_MODEL: &str = "model";
 
+/// Every name a conversion may write into its output folder. A writer that
+/// adds an output adds its name here: a later run that does not produce it
+/// removes the stale one.
+/// (`model/…`: the files of a COLMAP model of either flavour.)
+pub const OUTPUT_NAMES: &[&str] = &[
+    WORLD_MCAP,
+    CLOUD_PLY,
+    TRAJECTORY_TUM,
+    MAP_BT,
+    REPORT_JSON,
+    "model/cameras.bin",
+    "model/rigs.bin",
+    "model/frames.bin",
+    "model/images.bin",
+    "model/points3D.bin",
+    "model/cameras.txt",
+    "model/rigs.txt",
+    "model/frames.txt",
+    "model/images.txt",
+    "model/points3D.txt",
+];
+
+/// The output set of a conversion in `dir`: the names of [`OUTPUT_NAMES`],
+/// none of which may be one of `inputs` (the log, the reference, the cloud).
+/// Make it before the conversion to refuse a bad output folder before the work.
+pub fn output_set<P: AsRef<Path>>(
+    dir: &Path,
+    inputs: impl IntoIterator<Item = P>,
+) -> Result<OutputSet> {
+    let set = OutputSet::folder(dir, OUTPUT_NAMES)?.with_inputs(inputs);
+    for name in OUTPUT_NAMES {
+        set.check_output(&dir.join(name))?;
+    }
+    Ok(set)
+}
+
 impl Conversion {
     /// Writes `world.mcap` (cloud, both trajectories, `world → slam`, and the
     /// occupied voxels of `octree` when given).
@@ -37,6 +76,14 @@ impl Conversion {
         flavor: WorldFlavor,
         octree: Option<&OccupancyMap>,
     ) -> Result<()> {
+        let mut set = OutputSet::new().with_inputs([&self.report.input]);
+        self.world_mcap_into(&mut set, path.as_ref(), flavor, octree)?;
+        set.commit().map(|_| ())
+    }
+
+    /// The last SLAM stamp, the time of the messages of `world.mcap`;
+    /// refused (naming the keyframe) where an MCAP log time cannot hold it.
+    fn world_stamp(&self) -> Result<f64> {
         let stamp = self
             .slam_trajectory
             .timestamps
@@ -44,18 +91,40 @@ impl Conversion {
             .copied()
             .unwrap_or(0.0)
             .max(0.0);
+        if stamp >= 1.8e10 {
+            let id = self.report.pairs.last().map(|p| p.keyframe_id);
+            return Err(Error::invalid(
+                "keyframe time",
+                format!(
+                    "the last SLAM stamp{} of {} is {} s, beyond what an MCAP log time holds (1.8e10 s); world.mcap not written",
+                    id.map_or(String::new(), |id| format!(" (keyframe {id})")),
+                    self.report.input.display(),
+                    crate::error::num(stamp)
+                ),
+            ));
+        }
+        Ok(stamp)
+    }
+
+    fn world_mcap_into(
+        &self,
+        set: &mut OutputSet,
+        path: &Path,
+        flavor: WorldFlavor,
+        octree: Option<&OccupancyMap>,
+    ) -> Result<()> {
         let scene = WorldScene {
             points: &self.cloud.points,
             colors: self.cloud.colors.as_deref(),
             t_world_slam: self.transform(),
             slam_trajectory: Some(&self.slam_trajectory),
             reference: self.reference.as_ref(),
-            stamp,
+            stamp: self.world_stamp()?,
             world_frame: "world",
             slam_frame: "slam",
         };
         let leaves = octree.map(|m| m.leaves(VoxelState::Occupied));
-        write_world_mcap_with_octomap(path, &scene, leaves.as_deref(), flavor)
+        write_world_mcap_into(set, path, &scene, leaves.as_deref(), flavor)
     }
 
     /// Writes `world.mcap` with the conversion's own octree.
@@ -66,23 +135,37 @@ impl Conversion {
     /// Writes the octree as an OctoMap `.bt` file (through a temporary file,
     /// renamed). Error when the conversion has no octree.
     pub fn write_bt(&self, path: impl AsRef<Path>) -> Result<()> {
-        write_bt(self.octree.as_ref(), path.as_ref())
+        let mut set = OutputSet::new().with_inputs([&self.report.input]);
+        write_bt_into(&mut set, self.octree.as_ref(), path.as_ref())?;
+        set.commit().map(|_| ())
     }
 
     /// Writes the world cloud as binary PLY.
     pub fn write_ply(&self, path: impl AsRef<Path>) -> Result<()> {
-        crate::io::ply::write_ply(path, &self.cloud)
+        let mut set = OutputSet::new().with_inputs([&self.report.input]);
+        self.ply_into(&mut set, path.as_ref())?;
+        set.commit().map(|_| ())
+    }
+
+    /// The world cloud as binary PLY, one output of `set`.
+    pub fn ply_into(&self, set: &mut OutputSet, path: &Path) -> Result<()> {
+        crate::io::ply::write_ply_into(set, path, &self.cloud.points, self.cloud.colors.as_deref())
     }
 
     /// Writes `report.json` (through a temporary file, renamed).
     pub fn write_report(&self, path: impl AsRef<Path>) -> Result<()> {
-        write_report(&self.report, path.as_ref())
+        let mut set = OutputSet::new().with_inputs([&self.report.input]);
+        set.write_bytes(path.as_ref(), &to_json_bytes(&self.report)?)?;
+        set.commit().map(|_| ())
     }
 
     /// Writes the SLAM poses in the world frame (`T_world_cam`, the frames'
     /// stamps) as a TUM file, atomically.
     pub fn write_tum(&self, path: impl AsRef<Path>) -> Result<()> {
-        crate::io::text::write_tum(&self.slam_trajectory, path)
+        let mut set = OutputSet::new().with_inputs([&self.report.input]);
+        let path = path.as_ref();
+        set.write_bytes(path, &crate::io::text::tum_bytes(&self.slam_trajectory)?)?;
+        set.commit().map(|_| ())
     }
 
     /// Writes the input's own model in the world frame into the folder
@@ -104,13 +187,12 @@ impl Conversion {
 
     /// Writes `world.mcap`, `cloud.ply`, `trajectory.txt`, `report.json`,
     /// with an octree `map.bt`, and with a model of the input's own `model/`
-    /// into `dir` (created when missing), as one set: everything is written
-    /// into a temporary folder inside `dir` first and moved under its final
-    /// name once all is written (`report.json` last), so a failure leaves the
-    /// previous outputs as they were; a `map.bt` or `model/` of an earlier
-    /// run that this set does not have is removed with them. The written
-    /// report carries the write time.
-    pub fn write_all(&self, dir: impl AsRef<Path>, flavor: WorldFlavor) -> Result<()> {
+    /// into `dir` (created when missing); the written report carries the
+    /// write time. All or nothing: when one fails (or the run is
+    /// interrupted), the previous outputs in `dir` stay as they were; on
+    /// success, a `map.bt` or `model/` file of an earlier run that this one
+    /// does not produce is removed. Never writes over the conversion's input.
+    pub fn write_all(&self, dir: impl AsRef<Path>, flavor: WorldFlavor) -> Result<Committed> {
         self.write_all_with(dir, flavor, self.octree.as_ref())
     }
 
@@ -121,55 +203,58 @@ impl Conversion {
         dir: impl AsRef<Path>,
         flavor: WorldFlavor,
         octree: Option<&OccupancyMap>,
+    ) -> Result<Committed> {
+        let mut set = output_set(dir.as_ref(), [&self.report.input])?;
+        self.write_into(&mut set, flavor, octree)?;
+        set.commit()
+    }
+
+    /// Writes every output of the conversion into the folder of `set`
+    /// ([`output_set`]), to be published by [`OutputSet::commit`].
+    pub fn write_into(
+        &self,
+        set: &mut OutputSet,
+        flavor: WorldFlavor,
+        octree: Option<&OccupancyMap>,
     ) -> Result<()> {
-        let dir = dir.as_ref();
-        std::fs::create_dir_all(dir).map_err(|e| Error::io(dir, e))?;
         let t = Instant::now();
-        let stage = tempfile::Builder::new()
-            .prefix(".slam2world-")
-            .tempdir_in(dir)
-            .map_err(|e| Error::io(dir, e))?;
-        let s = stage.path();
-        let mut names = vec![WORLD_MCAP, CLOUD_PLY, TRAJECTORY_TUM];
-        self.write_world_mcap_with(s.join(WORLD_MCAP), flavor, octree)?;
-        self.write_ply(s.join(CLOUD_PLY))?;
-        self.write_tum(s.join(TRAJECTORY_TUM))?;
+        let [world, cloud, tum, bt, json] =
+            [WORLD_MCAP, CLOUD_PLY, TRAJECTORY_TUM, MAP_BT, REPORT_JSON].map(|n| set.path(n));
+        self.world_mcap_into(set, &world, flavor, octree)?;
+        self.ply_into(set, &cloud)?;
+        set.write_bytes(&tum, &crate::io::text::tum_bytes(&self.slam_trajectory)?)?;
         if octree.is_some() {
-            write_bt(octree, &s.join(MAP_BT))?;
-            names.push(MAP_BT);
+            write_bt_into(set, octree, &bt)?;
         }
-        if self.native.is_some() {
-            self.write_model(s.join(COLMAP_MODEL), None)?;
-            names.push(COLMAP_MODEL);
+        if let Some(NativeModel::Colmap(m)) = &self.native {
+            let dir = set.path(COLMAP_MODEL);
+            std::fs::create_dir_all(&dir).map_err(|e| Error::io(&dir, e))?;
+            for (stem, bytes) in m.encode(&dir, m.format)? {
+                let name = format!("{COLMAP_MODEL}/{stem}.{}", m.format.extension());
+                set.write_bytes(&set.path(&name), &bytes)?;
+            }
         }
         let mut report = self.report.clone();
         report.timing.write_s = t.elapsed().as_secs_f64();
-        write_report(&report, &s.join(REPORT_JSON))?;
-        names.push(REPORT_JSON);
-        // Stale outputs of an earlier run that this set does not have.
-        let stale = [MAP_BT, COLMAP_MODEL]
-            .into_iter()
-            .filter(|n| !names.contains(n));
-        for name in stale.chain(names.iter().copied()) {
-            let dst = dir.join(name);
-            if dst.is_dir() || (dst.exists() && !s.join(name).exists()) {
-                // Moved into the stage, removed with it.
-                let old = s.join(format!(".old-{name}"));
-                std::fs::rename(&dst, &old).map_err(|e| Error::io(&dst, e))?;
-            }
-            let src = s.join(name);
-            if src.exists() {
-                std::fs::rename(&src, &dst).map_err(|e| Error::io(&dst, e))?;
-            }
-        }
-        stage.close().map_err(|e| Error::io(dir, e))
+        set.write_bytes(&json, &to_json_bytes(&report)?)
     }
 }
 
 /// Writes `octree` as `.bt`; an error without one.
 pub fn write_bt(octree: Option<&OccupancyMap>, path: &Path) -> Result<()> {
+    let mut set = OutputSet::new();
+    write_bt_into(&mut set, octree, path)?;
+    set.commit().map(|_| ())
+}
+
+/// `octree` as `.bt`, one output of `set`; an error without one.
+pub fn write_bt_into(
+    set: &mut OutputSet,
+    octree: Option<&OccupancyMap>,
+    path: &Path,
+) -> Result<()> {
     match octree {
-        Some(m) => m.write_bt(path),
+        Some(m) => set.write_bytes(path, &m.to_bt_bytes()),
         None => Err(Error::invalid(
             "octree",
             "the conversion has no octree (convert with an octree resolution)",

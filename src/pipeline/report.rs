@@ -454,6 +454,11 @@ pub struct Report {
     pub windowed: Option<WindowedReport>,
     /// Points in the world cloud.
     pub points: usize,
+    /// Points dropped because a coordinate was not finite (an inverse depth
+    /// so small that its depth overflows `f32`); 0 for a sound input.
+    pub points_non_finite: usize,
+    /// The keyframes those points came from, by id.
+    pub non_finite_keyframes: Vec<i32>,
     /// Stage timings.
     pub timing: Timing,
     /// The inertial initialisation, when the input has raw IMU samples.

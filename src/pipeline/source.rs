@@ -204,27 +204,31 @@ impl Source for TrajectoryFiles {
     }
 }
 
-/// The source of a log file, found from its first bytes (MCAP today).
+/// The source of a log file, found from its first bytes (MCAP today) by
+/// [`crate::io::container::detect`], which refuses folders without a bag,
+/// FIFOs and devices without opening them.
 ///
-/// Errors: [`Error::Io`] when it cannot be opened, [`Error::Parse`] when its
-/// content is no log slam2world reads.
+/// Errors: [`Error::Io`] when it cannot be opened, [`Error::Container`] when
+/// it is no log slam2world reads.
 pub fn open_log(path: &Path, read: &ReadOptions) -> Result<Box<dyn Source>> {
-    use std::io::Read;
-    let mut head = [0u8; 8];
-    let n = std::fs::File::open(path)
-        .and_then(|mut f| f.read(&mut head))
-        .map_err(|e| Error::io(path, e))?;
-    if head[..n] == crate::io::mcap::reader::MAGIC[..] {
-        return Ok(Box::new(McapSource {
+    use crate::io::container::{detect, Container};
+    match detect(path)? {
+        Container::Mcap => Ok(Box::new(McapSource {
             path: path.to_path_buf(),
             read: read.clone(),
-        }));
+        })),
+        other => Err(Error::Mcap {
+            path: path.to_path_buf(),
+            reason: format!(
+                "{}: convert reads MCAP logs (expected an MCAP file)",
+                match other {
+                    Container::Ros1Bag => "a ROS 1 bag",
+                    Container::Ros2Folder => "a rosbag2 folder",
+                    _ => "a rosbag2 database",
+                }
+            ),
+        }),
     }
-    Err(Error::parse(
-        path,
-        0,
-        "not a log slam2world reads (expected an MCAP file)",
-    ))
 }
 
 impl Recording {

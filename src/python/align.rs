@@ -464,8 +464,8 @@ fn skip_init_arg(obj: Option<&Bound<'_, PyAny>>) -> PyResult<SkipInit> {
         if s.eq_ignore_ascii_case("auto") {
             return Ok(SkipInit::Auto);
         }
-    } else if let Ok(n) = o.extract::<usize>() {
-        return Ok(SkipInit::First(n));
+    } else if o.is_instance_of::<pyo3::types::PyInt>() {
+        return Ok(SkipInit::First(super::arrays::uint_arg(o, "skip_init")?));
     }
     Err(Error::invalid("skip_init", "expected None, \"auto\" or a pair count >= 0").into())
 }
@@ -542,7 +542,7 @@ fn align_trajectories_py(
     max_diff: f64,
     offset: f64,
     scale: bool,
-    n_to_align: Option<usize>,
+    #[pyo3(from_py_with = super::arrays::uint::n_to_align)] n_to_align: Option<usize>,
     method: &str,
     skip_init: Option<&Bound<'_, PyAny>>,
     robust: Option<&str>,
@@ -768,7 +768,7 @@ impl PyWindowedAlignment {
 /// path); `what` names the argument in the error (`align_windowed`, `convert`).
 pub(crate) fn window_arg(w: &Bound<'_, PyAny>, what: &str) -> PyResult<Window> {
     if w.is_instance_of::<pyo3::types::PyInt>() {
-        return Ok(Window::Poses(w.extract()?));
+        return Ok(Window::Poses(super::arrays::uint_arg(w, what)?));
     }
     match w.extract::<f64>() {
         Ok(d) => Ok(Window::Distance(d)),

@@ -23,23 +23,84 @@ pub fn c_slice<'a, T: Element, D: Dimension>(a: &'a PyReadonlyArray<'_, T, D>) -
     }
 }
 
+/// A shape as NumPy prints it: `(4, 4)`, `(3,)`, `()`.
+pub fn shape_text(shape: &[usize]) -> String {
+    match shape {
+        [n] => format!("({n},)"),
+        _ => format!(
+            "({})",
+            shape
+                .iter()
+                .map(|n| n.to_string())
+                .collect::<Vec<_>>()
+                .join(", ")
+        ),
+    }
+}
+
 fn shape_err(what: &str, expected: &str, shape: &[usize]) -> PyErr {
     Error::ShapeMismatch {
         what: what.into(),
         expected: expected.into(),
-        got: format!("{shape:?}"),
+        got: shape_text(shape),
     }
     .into()
 }
 
+/// What an argument that is not the array asked for is, for the error: its
+/// shape when NumPy gives it one (`(4,)`, `(2, 3, 3)`, `()` for a number),
+/// else its type (`a str`, a ragged list).
+pub fn given(obj: &Bound<'_, PyAny>) -> String {
+    // A string is no array of numbers, whatever shape numpy gives it (`()`).
+    let text = obj.is_instance_of::<pyo3::types::PyString>()
+        || obj.is_instance_of::<pyo3::types::PyBytes>();
+    let shape = (!text)
+        .then(|| {
+            obj.getattr("shape").ok().or_else(|| {
+                let np = obj.py().import("numpy").ok()?;
+                np.call_method1("shape", (obj,)).ok()
+            })
+        })
+        .flatten();
+    match shape.and_then(|s| s.extract::<Vec<usize>>().ok()) {
+        Some(s) => format!("shape {}", shape_text(&s)),
+        None => {
+            let t = obj
+                .get_type()
+                .name()
+                .map(|n| n.to_string())
+                .unwrap_or_else(|_| "?".into());
+            format!("a {t} (not an array of numbers)")
+        }
+    }
+}
+
 /// Any array-like as an `(N, cols)` row-major `f64` vector (copied).
 pub fn rows_f64(obj: &Bound<'_, PyAny>, what: &str, cols: usize) -> PyResult<Vec<f64>> {
-    let arr: PyArrayLike2<'_, f64, AllowTypeChange> = obj
-        .extract()
-        .map_err(|_| shape_err(what, &format!("a 2-D array of shape (N, {cols})"), &[]))?;
+    rows_f64_as(obj, what, cols, &format!("(N, {cols})"))
+}
+
+/// [`rows_f64`] whose error says `expected` (e.g. `(3, 3)` for a matrix).
+fn rows_f64_as(
+    obj: &Bound<'_, PyAny>,
+    what: &str,
+    cols: usize,
+    expected: &str,
+) -> PyResult<Vec<f64>> {
+    let arr: PyArrayLike2<'_, f64, AllowTypeChange> = match obj.extract() {
+        Ok(a) => a,
+        Err(_) => {
+            return Err(Error::ShapeMismatch {
+                what: what.into(),
+                expected: format!("a 2-D array of shape {expected}"),
+                got: given(obj),
+            }
+            .into())
+        }
+    };
     let shape = arr.shape().to_vec();
     if shape[1] != cols {
-        return Err(shape_err(what, &format!("(N, {cols})"), &shape));
+        return Err(shape_err(what, expected, &shape));
     }
     let v: Vec<f64> = match c_slice(&arr) {
         Some(s) => s.to_vec(),
@@ -51,9 +112,20 @@ pub fn rows_f64(obj: &Bound<'_, PyAny>, what: &str, cols: usize) -> PyResult<Vec
 
 /// Any array-like as a 1-D `f64` vector (copied), optionally of a fixed length.
 pub fn vec_f64(obj: &Bound<'_, PyAny>, what: &str, len: Option<usize>) -> PyResult<Vec<f64>> {
-    let arr: PyArrayLike1<'_, f64, AllowTypeChange> = obj
-        .extract()
-        .map_err(|_| shape_err(what, "a 1-D array", &[]))?;
+    let arr: PyArrayLike1<'_, f64, AllowTypeChange> = match obj.extract() {
+        Ok(a) => a,
+        Err(_) => {
+            return Err(Error::ShapeMismatch {
+                what: what.into(),
+                expected: match len {
+                    Some(n) => format!("a 1-D array of shape ({n},)"),
+                    None => "a 1-D array".into(),
+                },
+                got: given(obj),
+            }
+            .into())
+        }
+    };
     let v: Vec<f64> = arr.as_array().iter().copied().collect();
     if let Some(n) = len {
         if v.len() != n {
@@ -78,7 +150,7 @@ pub fn vector3(obj: &Bound<'_, PyAny>, what: &str) -> PyResult<Vector3<f64>> {
 
 /// A 3×3 matrix from a row-major array-like.
 pub fn matrix3(obj: &Bound<'_, PyAny>, what: &str) -> PyResult<Matrix3<f64>> {
-    let v = rows_f64(obj, what, 3)?;
+    let v = rows_f64_as(obj, what, 3, "(3, 3)")?;
     if v.len() != 9 {
         return Err(shape_err(what, "(3, 3)", &[v.len() / 3, 3]));
     }
@@ -87,11 +159,118 @@ pub fn matrix3(obj: &Bound<'_, PyAny>, what: &str) -> PyResult<Matrix3<f64>> {
 
 /// A 4×4 matrix from a row-major array-like.
 pub fn matrix4(obj: &Bound<'_, PyAny>, what: &str) -> PyResult<Matrix4<f64>> {
-    let v = rows_f64(obj, what, 4)?;
+    let v = rows_f64_as(obj, what, 4, "(4, 4)")?;
     if v.len() != 16 {
         return Err(shape_err(what, "(4, 4)", &[v.len() / 4, 4]));
     }
     Ok(Matrix4::from_row_slice(&v))
+}
+
+/// A Python int as an unsigned integer argument: a negative or too large
+/// value is an `InvalidInputError` naming the argument and the range (PyO3
+/// alone raises a bare `OverflowError`); a value that is no int keeps
+/// PyO3's `TypeError` (which names the argument).
+pub fn uint_arg<T>(obj: &Bound<'_, PyAny>, what: &str) -> PyResult<T>
+where
+    T: TryFrom<i128> + num_max::Max,
+{
+    let v: i128 = match obj.extract() {
+        Ok(v) => v,
+        Err(e) if e.is_instance_of::<pyo3::exceptions::PyOverflowError>(obj.py()) => {
+            return Err(Error::invalid(
+                what,
+                format!(
+                    "expected an integer from 0 to {}, got a larger one",
+                    T::MAX_TEXT
+                ),
+            )
+            .into())
+        }
+        Err(e) => return Err(e),
+    };
+    T::try_from(v).map_err(|_| {
+        Error::invalid(
+            what,
+            format!("expected an integer from 0 to {}, got {v}", T::MAX_TEXT),
+        )
+        .into()
+    })
+}
+
+/// [`uint_arg`] that takes `None` as `None`.
+pub fn opt_uint_arg<T>(obj: &Bound<'_, PyAny>, what: &str) -> PyResult<Option<T>>
+where
+    T: TryFrom<i128> + num_max::Max,
+{
+    if obj.is_none() {
+        Ok(None)
+    } else {
+        uint_arg(obj, what).map(Some)
+    }
+}
+
+/// The largest value of the unsigned types [`uint_arg`] gives, as text.
+pub mod num_max {
+    /// The largest value, as text.
+    pub trait Max {
+        /// `u32::MAX` etc. as text.
+        const MAX_TEXT: &'static str;
+    }
+    impl Max for u8 {
+        const MAX_TEXT: &'static str = "255";
+    }
+    impl Max for u32 {
+        const MAX_TEXT: &'static str = "4294967295";
+    }
+    impl Max for u64 {
+        const MAX_TEXT: &'static str = "18446744073709551615";
+    }
+    impl Max for usize {
+        const MAX_TEXT: &'static str = if usize::BITS == 64 {
+            "18446744073709551615"
+        } else {
+            "4294967295"
+        };
+    }
+}
+
+/// Extractors of unsigned arguments by name, for `#[pyo3(from_py_with = ...)]`
+/// (the function does not learn the argument's name otherwise).
+pub mod uint {
+    use super::{opt_uint_arg, uint_arg};
+    use pyo3::prelude::*;
+
+    macro_rules! named {
+        ($($f:ident: $t:ty = $name:literal;)*) => {$(
+            #[doc = concat!("The argument `", $name, "`.")]
+            pub fn $f(obj: &Bound<'_, PyAny>) -> PyResult<$t> {
+                uint_arg(obj, $name)
+            }
+        )*};
+    }
+    macro_rules! named_opt {
+        ($($f:ident: $t:ty = $name:literal;)*) => {$(
+            #[doc = concat!("The argument `", $name, "` (or None).")]
+            pub fn $f(obj: &Bound<'_, PyAny>) -> PyResult<Option<$t>> {
+                opt_uint_arg(obj, $name)
+            }
+        )*};
+    }
+    named! {
+        width: u32 = "width";
+        height: u32 = "height";
+        min_near_support: u32 = "min_near_support";
+        sparsify: u32 = "sparsify";
+        seed: u64 = "seed";
+        min_count: u32 = "min_count";
+        reduced: usize = "reduced";
+        zone: u8 = "zone";
+    }
+    named_opt! {
+        cut_first_keyframes: usize = "cut_first_keyframes";
+        n_to_align: usize = "n_to_align";
+        opt_zone: u8 = "zone";
+    }
 }
 
 /// A row-major `(rows, cols)` `f64` buffer as a new NumPy array (no copy).
@@ -134,10 +313,13 @@ impl<'py> Points<'py> {
         let p = if let Ok(a) = obj.cast::<PyArray2<f32>>() {
             Points::F32(a.readonly())
         } else {
-            Points::F64(
-                obj.extract()
-                    .map_err(|_| shape_err(what, "a 2-D array of shape (N, 3)", &[]))?,
-            )
+            Points::F64(obj.extract().map_err(|_| {
+                PyErr::from(Error::ShapeMismatch {
+                    what: what.into(),
+                    expected: "a 2-D array of shape (N, 3)".into(),
+                    got: given(obj),
+                })
+            })?)
         };
         let shape = match &p {
             Points::F32(a) => a.shape().to_vec(),
@@ -161,7 +343,7 @@ pub(crate) fn with_points<R>(
         PyErr::from(Error::ShapeMismatch {
             what: what.into(),
             expected: "a 2-D array of shape (N, 3)".into(),
-            got: "something else".into(),
+            got: given(obj),
         })
     })?;
     let shape = arr.shape();
@@ -169,7 +351,7 @@ pub(crate) fn with_points<R>(
         return Err(Error::ShapeMismatch {
             what: what.into(),
             expected: "(N, 3)".into(),
-            got: format!("{shape:?}"),
+            got: shape_text(shape),
         }
         .into());
     }

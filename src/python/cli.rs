@@ -2,10 +2,21 @@
 
 use pyo3::prelude::*;
 
-/// Runs the command line with `argv` (program name first); returns the exit code.
+/// Runs the command line with `argv` (program name first; `str` or `bytes`,
+/// paths that are not UTF-8 included, as `sys.argv` holds them); returns the
+/// exit code. A run stopped by Ctrl-C (exit code 130) raises
+/// `KeyboardInterrupt` once its outputs are cleaned up.
 #[pyfunction]
-fn run_cli(py: Python<'_>, argv: Vec<String>) -> i32 {
-    py.detach(|| crate::cli::main_with_args(argv))
+fn run_cli(py: Python<'_>, argv: Vec<std::ffi::OsString>) -> PyResult<i32> {
+    let code = py.detach(|| crate::cli::main_with_args(argv));
+    // Python's own SIGINT handler ran too (it is chained): this raises its KeyboardInterrupt.
+    py.check_signals()?;
+    if code == crate::interrupt::exit_code(crate::interrupt::SIGINT) {
+        return Err(pyo3::exceptions::PyKeyboardInterrupt::new_err(
+            "interrupted by SIGINT: no output written",
+        ));
+    }
+    Ok(code)
 }
 
 pub fn register(m: &Bound<'_, PyModule>) -> PyResult<()> {

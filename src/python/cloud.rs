@@ -50,7 +50,14 @@ pub struct PyPinholeCamera {
 #[pymethods]
 impl PyPinholeCamera {
     #[new]
-    fn new(fx: f64, fy: f64, cx: f64, cy: f64, width: u32, height: u32) -> PyResult<Self> {
+    fn new(
+        fx: f64,
+        fy: f64,
+        cx: f64,
+        cy: f64,
+        #[pyo3(from_py_with = super::arrays::uint::width)] width: u32,
+        #[pyo3(from_py_with = super::arrays::uint::height)] height: u32,
+    ) -> PyResult<Self> {
         Ok(PyPinholeCamera {
             inner: PinholeCamera::try_new(fx, fy, cx, cy, width, height)?,
         })
@@ -58,7 +65,11 @@ impl PyPinholeCamera {
 
     /// Principal point at the image centre, square pixels, horizontal field of view in degrees.
     #[staticmethod]
-    fn from_hfov(width: u32, height: u32, hfov_deg: f64) -> PyResult<Self> {
+    fn from_hfov(
+        #[pyo3(from_py_with = super::arrays::uint::width)] width: u32,
+        #[pyo3(from_py_with = super::arrays::uint::height)] height: u32,
+        hfov_deg: f64,
+    ) -> PyResult<Self> {
         Ok(PyPinholeCamera {
             inner: PinholeCamera::from_hfov(width, height, hfov_deg)?,
         })
@@ -107,14 +118,18 @@ pub struct PyKeyframe {
 
 /// An (H, W) image as a row-major float32 vector.
 fn image_f32(obj: &Bound<'_, PyAny>, what: &str, h: usize, w: usize) -> PyResult<Vec<f32>> {
-    let a: PyArrayLike2<'_, f32, AllowTypeChange> = obj
-        .extract()
-        .map_err(|_| shape_err(what, format!("a 2-D array ({h}, {w})"), "not one".into()))?;
+    let a: PyArrayLike2<'_, f32, AllowTypeChange> = obj.extract().map_err(|_| {
+        shape_err(
+            what,
+            format!("a 2-D array ({h}, {w})"),
+            super::arrays::given(obj),
+        )
+    })?;
     if a.shape() != [h, w] {
         return Err(shape_err(
             what,
             format!("({h}, {w})"),
-            format!("{:?}", a.shape()),
+            super::arrays::shape_text(a.shape()),
         ));
     }
     Ok(match c_slice(&a) {
@@ -275,11 +290,12 @@ impl PyPointFilter {
     fn new(
         scaled_depth_var: f32,
         abs_depth_var: f32,
-        min_near_support: u32,
-        sparsify: u32,
+        #[pyo3(from_py_with = super::arrays::uint::min_near_support)] min_near_support: u32,
+        #[pyo3(from_py_with = super::arrays::uint::sparsify)] sparsify: u32,
+        #[pyo3(from_py_with = super::arrays::uint::cut_first_keyframes)]
         cut_first_keyframes: Option<usize>,
         skip_border: bool,
-        seed: u64,
+        #[pyo3(from_py_with = super::arrays::uint::seed)] seed: u64,
     ) -> PyResult<Self> {
         let inner = PointFilter {
             scaled_depth_var,
@@ -503,7 +519,7 @@ impl PyPointCloud {
         path: PathBuf,
         origin: &Bound<'_, PyAny>,
         crs: &str,
-        zone: Option<u8>,
+        #[pyo3(from_py_with = super::arrays::uint::opt_zone)] zone: Option<u8>,
         hemisphere: Option<&str>,
     ) -> PyResult<u16> {
         let colors = self.colors.as_ref().map(|c| c.bind(py).readonly());

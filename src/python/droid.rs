@@ -129,7 +129,7 @@ fn filter_consistent_py(
     py: Python<'_>,
     keyframes: &Bound<'_, PyAny>,
     threshold: f64,
-    min_count: u32,
+    #[pyo3(from_py_with = super::arrays::uint::min_count)] min_count: u32,
     min_disparity_ratio: f64,
     neighbours: Option<Vec<isize>>,
 ) -> PyResult<Vec<PyKeyframe>> {

@@ -5,7 +5,9 @@
 //! - `InvalidInputError(Slam2WorldError, ValueError)`: shapes, NaN/inf, bad arguments, out-of-range queries;
 //! - `DegenerateError(InvalidInputError)`: input whose geometry does not determine the answer;
 //! - `FormatError(Slam2WorldError, ValueError)`: malformed files and logs;
-//! - `FileError(Slam2WorldError, OSError)`: files that cannot be opened or written.
+//! - `FileError(Slam2WorldError, OSError)`: files that cannot be opened or written;
+//!
+//! and an interrupted run (SIGINT, SIGTERM) raises `KeyboardInterrupt`.
 
 use pyo3::exceptions::{PyException, PyOSError, PyValueError};
 use pyo3::prelude::*;
@@ -120,10 +122,21 @@ impl From<Error> for PyErr {
                 | Error::Bag { .. }
                 | Error::Container { .. } => &c.format,
                 Error::Io { source, .. } => {
-                    // OSError(errno, strerror, filename) keeps .errno/.filename usable.
-                    let errno = source.raw_os_error();
-                    let args = (errno, err.to_string());
-                    return PyErr::from_type(c.file.bind(py).clone(), args);
+                    // OSError(errno, strerror) keeps .errno usable; without an errno,
+                    // the message alone (not "[Errno None] ...").
+                    return match source.raw_os_error() {
+                        Some(errno) => {
+                            PyErr::from_type(c.file.bind(py).clone(), (errno, err.to_string()))
+                        }
+                        None => PyErr::from_type(c.file.bind(py).clone(), err.to_string()),
+                    };
+                }
+                Error::Output { .. } => &c.file,
+                Error::OutOfMemory { .. } => {
+                    return pyo3::exceptions::PyMemoryError::new_err(err.to_string())
+                }
+                Error::Interrupted { .. } => {
+                    return pyo3::exceptions::PyKeyboardInterrupt::new_err(err.to_string())
                 }
             };
             PyErr::from_type(cls.bind(py).clone(), err.to_string())

@@ -432,7 +432,7 @@ fn geodetic_to_utm_py<'py>(
     lat: &Bound<'py, PyAny>,
     lon: &Bound<'py, PyAny>,
     alt: &Bound<'py, PyAny>,
-    zone: Option<u8>,
+    #[pyo3(from_py_with = super::arrays::uint::opt_zone)] zone: Option<u8>,
     hemisphere: Option<&str>,
 ) -> PyResult<(Bound<'py, PyArray2<f64>>, u8, &'static str, u16)> {
     let g = geodetic_columns(lat, lon, alt)?;
@@ -452,7 +452,7 @@ fn geodetic_to_utm_py<'py>(
 fn utm_to_geodetic_py<'py>(
     py: Python<'py>,
     xyz: &Bound<'py, PyAny>,
-    zone: u8,
+    #[pyo3(from_py_with = super::arrays::uint::zone)] zone: u8,
     hemisphere: &str,
 ) -> PyResult<Columns<'py>> {
     let p = vectors(xyz, "xyz")?;

@@ -46,19 +46,29 @@ pub fn apply_points(py: Python<'_>, t: &Sim3, points: &Bound<'_, PyAny>) -> PyRe
     match Points::extract(points, "points")? {
         Points::F32(a) => match c_slice(&a) {
             Some(s) => apply_typed(py, t, s),
-            None => {
-                let v: Vec<f32> = a.as_array().iter().copied().collect();
-                apply_typed(py, t, &v)
-            }
+            None => apply_typed(
+                py,
+                t,
+                &contiguous(a.as_array().iter().copied(), a.as_array().len())?,
+            ),
         },
         Points::F64(a) => match c_slice(&a) {
             Some(s) => apply_typed(py, t, s),
-            None => {
-                let v: Vec<f64> = a.as_array().iter().copied().collect();
-                apply_typed(py, t, &v)
-            }
+            None => apply_typed(
+                py,
+                t,
+                &contiguous(a.as_array().iter().copied(), a.as_array().len())?,
+            ),
         },
     }
+}
+
+/// A contiguous copy of a strided array's `n` values: `MemoryError` (not an
+/// abort) when it does not fit (a broadcast view of 120 M rows is 2.9 GB).
+fn contiguous<T>(values: impl Iterator<Item = T>, n: usize) -> PyResult<Vec<T>> {
+    let mut v = crate::buffer::try_with_capacity("points (a contiguous copy)", n)?;
+    v.extend(values);
+    Ok(v)
 }
 
 #[pymethods]

@@ -40,6 +40,17 @@ fn flavor_of(ros2: bool) -> WorldFlavor {
     }
 }
 
+/// Runs `f` with the GIL released and SIGINT/SIGTERM caught as a flag that
+/// the core's long loops check: Ctrl-C stops the work (its outputs not
+/// written) and raises `KeyboardInterrupt`.
+pub(crate) fn interruptible<R: Send>(
+    py: Python<'_>,
+    f: impl FnOnce() -> crate::Result<R> + Send,
+) -> crate::Result<R> {
+    let _guard = crate::interrupt::Guard::new(crate::interrupt::Second::Flags);
+    py.detach(f)
+}
+
 impl PyConversion {
     /// Runs `f` with the octree (the Python object's, which is the
     /// conversion's own) and the GIL released.
@@ -50,6 +61,7 @@ impl PyConversion {
             + Send,
     ) -> PyResult<R> {
         let inner = &self.inner;
+        let _guard = crate::interrupt::Guard::new(crate::interrupt::Second::Flags);
         match &self.octree {
             // Under the map's read lock (other threads' inserts wait).
             Some(m) => Ok(m.get().read(py, |map| f(inner, Some(map)))?),
@@ -164,7 +176,9 @@ impl PyConversion {
     /// into `directory`, as one set (written aside, then moved in).
     #[pyo3(signature = (directory, *, ros2=false))]
     fn write_all(&self, py: Python<'_>, directory: PathBuf, ros2: bool) -> PyResult<()> {
-        self.with_octree(py, |c, m| c.write_all_with(&directory, flavor_of(ros2), m))
+        self.with_octree(py, |c, m| {
+            c.write_all_with(&directory, flavor_of(ros2), m).map(|_| ())
+        })
     }
 }
 
@@ -205,7 +219,7 @@ fn convert_py(
     tf_child: Option<String>,
     max_diff: f64,
     offset: f64,
-    n_to_align: Option<usize>,
+    #[pyo3(from_py_with = super::arrays::uint::n_to_align)] n_to_align: Option<usize>,
     scale: bool,
     method: &str,
     filter: Option<PyRef<'_, PyPointFilter>>,
@@ -310,10 +324,10 @@ fn convert_py(
     };
     let mut conversion = if let Ok(log) = log_or_path.cast::<PyLog>() {
         let log = log.get();
-        py.detach(|| with_reference(&log.log))?
+        interruptible(py, || with_reference(&log.log))?
     } else if let Ok(r) = log_or_path.cast::<PyReconstruction>() {
         let r = r.get();
-        py.detach(|| with_reference(&r.rec))?
+        interruptible(py, || with_reference(&r.rec))?
     } else {
         let path: PathBuf = log_or_path.extract().map_err(|_| {
             PyErr::from(crate::Error::invalid(
@@ -321,7 +335,7 @@ fn convert_py(
                 "expected a Log, a Reconstruction or a path (str or os.PathLike)",
             ))
         })?;
-        py.detach(|| {
+        interruptible(py, || {
             opts.check()?;
             let src = open_input(&path, &opts.read, &reading, reference.as_ref())?;
             pipeline::convert_source(&*src, &opts)

@@ -328,9 +328,9 @@ impl PySimulation {
 #[pyo3(signature = (*, seed=0, noiseless=false, reduced=1, **params))]
 fn simulate_py(
     py: Python<'_>,
-    seed: u64,
+    #[pyo3(from_py_with = super::arrays::uint::seed)] seed: u64,
     noiseless: bool,
-    reduced: usize,
+    #[pyo3(from_py_with = super::arrays::uint::reduced)] reduced: usize,
     params: Option<&Bound<'_, PyDict>>,
 ) -> PyResult<PySimulation> {
     let mut cfg = SimConfig {

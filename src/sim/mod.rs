@@ -463,6 +463,8 @@ pub fn simulate(cfg: &SimConfig) -> Result<Simulation> {
         .zip(kf_poses.par_iter())
         .enumerate()
         .map(|(j, (&k, (p, q, lam)))| {
+            // Rendering is the long part: a Ctrl-C stops it (crate::interrupt).
+            crate::interrupt::check()?;
             let view = render::render(&scene, &camera, &world_rot[k], &world_pos[k]);
             let dm = render::depth_map(
                 &view,

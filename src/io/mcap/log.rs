@@ -736,10 +736,11 @@ pub struct Inventory {
 pub fn inspect_mcap(path: impl AsRef<Path>) -> Result<Inventory> {
     let path = path.as_ref();
     let file = McapFile::open(path)?;
-    let scan = file.scan(|_| true)?;
+    // Counted without keeping any chunk: each task reuses its buffer.
+    let scan = file.scan_map(|_| true, |_, _| ())?;
     let (topics, counts) = topic_inventory(
         &scan.channels,
-        scan.iter().map(|m| (m.channel_id, m.log_time)),
+        scan.messages.iter().map(|m| (m.channel_id, m.log_time)),
     );
     use MessageKind as K;
     let roles: [(&'static str, &[MessageKind]); 4] = [

@@ -26,6 +26,6 @@ pub use log::{inspect_mcap, read_mcap, Inventory, Log, ReadOptions, TopicInfo};
 pub use reader::{ChannelInfo, McapFile, RawMessage, ReadMode, Scan};
 pub use stream::{MappedMessage, MappedScan};
 pub use write::{
-    write_slam_log, write_world_mcap, write_world_mcap_with_octomap, SlamLogOptions, WorldFlavor,
-    WorldScene,
+    write_slam_log, write_slam_log_into, write_world_mcap, write_world_mcap_into,
+    write_world_mcap_with_octomap, SlamLogOptions, WorldFlavor, WorldScene,
 };

@@ -142,10 +142,11 @@ impl Scan<'_> {
     }
 }
 
-/// An MCAP file opened read-only and memory-mapped.
+/// An MCAP file opened read-only and memory-mapped (a file that shrinks
+/// while it is read is an error, not SIGBUS: [`crate::io::mapped`]).
 pub struct McapFile {
     path: PathBuf,
-    map: memmap2::Mmap,
+    map: crate::io::mapped::Mapped,
 }
 
 /// One item of the data section, before chunks are expanded.
@@ -175,10 +176,9 @@ impl McapFile {
     /// does not start with the MCAP magic.
     pub fn open(path: impl AsRef<Path>) -> Result<Self> {
         let path = path.as_ref().to_path_buf();
+        crate::io::mapped::require_file(&path, "an MCAP file")?;
         let file = std::fs::File::open(&path).map_err(|e| Error::io(&path, e))?;
-        // SAFETY: the map is read-only; the file is opened read-only and a log is not
-        // expected to be modified while it is read (as with every mmap-based reader).
-        let map = unsafe { memmap2::Mmap::map(&file) }.map_err(|e| Error::io(&path, e))?;
+        let map = crate::io::mapped::Mapped::map(file, &path)?;
         if map.len() < MAGIC.len() || &map[..MAGIC.len()] != MAGIC {
             return Err(Error::Mcap {
                 path,
@@ -239,11 +239,23 @@ impl McapFile {
         if let Some((_, channels)) = self.indexed_plan()? {
             return Ok(channels);
         }
-        Ok(self.scan(|_| false)?.channels)
+        // Mapped to nothing: each chunk's buffer is reused, none is kept.
+        Ok(self.scan_map(|_| false, |_, _| ())?.channels)
+    }
+
+    /// Fails when the file shrank while it was read (see [`crate::io::mapped`]).
+    pub fn check_unchanged(&self) -> Result<()> {
+        self.map.check()
     }
 
     /// Reads every message whose channel `want` accepts, in file order.
     pub fn scan(&self, want: impl Fn(&ChannelInfo) -> bool + Sync) -> Result<Scan<'_>> {
+        let r = self.scan_unchecked(want);
+        self.map.check()?;
+        r
+    }
+
+    fn scan_unchecked(&self, want: impl Fn(&ChannelInfo) -> bool + Sync) -> Result<Scan<'_>> {
         let profile = self.profile();
         if let Some((chunks, channels)) = self.indexed_plan()? {
             let items = self.wanted_chunks(&chunks, &channels, &want)?;
@@ -272,7 +284,7 @@ impl McapFile {
     pub(super) fn profile(&self) -> String {
         let buf = &self.map[MAGIC.len()..];
         match frame(buf) {
-            Some((op::HEADER, body, _)) => match mcap::parse_record(op::HEADER, body) {
+            Some((op::HEADER, body, _)) => match parse_record(op::HEADER, body) {
                 Ok(Record::Header(h)) => h.profile,
                 _ => String::new(),
             },
@@ -281,22 +293,34 @@ impl McapFile {
     }
 
     /// The chunk indexes (sorted by offset) and channels of the summary, when
-    /// the summary has both and every chunk index points at a chunk.
+    /// the summary has both, every chunk index points at a chunk, and its
+    /// Statistics record (when there is one) counts as many chunks as it
+    /// indexes: otherwise the file is read by a linear scan.
     #[allow(clippy::type_complexity)]
     pub(super) fn indexed_plan(
         &self,
     ) -> Result<Option<(Vec<records::ChunkIndex>, BTreeMap<u16, ChannelInfo>)>> {
         // A damaged summary is not fatal: the linear scan reports what is wrong.
-        let summary = match mcap::Summary::read(&self.map) {
-            Ok(Some(s)) => s,
-            Ok(None) | Err(_) => return Ok(None),
+        let Some(summary) = self.summary() else {
+            return Ok(None);
         };
         if summary.chunk_indexes.is_empty() || summary.channels.is_empty() {
             return Ok(None);
         }
+        if let Some(stats) = &summary.statistics {
+            // A summary that lost a chunk index would silently lose its messages.
+            if stats.chunk_count as usize != summary.chunk_indexes.len() {
+                return Ok(None);
+            }
+        }
         let mut channels = BTreeMap::new();
-        for (id, c) in &summary.channels {
-            channels.insert(*id, channel_info_from_summary(c));
+        for c in &summary.channels {
+            match channel_info(c, &summary.schemas) {
+                Ok(info) => {
+                    channels.insert(c.id, info);
+                }
+                Err(_) => return Ok(None),
+            }
         }
         // Every channel that a chunk's message index names must be known.
         for ci in &summary.chunk_indexes {
@@ -315,6 +339,53 @@ impl McapFile {
         let mut chunks = summary.chunk_indexes;
         chunks.sort_by_key(|c| c.chunk_start_offset);
         Ok(Some((chunks, channels)))
+    }
+
+    /// The summary section: its schemas, channels, chunk indexes and
+    /// Statistics record; `None` when the file has none or it is damaged
+    /// (every record's lengths checked before it is parsed).
+    pub(super) fn summary(&self) -> Option<SummarySection> {
+        let map: &[u8] = &self.map;
+        // Footer record (opcode, length 20, summary start, summary offset start, crc) + magic.
+        const FOOTER: usize = 1 + 8 + 20;
+        let end = map.len().checked_sub(MAGIC.len())?;
+        if &map[end..] != MAGIC || end < MAGIC.len() + FOOTER {
+            return None;
+        }
+        let foot = end - FOOTER;
+        let footer = match frame(&map[foot..end]) {
+            Some((op::FOOTER, body, n)) if n == FOOTER => match parse_record(op::FOOTER, body) {
+                Ok(Record::Footer(f)) => f,
+                _ => return None,
+            },
+            _ => return None,
+        };
+        let start = usize::try_from(footer.summary_start).ok()?;
+        if start == 0 || start < MAGIC.len() || start > foot {
+            return None;
+        }
+        let mut s = SummarySection::default();
+        let mut pos = start;
+        while pos < foot {
+            let (opcode, body, next) = frame(&map[pos..foot])?;
+            match parse_record(opcode, body).ok()? {
+                Record::Schema { header, data } => {
+                    s.schemas.insert(header.id, (header, data.into_owned()));
+                }
+                Record::Channel(c) => s.channels.push(c),
+                Record::ChunkIndex(ci) => s.chunk_indexes.push(ci),
+                Record::Statistics(st) => s.statistics = Some(st),
+                _ => {}
+            }
+            pos += next;
+        }
+        Some(s)
+    }
+
+    /// Messages per channel that the summary's Statistics record counts,
+    /// when it has one.
+    pub(super) fn declared_counts(&self) -> Option<BTreeMap<u16, u64>> {
+        self.summary()?.statistics.map(|s| s.channel_message_counts)
     }
 
     /// The chunks of an indexed file that hold a message of a channel `want`
@@ -347,15 +418,29 @@ impl McapFile {
         let start = ci.chunk_start_offset as usize;
         let buf = &self.map[start..];
         match frame(buf) {
-            Some((op::CHUNK, body, _)) => match mcap::parse_record(op::CHUNK, body) {
+            Some((op::CHUNK, body, _)) => match parse_record(op::CHUNK, body) {
                 Ok(Record::Chunk {
                     header,
                     data: Cow::Borrowed(data),
-                }) => Ok(Item::Chunk {
-                    offset: start,
-                    header,
-                    data,
-                }),
+                }) => {
+                    // The summary and the chunk must agree on its sizes.
+                    if header.uncompressed_size != ci.uncompressed_size
+                        || header.compressed_size != ci.compressed_size
+                    {
+                        return Err(self.err(format!(
+                            "chunk at offset {start}: its header says {} bytes compressed, {} uncompressed; the summary's chunk index {} and {}",
+                            header.compressed_size,
+                            header.uncompressed_size,
+                            ci.compressed_size,
+                            ci.uncompressed_size
+                        )));
+                    }
+                    Ok(Item::Chunk {
+                        offset: start,
+                        header,
+                        data,
+                    })
+                }
                 Ok(_) => Err(self.err(format!(
                     "chunk index points at offset {start}, no chunk there"
                 ))),
@@ -381,7 +466,7 @@ impl McapFile {
                     map.len()
                 )));
             };
-            let record = mcap::parse_record(opcode, body).map_err(|e| {
+            let record = parse_record(opcode, body).map_err(|e| {
                 self.err(format!(
                     "record at offset {pos} (opcode {opcode:#04x}): {e}"
                 ))
@@ -532,6 +617,17 @@ impl McapFile {
 /// The largest decompressed chunk accepted (guards allocations against damaged headers).
 pub(super) const MAX_CHUNK: usize = 1 << 32;
 
+/// Chunks up to this many decompressed bytes are accepted whatever their
+/// compression ratio.
+pub const CHUNK_ANY_RATIO: usize = 64 << 20;
+
+/// Above [`CHUNK_ANY_RATIO`], the largest ratio of decompressed to compressed
+/// bytes a chunk may declare, so that what a file makes the reader allocate
+/// stays within 100 times its size plus a fixed bound. Real logs stay far
+/// below (writers cut chunks at a few MB; zstd on keyframes gives 2–20); a
+/// chunk of 76 KB that declares 2.5 GB is refused before anything is allocated.
+pub const MAX_CHUNK_RATIO: u64 = 100;
+
 /// Decompresses a chunk's records into `out` (cleared first, its allocation reused).
 pub(super) fn decompress_into(
     compression: &str,
@@ -595,6 +691,23 @@ pub(super) fn expand_chunk(
                 header.uncompressed_size
             )
         })?;
+    let compressed = data.len() as u64;
+    if !header.compression.is_empty()
+        && size > CHUNK_ANY_RATIO
+        && header.uncompressed_size > compressed.saturating_mul(MAX_CHUNK_RATIO)
+    {
+        return Err(format!(
+            "declares {} bytes uncompressed from {compressed} compressed, a ratio above \
+             the {MAX_CHUNK_RATIO}:1 accepted for chunks over {CHUNK_ANY_RATIO} bytes (damaged or hostile)",
+            header.uncompressed_size
+        ));
+    }
+    if header.compression.is_empty() && header.uncompressed_size != compressed {
+        return Err(format!(
+            "uncompressed chunk of {compressed} bytes declares {} bytes",
+            header.uncompressed_size
+        ));
+    }
     decompress_into(&header.compression, data, size, buf)?;
     if header.uncompressed_crc != 0 {
         let crc = crc32fast::hash(buf);
@@ -642,7 +755,7 @@ pub(super) fn walk_chunk<'a>(
             };
             f(ChunkItem::Message(pos + next - m.data.len(), m))?;
         } else {
-            let r = mcap::parse_record(opcode, body)
+            let r = parse_record(opcode, body)
                 .map_err(|e| format!("record at chunk offset {pos}: {e}"))?;
             f(ChunkItem::Other(r))?;
         }
@@ -691,21 +804,118 @@ pub(super) fn channel_info(
     })
 }
 
-fn channel_info_from_summary(c: &mcap::Channel<'_>) -> ChannelInfo {
-    let (schema_id, name, encoding, data) = match &c.schema {
-        Some(s) => (s.id, s.name.clone(), s.encoding.clone(), s.data.to_vec()),
-        None => (0, String::new(), String::new(), Vec::new()),
-    };
-    ChannelInfo {
-        id: c.id,
-        topic: c.topic.clone(),
-        message_encoding: c.message_encoding.clone(),
-        schema_id,
-        schema_name: name,
-        schema_encoding: encoding,
-        schema_data: data,
-        metadata: c.metadata.clone(),
+/// What the summary section holds that the reader uses.
+#[derive(Default)]
+pub(super) struct SummarySection {
+    pub(super) schemas: BTreeMap<u16, (records::SchemaHeader, Vec<u8>)>,
+    pub(super) channels: Vec<records::Channel>,
+    pub(super) chunk_indexes: Vec<records::ChunkIndex>,
+    pub(super) statistics: Option<records::Statistics>,
+}
+
+/// [`mcap::parse_record`] after every length inside the record (strings,
+/// maps, arrays, data) was checked against the bytes of the record: the
+/// `mcap` crate reserves a string's declared length before reading it, so a
+/// damaged length of 3.5 GB would be allocated.
+pub(crate) fn parse_record(opcode: u8, body: &[u8]) -> std::result::Result<Record<'_>, String> {
+    check_lengths(opcode, body).map_err(|what| {
+        format!(
+            "{what} (a record of opcode {opcode:#04x} and {} bytes)",
+            body.len()
+        )
+    })?;
+    mcap::parse_record(opcode, body).map_err(|e| e.to_string())
+}
+
+/// The fields of a record, in order, for [`check_lengths`].
+#[derive(Clone, Copy)]
+enum Field {
+    /// A fixed-size field of this many bytes.
+    Fixed(usize),
+    /// `u32` length + UTF-8 bytes.
+    Str,
+    /// `u32` byte length + string pairs.
+    StrMap,
+    /// `u32` byte length + fixed-size entries (maps of integers, arrays).
+    Bytes32,
+    /// `u64` length + bytes.
+    Bytes64,
+    /// Everything that is left.
+    Rest,
+}
+
+fn layout(opcode: u8) -> &'static [Field] {
+    use Field::*;
+    match opcode {
+        op::HEADER => &[Str, Str],
+        op::FOOTER => &[Fixed(20)],
+        op::SCHEMA => &[Fixed(2), Str, Str, Bytes32],
+        op::CHANNEL => &[Fixed(4), Str, Str, StrMap],
+        op::MESSAGE => &[Fixed(22), Rest],
+        op::CHUNK => &[Fixed(28), Str, Fixed(8), Rest],
+        op::MESSAGE_INDEX => &[Fixed(2), Bytes32],
+        op::CHUNK_INDEX => &[Fixed(32), Bytes32, Fixed(8), Str, Fixed(16)],
+        op::ATTACHMENT => &[Fixed(16), Str, Str, Bytes64, Fixed(4)],
+        op::ATTACHMENT_INDEX => &[Fixed(40), Str, Str],
+        op::STATISTICS => &[Fixed(42), Bytes32],
+        op::METADATA => &[Str, StrMap],
+        op::METADATA_INDEX => &[Fixed(16), Str],
+        op::SUMMARY_OFFSET => &[Fixed(17)],
+        op::DATA_END => &[Fixed(4)],
+        _ => &[Rest],
     }
+}
+
+fn read_len(body: &[u8], pos: usize, n: usize) -> Option<u64> {
+    let b = body.get(pos..pos + n)?;
+    Some(if n == 4 {
+        u32::from_le_bytes(b.try_into().ok()?) as u64
+    } else {
+        u64::from_le_bytes(b.try_into().ok()?)
+    })
+}
+
+/// Checks that every length inside a record fits in the record's `body`.
+pub(crate) fn check_lengths(opcode: u8, body: &[u8]) -> std::result::Result<(), &'static str> {
+    let mut pos = 0usize;
+    let sized = |pos: usize, n: usize| -> std::result::Result<(usize, usize), &'static str> {
+        let len = read_len(body, pos, n).ok_or("a length field runs past the record")?;
+        let start = pos + n;
+        let len = usize::try_from(len).map_err(|_| "a length larger than the record")?;
+        if len > body.len() - start {
+            return Err("a length larger than the rest of the record");
+        }
+        Ok((start, start + len))
+    };
+    for f in layout(opcode) {
+        match *f {
+            Field::Fixed(n) => {
+                if body.len() - pos < n {
+                    return Err("the record is shorter than its fixed fields");
+                }
+                pos += n;
+            }
+            Field::Str | Field::Bytes32 => pos = sized(pos, 4)?.1,
+            Field::Bytes64 => pos = sized(pos, 8)?.1,
+            Field::StrMap => {
+                let (mut p, end) = sized(pos, 4)?;
+                while p < end {
+                    for _ in 0..2 {
+                        let len =
+                            read_len(&body[..end], p, 4).ok_or("a map entry runs past its map")?;
+                        let len = usize::try_from(len).map_err(|_| "a map entry too long")?;
+                        if len > end - (p + 4) {
+                            return Err("a map string longer than the rest of its map");
+                        }
+                        p += 4 + len;
+                    }
+                }
+                pos = end;
+            }
+            Field::Rest => pos = body.len(),
+        }
+    }
+    Ok(())
 }
 
 #[cfg(test)]

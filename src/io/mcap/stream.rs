@@ -63,15 +63,61 @@ impl McapFile {
     /// (with its channel) inside the parallel chunk task, and only the mapped
     /// value is kept. Messages of channels defined later than the chunk task can
     /// see are mapped after the merge, with the same result.
+    ///
+    /// Read through the index, the messages of each wanted channel are
+    /// counted against the summary's Statistics record: when fewer were
+    /// found (a chunk index missing from the summary), the file is read
+    /// again by a linear scan, whose mode the result reports.
     pub fn scan_map<T: Send + Default>(
         &self,
         want: impl Fn(&ChannelInfo) -> bool + Sync,
         map: impl Fn(&ChannelInfo, &RawMessage<'_>) -> T + Sync,
     ) -> Result<MappedScan<T>> {
+        let r = self.scan_map_checked(want, map);
+        // A file that shrank while it was read: that, whatever else went wrong.
+        self.check_unchanged()?;
+        r
+    }
+
+    fn scan_map_checked<T: Send + Default>(
+        &self,
+        want: impl Fn(&ChannelInfo) -> bool + Sync,
+        map: impl Fn(&ChannelInfo, &RawMessage<'_>) -> T + Sync,
+    ) -> Result<MappedScan<T>> {
+        let scan = self.scan_map_with(&want, &map, true)?;
+        if scan.mode == ReadMode::Indexed {
+            if let Some(declared) = self.declared_counts() {
+                let mut got: BTreeMap<u16, u64> = BTreeMap::new();
+                for m in &scan.messages {
+                    *got.entry(m.channel_id).or_default() += 1;
+                }
+                let short = scan.channels.values().filter(|c| want(c)).any(|c| {
+                    got.get(&c.id).copied().unwrap_or(0) < declared.get(&c.id).copied().unwrap_or(0)
+                });
+                if short {
+                    drop(scan);
+                    return self.scan_map_with(&want, &map, false);
+                }
+            }
+        }
+        Ok(scan)
+    }
+
+    fn scan_map_with<T: Send + Default>(
+        &self,
+        want: &(impl Fn(&ChannelInfo) -> bool + Sync),
+        map: &(impl Fn(&ChannelInfo, &RawMessage<'_>) -> T + Sync),
+        use_index: bool,
+    ) -> Result<MappedScan<T>> {
         let profile = self.profile();
-        let (mut items, mut known, mode, mut schemas_seen) = match self.indexed_plan()? {
+        let plan = if use_index {
+            self.indexed_plan()?
+        } else {
+            None
+        };
+        let (mut items, mut known, mode, mut schemas_seen) = match plan {
             Some((chunks, channels)) => {
-                let items = self.wanted_chunks(&chunks, &channels, &want)?;
+                let items = self.wanted_chunks(&chunks, &channels, want)?;
                 (items, channels, ReadMode::Indexed, BTreeMap::new())
             }
             None => {
@@ -104,10 +150,10 @@ impl McapFile {
                 let prefix = std::mem::replace(&mut items, rest);
                 let mut found = Vec::new();
                 {
-                    let table = table_of(&known, &want);
+                    let table = table_of(&known, want);
                     let mut buf = Vec::new();
                     for item in prefix {
-                        let part = self.map_item(item, &table, &mut buf, &want, &map);
+                        let part = self.map_item(item, &table, &mut buf, want, map);
                         if let Ok((defs, _, _)) = &part {
                             for d in defs {
                                 match d {
@@ -130,11 +176,12 @@ impl McapFile {
                 }
             }
         }
-        let table = table_of(&known, &want);
+        let table = table_of(&known, want);
         let rest: Vec<Result<Part<T>>> = items
             .into_par_iter()
             .map_init(Vec::new, |buf, item| {
-                self.map_item(item, &table, buf, &want, &map)
+                crate::interrupt::check()?;
+                self.map_item(item, &table, buf, want, map)
             })
             .collect();
         parts.extend(rest);
@@ -157,7 +204,7 @@ impl McapFile {
         let mut deferred: Vec<(usize, Vec<u8>)> = Vec::new();
         for part in parts {
             let (defs, msgs, raw) = part?;
-            self.apply_defs(defs, &mut schemas, &mut channels, &mut keep, &want)?;
+            self.apply_defs(defs, &mut schemas, &mut channels, &mut keep, want)?;
             let mut raw = raw.into_iter().peekable();
             for (j, m) in msgs.into_iter().enumerate() {
                 let bytes = match raw.peek() {

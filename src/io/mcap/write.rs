@@ -12,6 +12,7 @@ use super::wire::PbWriter;
 use crate::error::{Error, Result};
 use crate::geometry::Sim3;
 use crate::imu::ImuSamples;
+use crate::io::atomic::OutputSet;
 use crate::keyframe::Keyframe;
 use crate::trajectory::Trajectory;
 
@@ -73,29 +74,43 @@ fn mcap_err(path: &Path, what: &str, e: impl std::fmt::Display) -> Error {
     }
 }
 
+/// An error of the `mcap` writer: its I/O errors (disk full, file size
+/// limit) are file errors naming the output, the rest format errors.
+fn write_err(path: &Path, what: &str, e: mcap::McapError) -> Error {
+    match e {
+        mcap::McapError::Io(io) => Error::io(path, io),
+        other => mcap_err(path, what, other),
+    }
+}
+
 fn nanos(path: &Path, what: &str, t: f64) -> Result<u64> {
     if !(0.0..=1.8e10).contains(&t) {
         return Err(mcap_err(
             path,
             what,
-            format!("time {t} s cannot be an MCAP log time (0 ≤ t < 1.8e10 s)"),
+            format!(
+                "time {} s cannot be an MCAP log time (0 ≤ t < 1.8e10 s)",
+                crate::error::num(t)
+            ),
         ));
     }
     Ok((t * 1e9).round() as u64)
 }
 
-/// Writes an MCAP through a temporary file in the destination folder, renamed on success.
+/// Writes an MCAP as one output of `set` (a temporary file beside `path`,
+/// renamed when the set is committed).
 fn write_atomic(
+    set: &mut OutputSet,
     path: &Path,
     options: mcap::WriteOptions,
     body: impl FnOnce(&mut mcap::Writer<BufWriter<&std::fs::File>>) -> Result<()>,
 ) -> Result<()> {
-    crate::io::atomic::write_atomic(path, |file| {
+    set.write(path, |file| {
         let mut w = options
             .create(BufWriter::new(file))
-            .map_err(|e| mcap_err(path, "create", e))?;
+            .map_err(|e| write_err(path, "create", e))?;
         body(&mut w)?;
-        w.finish().map_err(|e| mcap_err(path, "finish", e))?;
+        w.finish().map_err(|e| write_err(path, "finish", e))?;
         let mut inner = w.into_inner();
         inner.flush().map_err(|e| Error::io(path, e))
     })
@@ -115,10 +130,10 @@ fn add_channel(
 ) -> Result<Chan> {
     let sid = w
         .add_schema(schema.0, schema.1, schema.2)
-        .map_err(|e| mcap_err(path, topic, e))?;
+        .map_err(|e| write_err(path, topic, e))?;
     let id = w
         .add_channel(sid, topic, message_encoding, &BTreeMap::new())
-        .map_err(|e| mcap_err(path, topic, e))?;
+        .map_err(|e| write_err(path, topic, e))?;
     Ok(Chan { id, seq: 0 })
 }
 
@@ -136,8 +151,9 @@ fn put(
         publish_time: t,
     };
     ch.seq = ch.seq.wrapping_add(1);
+    crate::interrupt::check()?;
     w.write_to_known_channel(&header, data)
-        .map_err(|e| mcap_err(path, "write message", e))
+        .map_err(|e| write_err(path, "write message", e))
 }
 
 fn pb_time(t: f64) -> PbWriter {
@@ -426,7 +442,20 @@ pub fn write_world_mcap_with_octomap(
     octomap: Option<&[([f64; 3], f64)]>,
     flavor: WorldFlavor,
 ) -> Result<()> {
-    let path = path.as_ref();
+    let mut set = OutputSet::new();
+    write_world_mcap_into(&mut set, path.as_ref(), scene, octomap, flavor)?;
+    set.commit().map(|_| ())
+}
+
+/// [`write_world_mcap_with_octomap`] as one output of `set` (published when
+/// the set is committed).
+pub fn write_world_mcap_into(
+    set: &mut OutputSet,
+    path: &Path,
+    scene: &WorldScene<'_>,
+    octomap: Option<&[([f64; 3], f64)]>,
+    flavor: WorldFlavor,
+) -> Result<()> {
     if let Some(leaves) = octomap {
         if let Some(i) = leaves
             .iter()
@@ -438,7 +467,7 @@ pub fn write_world_mcap_with_octomap(
             ));
         }
     }
-    write_world_impl(path, scene, octomap, flavor)
+    write_world_impl(set, path, scene, octomap, flavor)
 }
 
 /// Writes the world output: the cloud, the trajectories and `world → slam`.
@@ -447,10 +476,13 @@ pub fn write_world_mcap(
     scene: &WorldScene<'_>,
     flavor: WorldFlavor,
 ) -> Result<()> {
-    write_world_impl(path.as_ref(), scene, None, flavor)
+    let mut set = OutputSet::new();
+    write_world_impl(&mut set, path.as_ref(), scene, None, flavor)?;
+    set.commit().map(|_| ())
 }
 
 fn write_world_impl(
+    set: &mut OutputSet,
     path: &Path,
     scene: &WorldScene<'_>,
     octomap: Option<&[([f64; 3], f64)]>,
@@ -480,7 +512,7 @@ fn write_world_impl(
             WorldFlavor::Ros2 => "ros2",
         })
         .library(concat!("slam2world ", env!("CARGO_PKG_VERSION")));
-    write_atomic(path, options, |w| {
+    write_atomic(set, path, options, |w| {
         match flavor {
             WorldFlavor::Foxglove => {
                 let mut cloud = add_channel(
@@ -711,7 +743,29 @@ pub fn write_slam_log(
     metadata: &[(String, String)],
     options: &SlamLogOptions,
 ) -> Result<()> {
-    let path = path.as_ref();
+    let mut set = OutputSet::new();
+    write_slam_log_into(
+        &mut set,
+        path.as_ref(),
+        keyframes,
+        reference,
+        imu,
+        metadata,
+        options,
+    )?;
+    set.commit().map(|_| ())
+}
+
+/// [`write_slam_log`] as one output of `set` (published when the set is committed).
+pub fn write_slam_log_into(
+    set: &mut OutputSet,
+    path: &Path,
+    keyframes: &[Keyframe],
+    reference: Option<&Trajectory>,
+    imu: Option<&ImuSamples>,
+    metadata: &[(String, String)],
+    options: &SlamLogOptions,
+) -> Result<()> {
     // (log time, order within the same time, channel slot, payload)
     let mut msgs: Vec<(u64, usize, usize, Vec<u8>)> = Vec::new();
     for (i, kf) in keyframes.iter().enumerate() {
@@ -770,7 +824,7 @@ pub fn write_slam_log(
         .repeat_schemas(false)
         .emit_chunk_indexes(false)
         .emit_message_indexes(false);
-    write_atomic(path, wopts, |w| {
+    write_atomic(set, path, wopts, |w| {
         let mut chans = [
             Some(add_channel(
                 w,
@@ -821,7 +875,7 @@ pub fn write_slam_log(
                 metadata: metadata.iter().cloned().collect(),
             };
             w.write_metadata(&md)
-                .map_err(|e| mcap_err(path, "metadata", e))?;
+                .map_err(|e| write_err(path, "metadata", e))?;
         }
         Ok(())
     })

@@ -338,7 +338,7 @@ struct Index {
 /// A ROS 1 bag (format 2.0), opened read-only and memory-mapped.
 pub struct Ros1Bag {
     path: PathBuf,
-    map: memmap2::Mmap,
+    map: crate::io::mapped::Mapped,
     header: BagHeader,
     index: Option<Index>,
 }
@@ -400,9 +400,8 @@ impl Ros1Bag {
                 ),
             ));
         }
-        // SAFETY: the map is read-only; the file is opened read-only and a bag is
-        // not expected to be modified while it is read (as with every mmap reader).
-        let map = unsafe { memmap2::Mmap::map(&file) }.map_err(|e| Error::io(&path, e))?;
+        // A bag truncated while it is read is an error, not SIGBUS (io::mapped).
+        let map = crate::io::mapped::Mapped::map(file, &path)?;
         let header = bag_header(&map).map_err(|f| bag_err(&path, f))?;
         let mut bag = Ros1Bag {
             path,
@@ -981,11 +980,15 @@ impl MessageSource for Ros1Bag {
         want: impl Fn(&ChannelInfo) -> bool + Sync,
         map: impl Fn(&ChannelInfo, &RawMessage<'_>) -> T + Sync,
     ) -> Result<MappedScan<T>> {
-        Ros1Bag::scan_map(self, want, map)
+        let r = Ros1Bag::scan_map(self, want, map);
+        self.map.check()?;
+        r
     }
 
     fn inventory(&self) -> Result<Inventory> {
-        Ros1Bag::inventory(self)
+        let r = Ros1Bag::inventory(self);
+        self.map.check()?;
+        r
     }
 }
 
