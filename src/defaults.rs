@@ -24,6 +24,24 @@ pub const LOSS: &str = "huber";
 pub const METHOD: &str = "horn";
 /// RANSAC hypotheses of the robust fit.
 pub const ROBUST_ITERATIONS: usize = 500;
+/// Degrees of freedom of the fit (`sim3`, `se3`, `4dof`, `scale+4dof`).
+pub const DOF: &str = "sim3";
+/// Pairing rule of SLAM and reference stamps (`evo`, `one_to_one`).
+pub const ASSOCIATION: &str = "evo";
+/// Largest tilt of the estimate's gravity (degrees, by the Sim(3) fit) that a
+/// yaw-only fit (`4dof`, `scale+4dof`) accepts.
+pub const MAX_TILT_DEG: f64 = 2.0;
+
+/// Fit-quality refusals ([`crate::align::checks`]): a reference whose rms
+/// spread about its centroid is at most this many times its noise is static.
+pub const MIN_SPREAD_OVER_NOISE: f64 = 2.0;
+/// A fit whose rmse is at least this fraction of the reference's rms spread
+/// explains none of it (mixed frames).
+pub const MAX_RESIDUAL_OVER_SPREAD: f64 = 0.9;
+/// A fitted scale within this of 1 counts as not fitted ...
+pub const MIN_SCALE_CHANGE: f64 = 1e-9;
+/// ... when the rmse is above this many times the reference noise.
+pub const MAX_UNFITTED_RESIDUAL_OVER_NOISE: f64 = 10.0;
 
 /// Magnitude of gravity, m/s².
 pub const GRAVITY: f64 = 9.81;
@@ -89,6 +107,9 @@ pub const TABLE: &[(&str, Value)] = &[
     ("level", Value::Float(CONFIDENCE)),
     ("loss", Value::Str(LOSS)),
     ("method", Value::Str(METHOD)),
+    ("dof", Value::Str(DOF)),
+    ("association", Value::Str(ASSOCIATION)),
+    ("max_tilt_deg", Value::Float(MAX_TILT_DEG)),
     ("gravity", Value::Float(GRAVITY)),
     (
         "keyframe_position_sigma",

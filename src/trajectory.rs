@@ -355,6 +355,246 @@ fn likely_cause(slam: &[f64], reference: &[f64], max_diff: f64, offset: f64) -> 
     format!("the ranges overlap, but no stamps lie within max_diff {max_diff} s of each other (a larger max_diff, or an offset)")
 }
 
+/// How SLAM stamps are paired with reference stamps.
+#[derive(
+    Clone,
+    Copy,
+    Debug,
+    Default,
+    PartialEq,
+    Eq,
+    Hash,
+    serde::Serialize,
+    serde::Deserialize,
+    schemars::JsonSchema,
+)]
+pub enum Association {
+    /// evo's rule ([`associate`]): each pose of the shorter trajectory takes
+    /// the nearest stamp of the other within `max_diff` (`≤`), so a pose of the
+    /// longer one can serve twice. evo's published figures use it.
+    #[default]
+    #[serde(rename = "evo")]
+    Evo,
+    /// The TUM RGB-D benchmark's `associate.py` (and rpg_trajectory_evaluation's
+    /// `associate_timestamps.py`): every pair closer than `max_diff` (`<`) is a
+    /// candidate, the closest taken first, and each pose of either trajectory
+    /// is used at most once ([`associate_one_to_one`]). Their published figures
+    /// (`evaluate_ate.py`, max_difference 0.02 s) use it.
+    #[serde(rename = "one_to_one")]
+    OneToOne,
+}
+
+impl Association {
+    /// The name the option takes (`"evo"`, `"one_to_one"`).
+    pub fn as_str(self) -> &'static str {
+        match self {
+            Association::Evo => "evo",
+            Association::OneToOne => "one_to_one",
+        }
+    }
+}
+
+impl std::fmt::Display for Association {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.write_str(self.as_str())
+    }
+}
+
+impl std::str::FromStr for Association {
+    type Err = Error;
+    /// `"evo"` or `"one_to_one"` (also `"one-to-one"`), any case.
+    fn from_str(s: &str) -> Result<Self> {
+        match s.to_ascii_lowercase().replace('-', "_").as_str() {
+            "evo" => Ok(Association::Evo),
+            "one_to_one" => Ok(Association::OneToOne),
+            _ => Err(Error::invalid(
+                "association",
+                format!(
+                    "expected \"evo\" or \"one_to_one\", got {}",
+                    crate::error::cut(s)
+                ),
+            )),
+        }
+    }
+}
+
+/// Stamps of one trajectory that are equal, one node of the merged time line
+/// of [`associate_one_to_one`]: its poses are used lowest index first.
+struct StampGroup {
+    /// The stamp, seconds (SLAM stamps with the offset added).
+    time: f64,
+    /// True for the reference side.
+    reference: bool,
+    /// Indices of the poses with this stamp not yet used, in reverse order
+    /// (the lowest index is popped first).
+    unused: Vec<usize>,
+    /// Neighbouring groups with unused poses on the time line.
+    prev: Option<usize>,
+    next: Option<usize>,
+}
+
+/// A candidate pair of neighbouring groups: ordered by time difference, then
+/// by reference index, then by SLAM index (the tuple order of `associate.py`'s
+/// sort), smallest first.
+#[derive(PartialEq)]
+struct Candidate {
+    diff: f64,
+    reference_index: usize,
+    slam_index: usize,
+    /// The two groups (left one first on the time line).
+    groups: (usize, usize),
+}
+
+impl Eq for Candidate {}
+
+impl PartialOrd for Candidate {
+    fn partial_cmp(&self, other: &Self) -> Option<std::cmp::Ordering> {
+        Some(self.cmp(other))
+    }
+}
+
+impl Ord for Candidate {
+    /// Reversed, so that `BinaryHeap` pops the smallest.
+    fn cmp(&self, other: &Self) -> std::cmp::Ordering {
+        other
+            .diff
+            .total_cmp(&self.diff)
+            .then(other.reference_index.cmp(&self.reference_index))
+            .then(other.slam_index.cmp(&self.slam_index))
+    }
+}
+
+/// Pairs `(slam index, reference index)` one to one, as the TUM benchmark's
+/// `associate.py` and rpg_trajectory_evaluation do: of all pairs with
+/// `|t_ref − (t_slam + offset)| < max_diff`, the closest is taken first, then
+/// the closest of those whose poses are both unused, and so on; ties go to the
+/// lower reference index, then the lower SLAM index (`associate.py`'s sort;
+/// rpg breaks an exact tie by the estimate's index first). Returned in SLAM
+/// index order.
+///
+/// The closest pair of unused poses is always a pair of neighbours on the
+/// merged time line (a pose between them would be closer to one of them), so
+/// the candidates are only neighbours, kept in a heap: `O((n + m) log(n + m))`
+/// time and `O(n + m)` memory whatever `max_diff` is (the benchmark's script
+/// lists every pair within `max_diff`, `O(n·m)` for a wide window). Equal
+/// stamps of one trajectory form one node, used lowest index first.
+pub fn associate_one_to_one(
+    slam: &Trajectory,
+    reference: &Trajectory,
+    max_diff: f64,
+    offset: f64,
+) -> Vec<(usize, usize)> {
+    let mut items: Vec<(f64, bool, usize)> = Vec::with_capacity(slam.len() + reference.len());
+    items.extend(
+        slam.timestamps
+            .iter()
+            .enumerate()
+            .map(|(i, &t)| (t + offset, false, i)),
+    );
+    items.extend(
+        reference
+            .timestamps
+            .iter()
+            .enumerate()
+            .map(|(j, &t)| (t, true, j)),
+    );
+    // A stamp that is not a number matches nothing.
+    items.retain(|x| !x.0.is_nan());
+    items.sort_by(|a, b| a.0.total_cmp(&b.0).then(a.1.cmp(&b.1)).then(b.2.cmp(&a.2)));
+    let mut groups: Vec<StampGroup> = Vec::new();
+    for (time, reference, index) in items {
+        match groups.last_mut() {
+            Some(g) if g.time == time && g.reference == reference => g.unused.push(index),
+            _ => {
+                let k = groups.len();
+                groups.push(StampGroup {
+                    time,
+                    reference,
+                    unused: vec![index],
+                    prev: k.checked_sub(1),
+                    next: None,
+                });
+                if k > 0 {
+                    groups[k - 1].next = Some(k);
+                }
+            }
+        }
+    }
+    // The time difference as associate.py computes it: |a − (b + offset)|.
+    let candidate = |groups: &[StampGroup], l: usize, r: usize| -> Option<Candidate> {
+        let (gl, gr) = (&groups[l], &groups[r]);
+        if gl.reference == gr.reference {
+            return None;
+        }
+        let (gs, gref) = if gl.reference { (gr, gl) } else { (gl, gr) };
+        let (&s, &j) = (gs.unused.last()?, gref.unused.last()?);
+        let diff = (reference.timestamps[j] - (slam.timestamps[s] + offset)).abs();
+        (diff < max_diff).then_some(Candidate {
+            diff,
+            reference_index: j,
+            slam_index: s,
+            groups: (l, r),
+        })
+    };
+    let mut heap = std::collections::BinaryHeap::new();
+    for l in 1..groups.len() {
+        heap.extend(candidate(&groups, l - 1, l));
+    }
+    let mut pairs = Vec::new();
+    while let Some(c) = heap.pop() {
+        let (l, r) = c.groups;
+        // Stale when either group was used up since (neighbours stay
+        // neighbours while both have unused poses).
+        if groups[l].unused.is_empty() || groups[r].unused.is_empty() {
+            continue;
+        }
+        // Its key is stale when a pose of either group was used since: the
+        // next poses have higher indices, so the key only grows; put it back
+        // with the key it has now.
+        match candidate(&groups, l, r) {
+            Some(now)
+                if (now.reference_index, now.slam_index) != (c.reference_index, c.slam_index) =>
+            {
+                heap.push(now);
+                continue;
+            }
+            _ => {}
+        }
+        let (a, b) = (groups[l].unused.pop(), groups[r].unused.pop());
+        if let (Some(a), Some(b)) = (a, b) {
+            pairs.push(if groups[l].reference { (b, a) } else { (a, b) });
+        }
+        for k in [l, r] {
+            if groups[k].unused.is_empty() {
+                let (p, n) = (groups[k].prev, groups[k].next);
+                if let Some(p) = p {
+                    groups[p].next = n;
+                }
+                if let Some(n) = n {
+                    groups[n].prev = p;
+                }
+            }
+        }
+        // The new neighbours: across a used-up group, or the same two groups
+        // again when both still have poses (equal stamps).
+        let left = if groups[l].unused.is_empty() {
+            groups[l].prev
+        } else {
+            Some(l)
+        };
+        let right = if groups[r].unused.is_empty() {
+            groups[r].next
+        } else {
+            Some(r)
+        };
+        if let (Some(x), Some(y)) = (left, right) {
+            heap.extend(candidate(&groups, x, y));
+        }
+    }
+    pairs.sort_unstable();
+    pairs
+}
+
 /// Pairs `(slam index, reference index)` matched by time as evo does
 /// (`offset` seconds added to the SLAM stamps, nearest stamp within
 /// `max_diff`), in SLAM time order. Fewer than `need` is an
@@ -366,10 +606,25 @@ pub fn matched_pairs(
     offset: f64,
     need: usize,
 ) -> Result<Vec<(usize, usize)>> {
-    let mut pairs: Vec<(usize, usize)> = associate(reference, slam, max_diff, offset)
-        .into_iter()
-        .map(|(r, s)| (s, r))
-        .collect();
+    matched_pairs_with(slam, reference, max_diff, offset, need, Association::Evo)
+}
+
+/// [`matched_pairs`] with the pairing rule `association`.
+pub fn matched_pairs_with(
+    slam: &Trajectory,
+    reference: &Trajectory,
+    max_diff: f64,
+    offset: f64,
+    need: usize,
+    association: Association,
+) -> Result<Vec<(usize, usize)>> {
+    let mut pairs: Vec<(usize, usize)> = match association {
+        Association::Evo => associate(reference, slam, max_diff, offset)
+            .into_iter()
+            .map(|(r, s)| (s, r))
+            .collect(),
+        Association::OneToOne => associate_one_to_one(slam, reference, max_diff, offset),
+    };
     pairs.sort_unstable();
     if pairs.len() < need {
         return Err(Error::Unmatched {

@@ -254,17 +254,7 @@ def align(
     target: _ArrayLike,
     *,
     scale: bool = True,
-    weights: _ArrayLike | None = None,
-    method: str = "horn",
-    robust: str | None = None,
-    inlier_threshold: float | None = None,
-    loss: str = "huber",
-) -> Alignment: ...
-def align_dof(
-    source: _ArrayLike,
-    target: _ArrayLike,
-    *,
-    dof: str = "4dof",
+    dof: str = "sim3",
     anchor: str | None = None,
     weights: _ArrayLike | None = None,
     method: str = "horn",
@@ -307,6 +297,14 @@ def associate(
 
 @final
 class TrajectoryAlignment:
+    @property
+    def dof(self) -> str: ...
+    @property
+    def anchor(self) -> str: ...
+    @property
+    def association(self) -> str: ...
+    @property
+    def quality(self) -> dict[str, Any]: ...
     @property
     def transform(self) -> Sim3: ...
     @property
@@ -361,6 +359,12 @@ def align_trajectories(
     estimate_offset: bool = False,
     max_offset: float = 0.5,
     body_from_cam: Sim3 | None = None,
+    dof: str = "sim3",
+    anchor: str | None = None,
+    association: str = "evo",
+    max_tilt_deg: float | None = 2.0,
+    reference_noise: float | None = None,
+    fit_checks: bool = True,
 ) -> TrajectoryAlignment: ...
 def scale_factors(
     slam_positions: _ArrayLike, reference_positions: _ArrayLike
@@ -419,6 +423,8 @@ def align_windowed(
     max_diff: float = 0.01,
     offset: float = 0.0,
     scale: bool = True,
+    dof: str = "sim3",
+    association: str = "evo",
 ) -> WindowedAlignment: ...
 def estimate_body_from_cam(
     slam: Trajectory,
@@ -720,6 +726,12 @@ def convert(
     imu_from_cam: Sim3 | None = None,
     gravity: float = 9.81,
     level: float = 0.95,
+    dof: str = "sim3",
+    anchor: str | None = None,
+    association: str = "evo",
+    max_tilt_deg: float | None = 2.0,
+    reference_noise: float | None = None,
+    fit_checks: bool = True,
     reference: str | os.PathLike[str] | None = None,
     reference_format: str | None = None,
     reference_time_unit: str | None = None,

@@ -11,6 +11,7 @@
 
 use nalgebra::{Matrix3, Matrix4, SMatrix, SVector, UnitQuaternion, Vector3, Vector4};
 
+use super::dof::{tilt_deg, Anchor, Dof, DofDiagnostics, DofOptions};
 use super::{align, horn, umeyama, AlignDiagnostics, AlignOptions, Alignment};
 use crate::error::{Error, Result};
 use crate::geometry::Sim3;
@@ -79,14 +80,31 @@ pub fn align_with_extrinsic(
     body_from_cam: &Sim3,
     opts: &AlignOptions,
 ) -> Result<Alignment> {
+    align_with_extrinsic_by(a, ra, b, body_from_cam, |p, q| align(p, q, opts))
+}
+
+/// [`align_with_extrinsic`] with another positions-only fit `fit(source,
+/// target)` (e.g. [`super::dof::align_dof`] with other degrees of freedom or
+/// an anchor): the same alternation of lever-arm move and refit.
+pub fn align_with_extrinsic_by<F>(
+    a: &[Vector3<f64>],
+    ra: &[UnitQuaternion<f64>],
+    b: &[Vector3<f64>],
+    body_from_cam: &Sim3,
+    fit: F,
+) -> Result<Alignment>
+where
+    F: Fn(&[Vector3<f64>], &[Vector3<f64>]) -> Result<Alignment>,
+{
+    let refit = fit;
     check(a, ra, b)?;
     let body_unscaled = Sim3::try_new(body_from_cam.rotation, body_from_cam.translation, 1.0)?;
     let c = body_unscaled.inverse().translation;
-    let mut fit = align(a, b, opts)?;
+    let mut fit = refit(a, b)?;
     for _ in 0..MAX_ITERATIONS {
         let s = fit.transform.scale;
         let moved = body_positions(a, ra, &c, s);
-        let next = align(&moved, b, opts)?;
+        let next = refit(&moved, b)?;
         let change = (next.transform.scale / s - 1.0).abs();
         fit = next;
         if change < 1e-14 {
@@ -99,6 +117,13 @@ pub fn align_with_extrinsic(
 /// `qᵀ·M·q` maximiser for symmetric `m` (quaternion order `(w, x, y, z)`).
 fn largest(m: &Matrix4<f64>) -> ([f64; 4], UnitQuaternion<f64>) {
     horn::largest_eigen(m)
+}
+
+/// `qᵀ·M·q` maximiser over the rotations about z, `q = (cos φ, 0, 0, sin φ)`:
+/// the top eigenvector of the `(w, z)` block, `φ = ½·atan2(2·M_wz, M_ww − M_zz)`.
+fn largest_yaw(m: &Matrix4<f64>) -> UnitQuaternion<f64> {
+    let phi = 0.5 * (2.0 * m[(0, 3)]).atan2(m[(0, 0)] - m[(3, 3)]);
+    UnitQuaternion::from_axis_angle(&Vector3::z_axis(), 2.0 * phi)
 }
 
 fn outer_wxyz(q: &UnitQuaternion<f64>) -> Matrix4<f64> {
@@ -122,6 +147,81 @@ pub fn align_with_orientations(
     body_from_cam: Option<&Sim3>,
     scale: bool,
 ) -> Result<Alignment> {
+    let dof = if scale { Dof::Sim3 } else { Dof::Se3 };
+    joint_fit(a, ra, b, rb, body_from_cam, dof, Anchor::None)
+}
+
+/// [`align_with_orientations`] with the degrees of freedom and anchor of
+/// `opts` (its `weights` must be `None`; `method` is not used: the joint form
+/// is Horn's): a yaw-only dof maximises the same form over rotations about z
+/// (a 2 × 2 eigenproblem, closed form), the scale is fitted as the dof says,
+/// and [`Anchor::First`] centres the positions on the first pair instead of
+/// the centroids (`t = b₀ − s·R·a₀`: its body position is met exactly). A
+/// yaw-only fit is refused ([`Error::GravityTilted`]) when the full-rotation
+/// joint fit of the same poses tilts the estimate's z axis more than
+/// `opts.max_tilt_deg`; its diagnostics carry [`DofDiagnostics`] (as do
+/// anchored fits).
+pub fn align_with_orientations_dof(
+    a: &[Vector3<f64>],
+    ra: &[UnitQuaternion<f64>],
+    b: &[Vector3<f64>],
+    rb: &[UnitQuaternion<f64>],
+    body_from_cam: Option<&Sim3>,
+    opts: &DofOptions,
+) -> Result<Alignment> {
+    if opts.weights.is_some() {
+        return Err(Error::invalid(
+            "weights",
+            "the joint fit of positions and orientations takes no weights",
+        ));
+    }
+    let dof = opts.dof;
+    if !dof.yaw_only() {
+        return joint_fit(a, ra, b, rb, body_from_cam, dof, opts.anchor);
+    }
+    let full = if dof.has_scale() { Dof::Sim3 } else { Dof::Se3 };
+    let tilt = joint_fit(a, ra, b, rb, body_from_cam, full, opts.anchor)
+        .ok()
+        .map(|f| tilt_deg(&f.transform.rotation));
+    if let (Some(threshold_deg), Some(angle_deg)) = (opts.max_tilt_deg, tilt) {
+        if angle_deg > threshold_deg {
+            return Err(Error::GravityTilted {
+                dof: dof.as_str().into(),
+                angle_deg,
+                threshold_deg,
+            });
+        }
+    }
+    let mut fit = joint_fit(a, ra, b, rb, body_from_cam, dof, opts.anchor)?;
+    if let Some(d) = fit.diagnostics.dof.as_mut() {
+        d.gravity_tilt_deg = tilt;
+    }
+    Ok(fit)
+}
+
+/// The joint closed form of [`align_with_orientations`] for `dof` and
+/// `anchor`; the plain Sim(3) / SE(3) without anchor is exactly that
+/// function's, the others fill [`AlignDiagnostics::dof`] (the tilt of a
+/// full rotation is that of the fit itself; the yaw-only caller fills its own).
+fn joint_fit(
+    a: &[Vector3<f64>],
+    ra: &[UnitQuaternion<f64>],
+    b: &[Vector3<f64>],
+    rb: &[UnitQuaternion<f64>],
+    body_from_cam: Option<&Sim3>,
+    dof: Dof,
+    anchor: Anchor,
+) -> Result<Alignment> {
+    let scale = dof.has_scale();
+    let yaw_only = dof.yaw_only();
+    let pick = |m: &Matrix4<f64>| -> ([f64; 4], UnitQuaternion<f64>) {
+        let (eigenvalues, q) = largest(m);
+        if yaw_only {
+            (eigenvalues, largest_yaw(m))
+        } else {
+            (eigenvalues, q)
+        }
+    };
     check(a, ra, b)?;
     if rb.len() != a.len() {
         return Err(Error::ShapeMismatch {
@@ -165,9 +265,12 @@ pub fn align_with_orientations(
     for q in &wanted {
         q_rot += outer_wxyz(q);
     }
-    let (_, mut rot) = largest(&q_rot);
+    let (_, mut rot) = pick(&q_rot);
     let nf = n as f64;
-    let mean_b = b.iter().sum::<Vector3<f64>>() / nf;
+    let mean_b = match anchor {
+        Anchor::None => b.iter().sum::<Vector3<f64>>() / nf,
+        Anchor::First => b[0],
+    };
     let mut s = 1.0;
     let mut t = Sim3::identity();
     let mut diag = None;
@@ -178,7 +281,10 @@ pub fn align_with_orientations(
         } else {
             a.to_vec()
         };
-        let mean_a = moved.iter().sum::<Vector3<f64>>() / nf;
+        let mean_a = match anchor {
+            Anchor::None => moved.iter().sum::<Vector3<f64>>() / nf,
+            Anchor::First => moved[0],
+        };
         let mut cov = Matrix3::zeros();
         let (mut var_a, mut var_b) = (0.0, 0.0);
         for (p, q) in moved.iter().zip(b) {
@@ -211,7 +317,7 @@ pub fn align_with_orientations(
         let sr2 =
             (wanted.iter().map(|q| rot.angle_to(q).powi(2)).sum::<f64>() / (3.0 * nf)).max(1e-12);
         let m = n_pos * (2.0 * s / sp2) + q_rot * (4.0 / sr2);
-        let (eigenvalues, q) = largest(&m);
+        let (eigenvalues, q) = pick(&m);
         rot = q;
         let r = rot.to_rotation_matrix().into_inner();
         if scale {
@@ -237,7 +343,21 @@ pub fn align_with_orientations(
             singular_values: umeyama::singular_values(&(cov / nf)),
             source_spread: (var_a / nf).sqrt(),
             target_spread: (var_b / nf).sqrt(),
-            dof: None,
+            dof: (yaw_only || anchor != Anchor::None).then(|| {
+                let h = |v: &Vector3<f64>| v.x * v.x + v.y * v.y;
+                let aa_h: f64 = moved.iter().map(|p| h(&(p - mean_a))).sum();
+                let bb_h: f64 = b.iter().map(|q| h(&(q - mean_b))).sum();
+                let peak = (cov[(0, 1)] - cov[(1, 0)]).hypot(cov[(0, 0)] + cov[(1, 1)]);
+                let norm = (aa_h * bb_h).sqrt();
+                DofDiagnostics {
+                    dof,
+                    anchor,
+                    source_horizontal_spread: (aa_h / nf).sqrt(),
+                    target_horizontal_spread: (bb_h / nf).sqrt(),
+                    yaw_determinacy: if norm > 0.0 { peak / norm } else { 0.0 },
+                    gravity_tilt_deg: (!yaw_only).then(|| tilt_deg(&rot)),
+                }
+            }),
         });
     }
     let Some(diagnostics) = diag else {

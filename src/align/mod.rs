@@ -12,6 +12,7 @@
 //! equal to Umeyama's `tr(DS)/σ²_a`. (The paper prints the denominator over
 //! the target points, which yields `1/s`.)
 
+pub mod checks;
 pub mod covariance;
 pub mod dof;
 pub mod handeye;

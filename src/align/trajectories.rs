@@ -2,26 +2,31 @@
 //! command and binding uses.
 //!
 //! [`align_trajectories`] associates the SLAM stamps with the reference by
-//! time (evo's rule, [`crate::trajectory::associate`]), optionally after
-//! estimating the time offset, cuts the start-up stages, fits `T_world_slam`
-//! (closed form; robust, with orientations or with a known camera–body
-//! extrinsic as asked), and reports the absolute position error over every
+//! time (evo's rule, [`crate::trajectory::associate`], or the TUM benchmark's
+//! one-to-one rule, [`crate::trajectory::associate_one_to_one`]), optionally
+//! after estimating the time offset, cuts the start-up stages, fits
+//! `T_world_slam` with the degrees of freedom and anchor asked for
+//! ([`super::dof`]: closed form; robust, with orientations or with a known
+//! camera–body extrinsic as asked), refuses fits that say nothing
+//! ([`super::checks`]), and reports the absolute position error over every
 //! matched pair with the first-order covariance of the fit. The windowed fit
 //! and the hand-eye estimate pair their poses through
 //! [`crate::trajectory::matched_pairs`] too.
 
 use nalgebra::{UnitQuaternion, Vector3};
 
+use super::checks::{check_fit, check_reference_moves, FitChecks, FitQuality};
 use super::covariance::{covariance, Covariance};
-use super::handeye::{align_with_extrinsic, align_with_orientations, body_positions};
-use super::robust::{align_robust, RobustOptions};
+use super::dof::{align_dof, align_dof_robust, covariance_dof, Anchor, Dof, DofOptions};
+use super::handeye::{align_with_extrinsic_by, align_with_orientations_dof, body_positions};
+use super::robust::RobustOptions;
 use super::stages::{detect_stages, Stages};
 use super::time_offset::{estimate_time_offset, TimeOffset, TimeOffsetOptions};
-use super::{align, AlignMethod, AlignOptions, Alignment};
+use super::{AlignMethod, Alignment};
 use crate::defaults;
 use crate::error::{Error, Result};
 use crate::geometry::Sim3;
-use crate::trajectory::{matched_pairs, Trajectory};
+use crate::trajectory::{matched_pairs_with, Association, Trajectory};
 
 /// Which matched pairs at the start are left out of the fit.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
@@ -61,8 +66,22 @@ pub struct TrajectoryAlignOptions {
     pub max_diff: f64,
     /// Seconds added to the SLAM stamps before matching ([`defaults::OFFSET`]).
     pub offset: f64,
-    /// Estimate the scale (Sim(3)); `false` for SE(3) (default true).
+    /// Estimate the scale (default true); `false` turns `sim3` into `se3`
+    /// and is refused with `scale+4dof`.
     pub scale: bool,
+    /// The transforms the fit chooses from ([`defaults::DOF`]).
+    pub dof: Dof,
+    /// The pair pinned exactly: [`Anchor::First`] maps the first fitted pair
+    /// (the first matched pair after the start-up cut) onto its reference.
+    pub anchor: Anchor,
+    /// Largest tilt of the estimate's gravity (degrees, by the Sim(3) fit) a
+    /// yaw-only fit accepts ([`defaults::MAX_TILT_DEG`]); `None`: no check.
+    pub max_tilt_deg: Option<f64>,
+    /// How SLAM stamps are paired with reference stamps ([`defaults::ASSOCIATION`]).
+    pub association: Association,
+    /// Fit-quality refusals (static reference, unexplained spread, nothing
+    /// fitted) and their thresholds.
+    pub checks: FitChecks,
     /// Fit only the first `n` pairs after the start-up cut (evo's
     /// `--n_to_align`; the APE still covers every pair).
     pub n_to_align: Option<usize>,
@@ -88,6 +107,11 @@ impl Default for TrajectoryAlignOptions {
             max_diff: defaults::MAX_DIFF,
             offset: defaults::OFFSET,
             scale: true,
+            dof: Dof::Sim3,
+            anchor: Anchor::None,
+            max_tilt_deg: Some(defaults::MAX_TILT_DEG),
+            association: Association::Evo,
+            checks: FitChecks::default(),
             n_to_align: None,
             method: AlignMethod::Horn,
             skip_init: SkipInit::None,
@@ -100,9 +124,41 @@ impl Default for TrajectoryAlignOptions {
 }
 
 impl TrajectoryAlignOptions {
+    /// The degrees of freedom fitted: [`Self::dof`] with [`Self::scale`]
+    /// applied (`sim3` without scale is `se3`).
+    pub fn fitted_dof(&self) -> Result<Dof> {
+        self.dof.with_scale_flag(self.scale)
+    }
+
+    /// The options of the positions-only fit.
+    fn dof_options(&self) -> Result<DofOptions> {
+        Ok(DofOptions {
+            dof: self.fitted_dof()?,
+            anchor: self.anchor,
+            weights: None,
+            method: self.method,
+            max_tilt_deg: self.max_tilt_deg,
+        })
+    }
+
     /// Checks what does not depend on the data: `max_diff` finite and `≥ 0`,
-    /// `offset` finite, `n_to_align ≥ 3`, options that cannot be combined.
+    /// `offset` finite, `n_to_align ≥ 3`, `max_tilt_deg` finite and `≥ 0`,
+    /// the checks' thresholds, options that cannot be combined (`scale: false`
+    /// with `scale+4dof`, a robust fit with orientations).
     pub fn check(&self) -> Result<()> {
+        self.fitted_dof()?;
+        self.checks.check()?;
+        if let Some(t) = self.max_tilt_deg {
+            if !(t.is_finite() && t >= 0.0) {
+                return Err(Error::invalid(
+                    "max_tilt_deg",
+                    format!(
+                        "must be finite and >= 0 degrees, got {}",
+                        crate::error::num(t)
+                    ),
+                ));
+            }
+        }
         if !(self.max_diff.is_finite() && self.max_diff >= 0.0) {
             return Err(Error::invalid(
                 "max_diff",
@@ -223,9 +279,18 @@ pub struct TrajectoryAlignment {
     pub skip_reason: String,
     /// Per pair of the fitted range: inlier of the robust fit.
     pub inliers: Option<Vec<bool>>,
-    /// First-order covariance of the fit (positions only; `None` when the
+    /// First-order covariance of the fit over the Sim(3) parameters
+    /// (positions only; zero where the dof fixes a parameter; `None` when the
     /// positions alone do not determine it).
     pub covariance: Option<Covariance>,
+    /// The degrees of freedom fitted (`se3` for `sim3` without scale).
+    pub dof: Dof,
+    /// The anchor of the fit.
+    pub anchor: Anchor,
+    /// The pairing rule used.
+    pub association: Association,
+    /// The figures the fit-quality refusals looked at.
+    pub quality: FitQuality,
 }
 
 impl TrajectoryAlignment {
@@ -363,8 +428,11 @@ fn fit_range(
 ///
 /// Errors: [`TrajectoryAlignOptions::check`]'s, [`Error::Unmatched`] (fewer
 /// than 3 pairs), [`Error::TooFew`] (fewer than 3 pairs left after the cut),
-/// [`Error::InvalidArgument`] (missing orientations), and the errors of the
-/// fit itself (degenerate motion).
+/// [`Error::InvalidArgument`] (missing orientations), the errors of the fit
+/// itself (degenerate motion, [`Error::GravityTilted`] for a yaw-only fit of
+/// a tilted estimate) and the refusals of [`super::checks`]
+/// ([`Error::StaticReference`], [`Error::NothingFitted`],
+/// [`Error::UnexplainedSpread`]).
 pub fn align_trajectories(
     slam: &Trajectory,
     reference: &Trajectory,
@@ -382,7 +450,7 @@ pub fn align_trajectories(
         }
         None => None,
     };
-    let pairs = matched_pairs(slam, reference, opts.max_diff, offset, 3)?;
+    let pairs = matched_pairs_with(slam, reference, opts.max_diff, offset, 3, opts.association)?;
     distinct_stamps(slam, reference, &pairs)?;
     let src: Vec<Vector3<f64>> = pairs.iter().map(|&(s, _)| slam.positions[s]).collect();
     let dst: Vec<Vector3<f64>> = pairs.iter().map(|&(_, r)| reference.positions[r]).collect();
@@ -402,26 +470,32 @@ pub fn align_trajectories(
 
     let (fit_start, end, stages, skip_reason) = fit_range(opts, &src, &dst)?;
     let range = fit_start..end;
-    let aopts = AlignOptions {
-        scale: opts.scale,
-        method: opts.method,
-        weights: None,
-    };
+    let dopts = opts.dof_options()?;
+    let dof = dopts.dof;
     let (fs, fd) = (&src[range.clone()], &dst[range.clone()]);
+    // The reference's own poses over the fitted span, for its noise.
+    let run = {
+        let fitted = &pairs[range.clone()];
+        let lo = fitted.iter().map(|p| p.1).min().unwrap_or(0);
+        let hi = fitted.iter().map(|p| p.1).max().unwrap_or(0);
+        &reference.positions[lo..=hi.max(lo)]
+    };
+    check_reference_moves(fd, run, &opts.checks)?;
     let mut inliers = None;
     let alignment = if opts.use_orientations {
-        align_with_orientations(
+        align_with_orientations_dof(
             fs,
             &src_rot[range.clone()],
             fd,
             &dst_rot[range.clone()],
             opts.body_from_cam.as_ref(),
-            opts.scale,
+            &dopts,
         )?
     } else {
+        let fit = |a: &[Vector3<f64>], b: &[Vector3<f64>]| align_dof(a, b, &dopts);
         let plain = match &opts.body_from_cam {
-            Some(x) => align_with_extrinsic(fs, &src_rot[range.clone()], fd, x, &aopts)?,
-            None => align(fs, fd, &aopts)?,
+            Some(x) => align_with_extrinsic_by(fs, &src_rot[range.clone()], fd, x, fit)?,
+            None => fit(fs, fd)?,
         };
         match &opts.robust {
             Some(r) => {
@@ -434,7 +508,7 @@ pub fn align_trajectories(
                     ),
                     None => fs.to_vec(),
                 };
-                let rb = align_robust(&moved, fd, &aopts, r)?;
+                let rb = align_dof_robust(&moved, fd, &dopts, r)?;
                 inliers = Some(rb.inliers);
                 rb.alignment
             }
@@ -456,14 +530,32 @@ pub fn align_trajectories(
     let weights: Option<Vec<f64>> = inliers
         .as_ref()
         .map(|m| m.iter().map(|&b| f64::from(u8::from(b))).collect());
-    let covariance = covariance(
-        &t,
-        &all_src[range.clone()],
-        fd,
-        weights.as_deref(),
-        opts.scale,
-    )
-    .ok();
+    let fitted_reference: Vec<Vector3<f64>> = match &inliers {
+        Some(m) => fd
+            .iter()
+            .zip(m)
+            .filter(|(_, &k)| k)
+            .map(|(p, _)| *p)
+            .collect(),
+        None => fd.to_vec(),
+    };
+    let quality = check_fit(
+        &fitted_reference,
+        run,
+        alignment.rmse,
+        t.scale,
+        dof.has_scale(),
+        &opts.checks,
+    )?;
+    let fitted_src = &all_src[range.clone()];
+    let covariance = match (dof, opts.anchor) {
+        (Dof::Sim3 | Dof::Se3, Anchor::None) => {
+            covariance(&t, fitted_src, fd, weights.as_deref(), dof.has_scale()).ok()
+        }
+        _ => covariance_dof(&t, fitted_src, fd, weights.as_deref(), dof, opts.anchor)
+            .ok()
+            .map(|c| c.to_sim3()),
+    };
     Ok(TrajectoryAlignment {
         alignment,
         pairs,
@@ -477,6 +569,10 @@ pub fn align_trajectories(
         skip_reason,
         inliers,
         covariance,
+        dof,
+        anchor: opts.anchor,
+        association: opts.association,
+        quality,
     })
 }
 

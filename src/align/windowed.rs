@@ -6,13 +6,19 @@
 //!
 //! A window the positions cannot determine (too few or collinear pairs) is
 //! widened (doubled) until they can, up to the whole run.
+//!
+//! Every window is fitted with the degrees of freedom of the single fit
+//! ([`super::dof::fit_window`]): with `4dof` each local transform is a yaw
+//! and a translation, with `se3` / `4dof` every local scale is 1.
 
 use nalgebra::Vector3;
 
-use super::{align, AlignOptions, Alignment};
+use super::dof::{align_dof, fit_window, Anchor, Dof, DofOptions};
+use super::{align, AlignMethod, AlignOptions, Alignment};
+use crate::defaults;
 use crate::error::{Error, Result};
 use crate::geometry::Sim3;
-use crate::trajectory::{matched_pairs, Trajectory};
+use crate::trajectory::{matched_pairs_with, Association, Trajectory};
 
 /// The width of the window of each local fit.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -55,17 +61,27 @@ pub struct WindowedOptions {
     pub max_diff: f64,
     /// Seconds added to the SLAM stamps before matching.
     pub offset: f64,
-    /// Fit Sim(3) (`false`: SE(3)).
+    /// Fit the scale (`false` turns `sim3` into `se3`).
     pub scale: bool,
+    /// The transforms each fit chooses from (the single and the local ones).
+    pub dof: Dof,
+    /// Largest tilt of the estimate's gravity a yaw-only single fit accepts,
+    /// degrees (the local fits are not checked again); `None`: no check.
+    pub max_tilt_deg: Option<f64>,
+    /// How SLAM stamps are paired with reference stamps.
+    pub association: Association,
 }
 
 impl Default for WindowedOptions {
     fn default() -> Self {
         WindowedOptions {
             window: Window::default(),
-            max_diff: crate::defaults::MAX_DIFF,
-            offset: crate::defaults::OFFSET,
+            max_diff: defaults::MAX_DIFF,
+            offset: defaults::OFFSET,
             scale: true,
+            dof: Dof::Sim3,
+            max_tilt_deg: Some(defaults::MAX_TILT_DEG),
+            association: Association::Evo,
         }
     }
 }
@@ -195,9 +211,11 @@ where
 }
 
 /// Associates `slam` with `reference` by time (as
-/// [`crate::trajectory::align_trajectories`]), fits the single Sim(3), then
-/// one Sim(3) per pair over its window. Errors: those of the single fit, and
-/// [`Error::InvalidArgument`] for a window below 3 poses or not positive.
+/// [`super::trajectories::align_trajectories`]), fits the single transform,
+/// then one per pair over its window, each with the dof of `opts`. Errors:
+/// those of the single fit ([`super::dof::align_dof`]'s), and
+/// [`Error::InvalidArgument`] for a window below 3 poses or not positive, or
+/// `scale: false` with `scale+4dof`.
 pub fn align_windowed(
     slam: &Trajectory,
     reference: &Trajectory,
@@ -206,14 +224,25 @@ pub fn align_windowed(
     slam.check_lengths()?;
     reference.check_lengths()?;
     opts.window.check()?;
-    let pairs = matched_pairs(slam, reference, opts.max_diff, opts.offset, 3)?;
+    let dof = opts.dof.with_scale_flag(opts.scale)?;
+    let pairs = matched_pairs_with(
+        slam,
+        reference,
+        opts.max_diff,
+        opts.offset,
+        3,
+        opts.association,
+    )?;
     let src: Vec<Vector3<f64>> = pairs.iter().map(|&(s, _)| slam.positions[s]).collect();
     let dst: Vec<Vector3<f64>> = pairs.iter().map(|&(_, r)| reference.positions[r]).collect();
-    let aopts = AlignOptions {
-        scale: opts.scale,
-        ..Default::default()
+    let dopts = DofOptions {
+        dof,
+        anchor: Anchor::None,
+        weights: None,
+        method: AlignMethod::Horn,
+        max_tilt_deg: opts.max_tilt_deg,
     };
-    let global = align(&src, &dst, &aopts)?;
+    let global = align_dof(&src, &dst, &dopts)?;
     let (coord, half): (Vec<f64>, f64) = match opts.window {
         Window::Poses(k) => (
             (0..pairs.len()).map(|i| i as f64).collect(),
@@ -232,7 +261,9 @@ pub fn align_windowed(
             (c, d / 2.0)
         }
     };
-    let transforms = windowed_fits(&src, &dst, &coord, half, &aopts, &global.transform);
+    let transforms = windowed_fits_with(&src, &dst, &coord, half, &global.transform, |a, b, w| {
+        fit_window(a, b, w, dof, AlignMethod::Horn)
+    });
     let times: Vec<f64> = pairs.iter().map(|&(s, _)| slam.timestamps[s]).collect();
     let residuals: Vec<f64> = transforms
         .iter()

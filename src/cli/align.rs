@@ -1,12 +1,13 @@
 //! `slam2world align EST REF`: associate two trajectory files by time, fit
-//! `T_ref_est` (Sim(3), or SE(3) with `--no-scale`) and print it with the
-//! absolute position error statistics (as `evo_ape … -as`).
+//! `T_ref_est` (Sim(3); SE(3) with `--no-scale`; `--dof` for the others) and
+//! print it with the absolute position error statistics (as `evo_ape … -as`).
 
 use std::path::PathBuf;
 
 use clap::Args;
 
 use super::args::{fit_text, print, print_json, FitArgs};
+use crate::align::dof::Dof;
 use crate::align::handeye::estimate_body_from_cam_trajectories;
 use crate::align::trajectories::align_trajectories;
 use crate::error::Result;
@@ -77,7 +78,7 @@ pub fn run(args: AlignArgs) -> Result<()> {
         n_fitted: r.alignment.residuals.len(),
         max_diff: opts.max_diff,
         offset: opts.offset,
-        with_scale: opts.scale,
+        with_scale: r.dof.has_scale(),
         scale: t.scale,
         rotation: std::array::from_fn(|i| std::array::from_fn(|j| rot[(i, j)])),
         quaternion_xyzw: t.quaternion_xyzw(),
@@ -103,7 +104,12 @@ fn text(r: &AlignReport) -> String {
     );
     s += &format!(
         "T_ref_est ({}):\n",
-        if r.with_scale { "Sim(3)" } else { "SE(3)" }
+        match r.fit.dof {
+            Dof::Sim3 => "Sim(3)",
+            Dof::Se3 => "SE(3)",
+            Dof::FourDof => "4 DoF: translation + yaw",
+            Dof::ScaleFourDof => "5 DoF: translation + yaw + scale",
+        }
     );
     s += &format!("  scale        {:.12}\n", r.scale);
     s += &format!(

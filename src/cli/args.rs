@@ -5,6 +5,8 @@
 use clap::Args;
 use nalgebra::Matrix4;
 
+use crate::align::checks::FitChecks;
+use crate::align::dof::{Anchor, Dof};
 use crate::align::robust::{RobustLoss, RobustOptions};
 use crate::align::time_offset::TimeOffsetOptions;
 use crate::align::trajectories::{SkipInit, TrajectoryAlignOptions};
@@ -12,6 +14,7 @@ use crate::align::AlignMethod;
 use crate::defaults;
 use crate::error::{cut, Error, Result};
 use crate::geometry::Sim3;
+use crate::trajectory::Association;
 
 /// clap parser: a finite number.
 pub(crate) fn finite(s: &str) -> std::result::Result<f64, String> {
@@ -84,6 +87,40 @@ fn method(s: &str) -> std::result::Result<AlignMethod, String> {
     s.parse().map_err(|e: Error| e.to_string())
 }
 
+fn dof(s: &str) -> std::result::Result<Dof, String> {
+    s.parse().map_err(|e: Error| e.to_string())
+}
+
+fn anchor(s: &str) -> std::result::Result<Anchor, String> {
+    s.parse().map_err(|e: Error| e.to_string())
+}
+
+fn association(s: &str) -> std::result::Result<Association, String> {
+    s.parse().map_err(|e: Error| e.to_string())
+}
+
+/// The gravity-tilt limit of a yaw-only fit, degrees; `None`: no check.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct TiltLimit(pub Option<f64>);
+
+impl std::fmt::Display for TiltLimit {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        match self.0 {
+            Some(t) => write!(f, "{t}"),
+            None => f.write_str("none"),
+        }
+    }
+}
+
+fn tilt_limit(s: &str) -> std::result::Result<TiltLimit, String> {
+    if s.trim().eq_ignore_ascii_case("none") {
+        return Ok(TiltLimit(None));
+    }
+    non_negative(s)
+        .map(|v| TiltLimit(Some(v)))
+        .map_err(|_| format!("expected degrees >= 0 or none, got {}", cut(s)))
+}
+
 /// Association and fit options of `align`, `convert` and `transform-cloud`.
 #[derive(Args, Debug, Clone)]
 pub struct FitArgs {
@@ -96,6 +133,34 @@ pub struct FitArgs {
     /// Fit SE(3) (scale fixed to 1) instead of Sim(3).
     #[arg(long)]
     pub no_scale: bool,
+    /// Degrees of freedom: sim3 (rotation, translation, scale), se3 (no
+    /// scale), 4dof (translation + yaw about gravity: a metric estimate whose
+    /// z is already along gravity, e.g. VIO), scale+4dof (translation, yaw and
+    /// scale: monocular SLAM whose gravity is known).
+    #[arg(long, value_name = "sim3|se3|4dof|scale+4dof", default_value = defaults::DOF, value_parser = dof)]
+    pub dof: Dof,
+    /// `first`: map the first fitted pose exactly onto its reference (the
+    /// rest fits rotation and scale about it as the dof allows).
+    #[arg(long, value_name = "none|first", default_value = "none", value_parser = anchor)]
+    pub anchor: Anchor,
+    /// Pairing of stamps: evo (each pose of the shorter trajectory takes the
+    /// nearest stamp of the other) or one_to_one (each pose at most once,
+    /// closest pairs first: the TUM benchmark's and rpg's rule).
+    #[arg(long, value_name = "evo|one_to_one", default_value = defaults::ASSOCIATION, value_parser = association)]
+    pub association: Association,
+    /// Largest tilt of the estimate's gravity (degrees, by the Sim(3) fit)
+    /// that a 4dof / scale+4dof fit accepts; `none`: no check.
+    #[arg(long, value_name = "DEG|none", default_value_t = TiltLimit(Some(defaults::MAX_TILT_DEG)), value_parser = tilt_limit)]
+    pub max_tilt: TiltLimit,
+    /// Noise of the reference positions, metres (3-D rms of one position's
+    /// error), for the fit-quality refusals (default: estimated from the
+    /// reference's second differences).
+    #[arg(long, value_name = "M", value_parser = non_negative)]
+    pub reference_noise: Option<f64>,
+    /// Accept fits the quality checks refuse (a static reference, a fit that
+    /// explains none of the reference's spread, a scale left at 1).
+    #[arg(long)]
+    pub no_fit_checks: bool,
     /// Fit only the first N matched pairs after the start-up cut (the error
     /// is still over all pairs).
     #[arg(long, value_name = "N")]
@@ -141,6 +206,15 @@ impl FitArgs {
             max_diff: self.max_diff,
             offset: self.offset,
             scale: !self.no_scale,
+            dof: self.dof,
+            anchor: self.anchor,
+            max_tilt_deg: self.max_tilt.0,
+            association: self.association,
+            checks: FitChecks {
+                enabled: !self.no_fit_checks,
+                reference_noise: self.reference_noise,
+                ..FitChecks::default()
+            },
             n_to_align: self.n_to_align,
             method: self.method,
             skip_init: self.skip_init.unwrap_or_default(),
@@ -163,6 +237,24 @@ impl FitArgs {
 /// start-up cut, time offset, inliers, intervals.
 pub fn fit_text(r: &crate::pipeline::report::FitReport) -> String {
     let mut s = String::new();
+    if !matches!(r.dof, Dof::Sim3 | Dof::Se3)
+        || r.anchor != Anchor::None
+        || r.association != Association::Evo
+    {
+        s += &format!(
+            "fit: dof {}, anchor {}, association {}\n",
+            r.dof, r.anchor, r.association
+        );
+    }
+    if let Some(d) = &r.dof_diagnostics {
+        let tilt = d
+            .gravity_tilt_deg
+            .map_or("not observable".to_string(), |t| format!("{t:.3} deg"));
+        s += &format!(
+            "gravity tilt of the Sim(3) fit: {tilt}; yaw determinacy {:.6}\n",
+            d.yaw_determinacy
+        );
+    }
     if r.fit_start > 0 || r.stages.is_some() {
         s += &format!("start-up cut: {}\n", r.skip_reason);
     }

@@ -68,6 +68,68 @@ pub enum Error {
         /// The largest angle accepted, degrees.
         threshold_deg: f64,
     },
+    /// The reference positions of the fitted pairs stay within their noise
+    /// of each other: there is no motion to fit a transform to
+    /// ([`crate::align::checks`]).
+    #[error(
+        "the reference does not move: its positions spread {spread_m:.6} m (rms about their \
+         centroid, {n} pairs), at most {threshold} times its noise of {noise_m:.6} m \
+         ({noise_source}); a transform fitted to it would fit the noise"
+    )]
+    StaticReference {
+        /// rms distance of the reference positions to their centroid, metres.
+        spread_m: f64,
+        /// The reference noise (3-D rms), metres.
+        noise_m: f64,
+        /// Where the noise came from (stated, or estimated how).
+        noise_source: String,
+        /// The smallest spread-over-noise ratio accepted.
+        threshold: f64,
+        /// Pairs looked at.
+        n: usize,
+    },
+    /// The fit explains almost none of the reference's spread: its rmse is
+    /// close to the rms spread of the reference about its centroid
+    /// ([`crate::align::checks`]).
+    #[error(
+        "the fit explains almost none of the reference's motion: rmse {rmse_m:.6} m is \
+         {ratio:.3} of the reference's rms spread of {spread_m:.6} m about its centroid \
+         (refused from {threshold}); the two trajectories are not one motion in two frames \
+         (mixed frames such as ECEF beside ENU, another reference, wrong time pairs, or a \
+         dof that cannot map one frame onto the other)"
+    )]
+    UnexplainedSpread {
+        /// Fit residual rms, metres.
+        rmse_m: f64,
+        /// rms distance of the reference positions to their centroid, metres.
+        spread_m: f64,
+        /// `rmse_m / spread_m`.
+        ratio: f64,
+        /// The ratio from which a fit is refused.
+        threshold: f64,
+    },
+    /// A fit that estimates the scale left it at 1 (within `threshold`)
+    /// while the residual is far above the noise: nothing was fitted
+    /// ([`crate::align::checks`]).
+    #[error(
+        "nothing was fitted: the scale stayed at {scale} ({scale_change:.3e} from 1, below \
+         {threshold:e}) while the fit rmse of {rmse_m:.6} m is far above the reference noise \
+         of {noise_m:.6} m ({noise_source}); the estimate came back as it went in"
+    )]
+    NothingFitted {
+        /// The fitted scale.
+        scale: f64,
+        /// `|scale − 1|`.
+        scale_change: f64,
+        /// The smallest change of the scale from 1 accepted.
+        threshold: f64,
+        /// Fit residual rms, metres.
+        rmse_m: f64,
+        /// The reference noise (3-D rms), metres.
+        noise_m: f64,
+        /// Where the noise came from.
+        noise_source: String,
+    },
     /// An argument value outside its domain (negative resolution, unknown method, …).
     #[error("invalid {what}: {reason}")]
     InvalidArgument {

@@ -16,7 +16,9 @@ use std::path::PathBuf;
 use schemars::JsonSchema;
 use serde::{Deserialize, Serialize};
 
+use crate::align::checks::FitQuality;
 use crate::align::covariance::Covariance;
+use crate::align::dof::{Anchor, Dof, DofDiagnostics};
 use crate::align::handeye::HandEye;
 use crate::align::stages::Stages;
 use crate::align::time_offset::TimeOffset;
@@ -27,6 +29,7 @@ use crate::imu::{ImuAlignment, ImuInitDiagnostics};
 use crate::io::text::{Delimiter, TextInfo};
 use crate::sim::evaluate::{ErrorStats, TransformError};
 use crate::sim::SimConfig;
+use crate::trajectory::Association;
 
 use super::native::{Pairing, ReconstructionInfo, ReconstructionKind, ReferenceFileInfo};
 
@@ -181,10 +184,24 @@ impl IntervalsReport {
     }
 }
 
-/// How the fit was made: the start-up cut and why, the time offset, the
-/// robust fit's inliers and the confidence intervals.
+/// How the fit was made: the degrees of freedom, anchor and pairing rule,
+/// the start-up cut and why, the time offset, the robust fit's inliers, the
+/// confidence intervals and the figures of the fit-quality checks.
 #[derive(Clone, Debug, PartialEq, Serialize, JsonSchema)]
 pub struct FitReport {
+    /// Degrees of freedom fitted (`se3` when `sim3` was asked without scale).
+    pub dof: Dof,
+    /// The pair pinned exactly (`first`: the first fitted pair), or `none`.
+    pub anchor: Anchor,
+    /// How SLAM and reference stamps were paired.
+    pub association: Association,
+    /// What a yaw-only or anchored fit adds: horizontal spreads, yaw
+    /// determinacy, gravity tilt of the Sim(3) fit (absent for a plain
+    /// Sim(3) / SE(3) fit).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub dof_diagnostics: Option<DofDiagnostics>,
+    /// The figures the fit-quality refusals looked at.
+    pub quality: FitQuality,
     /// Index of the first fitted pair.
     pub fit_start: usize,
     /// Why the pairs before it were dropped.
@@ -217,6 +234,11 @@ impl FitReport {
                 .map(|m| m.iter().filter(|&&b| b == want).count())
         };
         FitReport {
+            dof: r.dof,
+            anchor: r.anchor,
+            association: r.association,
+            dof_diagnostics: r.alignment.diagnostics.dof.clone(),
+            quality: r.quality.clone(),
             fit_start: r.fit_start,
             skip_reason: r.skip_reason.clone(),
             offset: r.offset,
@@ -665,7 +687,7 @@ pub struct AlignReport {
     pub max_diff: f64,
     /// Seconds given to add to the EST stamps.
     pub offset: f64,
-    /// Sim(3) (true) or SE(3).
+    /// Whether the scale was fitted (`sim3`, `scale+4dof`); the dof is in `fit`.
     pub with_scale: bool,
     /// Scale of `T_ref_est`.
     pub scale: f64,

@@ -1,8 +1,8 @@
-//! Alignment for Python: `align`, `Alignment`, `align_trajectories`,
+//! Alignment for Python: `align` (every degree of freedom of `align/dof/`,
+//! anchored or not), `Alignment`, `align_trajectories`,
 //! `TrajectoryAlignment`, and the fits beyond one closed form —
 //! `detect_stages` / `Stages`, `estimate_time_offset`, `align_windowed` /
-//! `WindowedAlignment`, `estimate_body_from_cam`; `align_dof` (other
-//! degrees of freedom, `align/dof/`).
+//! `WindowedAlignment`, `estimate_body_from_cam`.
 
 use numpy::{IntoPyArray, PyArray1, PyArray2, PyArrayMethods};
 use pyo3::prelude::*;
@@ -12,10 +12,10 @@ use pyo3::types::{PyDict, PyTuple};
 use super::arrays::{to_array2, vec_f64, vectors, with_points};
 use super::geometry::PySim3;
 use super::trajectory::{index_arrays, PyTrajectory};
+use crate::align::checks::FitChecks;
 use crate::align::covariance::{covariance, Covariance};
 use crate::align::dof::{
     align_dof, align_dof_robust, covariance_dof, Anchor, Dof, DofDiagnostics, DofOptions,
-    DEFAULT_MAX_TILT_DEG,
 };
 use crate::align::handeye::estimate_body_from_cam_trajectories;
 use crate::align::robust::{align_robust, RobustOptions};
@@ -28,7 +28,9 @@ use crate::align::windowed::{align_windowed, Window, WindowedAlignment, Windowed
 use crate::align::{
     fit_flat, residuals_flat, AlignDiagnostics, AlignMethod, AlignOptions, Alignment,
 };
+use crate::defaults;
 use crate::error::Error;
+use crate::trajectory::Association;
 
 fn diagnostics_dict<'py>(py: Python<'py>, d: &AlignDiagnostics) -> PyResult<Bound<'py, PyDict>> {
     let dict = PyDict::new(py);
@@ -205,7 +207,7 @@ impl PyAlignment {
     /// Conditioning: `n`, `weight_sum`, `eigenvalues` (Horn's N, largest first),
     /// `relative_eigen_gap`, `singular_values` (cross-covariance), `source_spread`,
     /// `target_spread` (rms distance to the centroid); `dof` (a dict) for the
-    /// fits of `align_dof` with a yaw or an anchor.
+    /// fits with a yaw (`dof="4dof"`, `"scale+4dof"`) or an anchor.
     #[getter]
     fn diagnostics<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyDict>> {
         diagnostics_dict(py, &self.diagnostics)
@@ -249,33 +251,71 @@ impl PyAlignment {
     }
 }
 
-/// Closed-form Sim(3) (or SE(3) with `scale=False`) alignment of `(N, 3)`
-/// source points onto `(N, 3)` target points; the GIL is released.
+/// `anchor=None|"none"|"first"` as the core's anchor.
+fn anchor_arg(anchor: Option<&str>) -> PyResult<Anchor> {
+    Ok(match anchor {
+        None => Anchor::None,
+        Some(a) => a.parse()?,
+    })
+}
+
+/// Closed-form alignment of `(N, 3)` source points onto `(N, 3)` target
+/// points with `dof` (`"sim3"`; `"se3"`, also `scale=False`; `"4dof"`:
+/// translation + yaw about z; `"scale+4dof"`) and `anchor` (None or
+/// `"first"`: the first pair mapped exactly). A yaw-only fit raises
+/// `InvalidInputError` when the Sim(3) fit tilts the source z axis more than
+/// `max_tilt_deg` (None: no check). `covariance` is over the Sim(3)
+/// parameters, zero where the dof fixes one. The GIL is released.
 #[pyfunction(name = "align")]
-#[pyo3(signature = (source, target, *, scale=true, weights=None, method="horn", robust=None, inlier_threshold=None, loss="huber"))]
+#[pyo3(signature = (source, target, *, scale=true, dof="sim3", anchor=None, weights=None, method="horn", max_tilt_deg=Some(defaults::MAX_TILT_DEG), robust=None, inlier_threshold=None, loss="huber"),
+       text_signature = "(source, target, *, scale=True, dof='sim3', anchor=None, weights=None, \
+                         method='horn', max_tilt_deg=2.0, robust=None, inlier_threshold=None, \
+                         loss='huber')")]
 #[allow(clippy::too_many_arguments)]
 fn align_py(
     py: Python<'_>,
     source: &Bound<'_, PyAny>,
     target: &Bound<'_, PyAny>,
     scale: bool,
+    dof: &str,
+    anchor: Option<&str>,
     weights: Option<&Bound<'_, PyAny>>,
     method: &str,
+    max_tilt_deg: Option<f64>,
     robust: Option<&str>,
     inlier_threshold: Option<f64>,
     loss: &str,
 ) -> PyResult<PyAlignment> {
+    let dof = dof.parse::<Dof>()?.with_scale_flag(scale)?;
+    let anchor = anchor_arg(anchor)?;
     let method: AlignMethod = method.parse()?;
     let weights = match weights {
         Some(w) => Some(vec_f64(w, "weights", None)?),
         None => None,
     };
+    let robust = robust_arg(robust, inlier_threshold, loss)?;
+    if !matches!(dof, Dof::Sim3 | Dof::Se3) || anchor != Anchor::None {
+        return align_dof_py(
+            py,
+            source,
+            target,
+            DofOptions {
+                dof,
+                anchor,
+                weights,
+                method,
+                max_tilt_deg,
+            },
+            robust,
+        );
+    }
+    let scale = dof.has_scale();
     let opts = AlignOptions {
         scale,
         method,
         weights,
     };
-    if let Some(ropts) = robust_arg(robust, inlier_threshold, loss)? {
+    if let Some(ropts) = robust {
         let a = vectors(source, "source")?;
         let b = vectors(target, "target")?;
         let (fit, cov) = py.detach(|| -> crate::error::Result<_> {
@@ -312,6 +352,35 @@ fn align_py(
     })
 }
 
+/// `align` with another dof or an anchor (`align/dof/`): residuals and the
+/// covariance (mapped onto the Sim(3) parameters) computed with the fit.
+fn align_dof_py(
+    py: Python<'_>,
+    source: &Bound<'_, PyAny>,
+    target: &Bound<'_, PyAny>,
+    opts: DofOptions,
+    robust: Option<RobustOptions>,
+) -> PyResult<PyAlignment> {
+    let a = vectors(source, "source")?;
+    let b = vectors(target, "target")?;
+    let (dof, anchor) = (opts.dof, opts.anchor);
+    let (alignment, inliers, cov) = py.detach(|| -> crate::error::Result<_> {
+        let (alignment, inliers, w) = match &robust {
+            Some(ropts) => {
+                let r = align_dof_robust(&a, &b, &opts, ropts)?;
+                let w: Vec<f64> = r.inliers.iter().map(|&x| f64::from(u8::from(x))).collect();
+                (r.alignment, Some(r.inliers), Some(w))
+            }
+            None => (align_dof(&a, &b, &opts)?, None, opts.weights.clone()),
+        };
+        let cov = covariance_dof(&alignment.transform, &a, &b, w.as_deref(), dof, anchor)
+            .ok()
+            .map(|c| c.to_sim3());
+        Ok((alignment, inliers, cov))
+    })?;
+    Ok(PyAlignment::with_extras(py, alignment, inliers, cov))
+}
+
 /// The result of `align_trajectories`: the transform `T_world_slam`, the APE
 /// statistics over all matched pairs (metres) and the pairs.
 #[pyclass(
@@ -331,10 +400,51 @@ pub struct PyTrajectoryAlignment {
     stages: Option<Stages>,
     inliers: Option<Py<PyArray1<bool>>>,
     covariance: Option<Covariance>,
+    dof: Dof,
+    anchor: Anchor,
+    association: Association,
+    quality: crate::align::checks::FitQuality,
 }
 
 #[pymethods]
 impl PyTrajectoryAlignment {
+    /// Degrees of freedom fitted (`"se3"` for `"sim3"` with `scale=False`).
+    #[getter]
+    fn dof(&self) -> &'static str {
+        self.dof.as_str()
+    }
+    /// The anchor: `"none"` or `"first"` (the first fitted pair mapped exactly).
+    #[getter]
+    fn anchor(&self) -> &'static str {
+        self.anchor.as_str()
+    }
+    /// The pairing rule: `"evo"` or `"one_to_one"`.
+    #[getter]
+    fn association(&self) -> &'static str {
+        self.association.as_str()
+    }
+    /// The figures of the fit-quality refusals: `reference_spread` (m, rms
+    /// about the centroid), `reference_noise` (m, or None), `noise_source`
+    /// (`"stated"`, `"second_differences"` or None), `spread_over_noise`,
+    /// `residual_over_spread`, `scale_change` (`|s − 1|`).
+    #[getter]
+    fn quality<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyDict>> {
+        let q = &self.quality;
+        let d = PyDict::new(py);
+        d.set_item("reference_spread", q.reference_spread)?;
+        d.set_item("reference_noise", q.reference_noise)?;
+        d.set_item(
+            "noise_source",
+            q.noise_source.map(|n| match n {
+                crate::align::checks::NoiseSource::Stated => "stated",
+                crate::align::checks::NoiseSource::SecondDifferences => "second_differences",
+            }),
+        )?;
+        d.set_item("spread_over_noise", q.spread_over_noise)?;
+        d.set_item("residual_over_spread", q.residual_over_spread)?;
+        d.set_item("scale_change", q.scale_change)?;
+        Ok(d)
+    }
     /// `T_world_slam`: maps SLAM positions onto the reference.
     #[getter]
     fn transform(&self) -> PySim3 {
@@ -510,11 +620,21 @@ pub(crate) fn fit_options(
     estimate_offset: bool,
     max_offset: f64,
     body_from_cam: Option<crate::geometry::Sim3>,
+    dof: FitDof<'_>,
 ) -> PyResult<TrajectoryAlignOptions> {
-    Ok(TrajectoryAlignOptions {
+    let opts = TrajectoryAlignOptions {
         max_diff,
         offset,
         scale,
+        dof: dof.dof.parse()?,
+        anchor: anchor_arg(dof.anchor)?,
+        max_tilt_deg: dof.max_tilt_deg,
+        association: dof.association.parse()?,
+        checks: FitChecks {
+            enabled: dof.fit_checks,
+            reference_noise: dof.reference_noise,
+            ..FitChecks::default()
+        },
         n_to_align,
         method: method.parse()?,
         skip_init: skip_init_arg(skip_init)?,
@@ -525,15 +645,40 @@ pub(crate) fn fit_options(
             ..Default::default()
         }),
         body_from_cam,
-    })
+    };
+    opts.check()?;
+    Ok(opts)
+}
+
+/// The keyword options of a trajectory fit beyond the classic ones: degrees
+/// of freedom, anchor, pairing rule, tilt limit, fit-quality checks.
+pub(crate) struct FitDof<'a> {
+    pub dof: &'a str,
+    pub anchor: Option<&'a str>,
+    pub association: &'a str,
+    pub max_tilt_deg: Option<f64>,
+    pub reference_noise: Option<f64>,
+    pub fit_checks: bool,
 }
 
 /// Associates by time, fits `T_world_slam` on the positions (the first
 /// `n_to_align` pairs after the start-up cut when given) and reports the APE
 /// over all pairs. The keyword options beyond `method`: start-up cut
-/// (`skip_init`), robust fit, orientations, time offset, extrinsic.
+/// (`skip_init`), robust fit, orientations, time offset, extrinsic; `dof`
+/// and `anchor` as `align`'s (`anchor="first"` pins the first fitted pair),
+/// `association` (`"evo"`, or `"one_to_one"`: the TUM benchmark's rule),
+/// `max_tilt_deg` (the gravity check of a yaw-only fit); `reference_noise`
+/// (metres, 3-D rms; None: estimated) and `fit_checks` for the fit-quality
+/// refusals (a static reference, a fit that explains none of the
+/// reference's spread, a scale left at 1), which raise `DegenerateError`.
 #[pyfunction(name = "align_trajectories")]
-#[pyo3(signature = (slam, reference, *, max_diff=0.01, offset=0.0, scale=true, n_to_align=None, method="horn", skip_init=None, robust=None, inlier_threshold=None, loss="huber", use_orientations=false, estimate_offset=false, max_offset=0.5, body_from_cam=None))]
+#[pyo3(signature = (slam, reference, *, max_diff=0.01, offset=0.0, scale=true, n_to_align=None, method="horn", skip_init=None, robust=None, inlier_threshold=None, loss="huber", use_orientations=false, estimate_offset=false, max_offset=0.5, body_from_cam=None, dof="sim3", anchor=None, association="evo", max_tilt_deg=Some(defaults::MAX_TILT_DEG), reference_noise=None, fit_checks=true),
+       text_signature = "(slam, reference, *, max_diff=0.01, offset=0.0, scale=True, n_to_align=None, \
+                         method='horn', skip_init=None, robust=None, inlier_threshold=None, \
+                         loss='huber', use_orientations=False, estimate_offset=False, \
+                         max_offset=0.5, body_from_cam=None, dof='sim3', anchor=None, \
+                         association='evo', max_tilt_deg=2.0, reference_noise=None, \
+                         fit_checks=True)")]
 #[allow(clippy::too_many_arguments)]
 fn align_trajectories_py(
     py: Python<'_>,
@@ -552,6 +697,12 @@ fn align_trajectories_py(
     estimate_offset: bool,
     max_offset: f64,
     body_from_cam: Option<PyRef<'_, PySim3>>,
+    dof: &str,
+    anchor: Option<&str>,
+    association: &str,
+    max_tilt_deg: Option<f64>,
+    reference_noise: Option<f64>,
+    fit_checks: bool,
 ) -> PyResult<PyTrajectoryAlignment> {
     let opts = fit_options(
         max_diff,
@@ -567,6 +718,14 @@ fn align_trajectories_py(
         estimate_offset,
         max_offset,
         body_from_cam.map(|b| b.inner),
+        FitDof {
+            dof,
+            anchor,
+            association,
+            max_tilt_deg,
+            reference_noise,
+            fit_checks,
+        },
     )?;
     let (s, r) = (&slam.inner, &reference.inner);
     let out = py.detach(|| align_trajectories(s, r, &opts))?;
@@ -588,6 +747,10 @@ impl PyTrajectoryAlignment {
             skip_reason,
             inliers,
             covariance,
+            dof,
+            anchor,
+            association,
+            quality,
             ..
         } = out;
         Ok(PyTrajectoryAlignment {
@@ -605,6 +768,10 @@ impl PyTrajectoryAlignment {
             stages,
             inliers: inliers.map(|m| m.into_pyarray(py).unbind()),
             covariance,
+            dof,
+            anchor,
+            association,
+            quality,
         })
     }
 }
@@ -777,9 +944,11 @@ pub(crate) fn window_arg(w: &Bound<'_, PyAny>, what: &str) -> PyResult<Window> {
 }
 
 /// Windowed Sim(3) along the path: `window` an int (matched poses) or a float
-/// (metres of reference path).
+/// (metres of reference path); every fit with `dof` (as `align`'s), the
+/// stamps paired by `association` (`"evo"` or `"one_to_one"`).
 #[pyfunction(name = "align_windowed")]
-#[pyo3(signature = (slam, reference, *, window=None, max_diff=0.01, offset=0.0, scale=true))]
+#[pyo3(signature = (slam, reference, *, window=None, max_diff=0.01, offset=0.0, scale=true, dof="sim3", association="evo"))]
+#[allow(clippy::too_many_arguments)]
 fn align_windowed_py(
     py: Python<'_>,
     slam: PyRef<'_, PyTrajectory>,
@@ -788,6 +957,8 @@ fn align_windowed_py(
     max_diff: f64,
     offset: f64,
     scale: bool,
+    dof: &str,
+    association: &str,
 ) -> PyResult<PyWindowedAlignment> {
     let window = match window {
         None => Window::default(),
@@ -798,6 +969,9 @@ fn align_windowed_py(
         max_diff,
         offset,
         scale,
+        dof: dof.parse()?,
+        association: association.parse()?,
+        ..WindowedOptions::default()
     };
     let (s, r) = (&slam.inner, &reference.inner);
     let inner = py.detach(|| align_windowed(s, r, &opts))?;
@@ -843,67 +1017,6 @@ pub(crate) fn dof_diagnostics_dict<'py>(
     Ok(dict)
 }
 
-/// Aligns `(N, 3)` source points onto `(N, 3)` target points with `dof`
-/// (`"sim3"`, `"se3"`, `"4dof"`: translation + yaw about z, `"scale+4dof"`)
-/// and `anchor` (None or `"first"`: the first pair mapped exactly). A yaw-only
-/// fit raises `InvalidInputError` when the Sim(3) fit tilts the source z axis
-/// more than `max_tilt_deg` (None: no check). `covariance` is over the Sim(3)
-/// parameters, zero where the dof fixes one. The GIL is released.
-#[pyfunction(name = "align_dof")]
-#[pyo3(signature = (source, target, *, dof="4dof", anchor=None, weights=None, method="horn", max_tilt_deg=Some(DEFAULT_MAX_TILT_DEG), robust=None, inlier_threshold=None, loss="huber"),
-       text_signature = "(source, target, *, dof='4dof', anchor=None, weights=None, method='horn', \
-                         max_tilt_deg=2.0, robust=None, inlier_threshold=None, loss='huber')")]
-#[allow(clippy::too_many_arguments)]
-fn align_dof_py(
-    py: Python<'_>,
-    source: &Bound<'_, PyAny>,
-    target: &Bound<'_, PyAny>,
-    dof: &str,
-    anchor: Option<&str>,
-    weights: Option<&Bound<'_, PyAny>>,
-    method: &str,
-    max_tilt_deg: Option<f64>,
-    robust: Option<&str>,
-    inlier_threshold: Option<f64>,
-    loss: &str,
-) -> PyResult<PyAlignment> {
-    let dof: Dof = dof.parse()?;
-    let anchor: Anchor = match anchor {
-        None => Anchor::None,
-        Some(a) => a.parse()?,
-    };
-    let method: AlignMethod = method.parse()?;
-    let weights = match weights {
-        Some(w) => Some(vec_f64(w, "weights", None)?),
-        None => None,
-    };
-    let robust = robust_arg(robust, inlier_threshold, loss)?;
-    let a = vectors(source, "source")?;
-    let b = vectors(target, "target")?;
-    let opts = DofOptions {
-        dof,
-        anchor,
-        weights,
-        method,
-        max_tilt_deg,
-    };
-    let (alignment, inliers, cov) = py.detach(|| -> crate::error::Result<_> {
-        let (alignment, inliers, w) = match &robust {
-            Some(ropts) => {
-                let r = align_dof_robust(&a, &b, &opts, ropts)?;
-                let w: Vec<f64> = r.inliers.iter().map(|&x| f64::from(u8::from(x))).collect();
-                (r.alignment, Some(r.inliers), Some(w))
-            }
-            None => (align_dof(&a, &b, &opts)?, None, opts.weights.clone()),
-        };
-        let cov = covariance_dof(&alignment.transform, &a, &b, w.as_deref(), dof, anchor)
-            .ok()
-            .map(|c| c.to_sim3());
-        Ok((alignment, inliers, cov))
-    })?;
-    Ok(PyAlignment::with_extras(py, alignment, inliers, cov))
-}
-
 pub fn register(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_class::<PyAlignment>()?;
     m.add_class::<PyTrajectoryAlignment>()?;
@@ -915,6 +1028,5 @@ pub fn register(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_function(wrap_pyfunction!(estimate_time_offset_py, m)?)?;
     m.add_function(wrap_pyfunction!(align_windowed_py, m)?)?;
     m.add_function(wrap_pyfunction!(estimate_body_from_cam_py, m)?)?;
-    m.add_function(wrap_pyfunction!(align_dof_py, m)?)?;
     Ok(())
 }

@@ -113,7 +113,10 @@ impl From<Error> for PyErr {
                 | Error::GravityTilted { .. }
                 | Error::InvalidFix { .. }
                 | Error::TooLarge { .. } => &c.invalid,
-                Error::Degenerate { .. } => &c.degenerate,
+                Error::Degenerate { .. }
+                | Error::StaticReference { .. }
+                | Error::UnexplainedSpread { .. }
+                | Error::NothingFitted { .. } => &c.degenerate,
                 Error::Parse { .. }
                 | Error::Mcap { .. }
                 | Error::Decode { .. }

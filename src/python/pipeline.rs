@@ -5,7 +5,7 @@ use std::path::PathBuf;
 use pyo3::prelude::*;
 use pyo3::sync::PyOnceLock;
 
-use super::align::{fit_options, window_arg, PyTrajectoryAlignment};
+use super::align::{fit_options, window_arg, FitDof, PyTrajectoryAlignment};
 use super::cloud::{PyPointCloud, PyPointFilter};
 use super::colmap::PyColmapModel;
 use super::geometry::PySim3;
@@ -205,9 +205,25 @@ impl PyConversion {
 /// `compare_windowed` (an int: matched poses, a float: metres of path) adds a
 /// windowed fit to the report, and `windowed_cloud=True` carries each keyframe
 /// (points, camera centre, world pose) with it instead of the single Sim(3).
-/// `level` is the confidence level of the report's intervals.
+/// `level` is the confidence level of the report's intervals. `dof`,
+/// `anchor`, `association`, `max_tilt_deg`, `reference_noise` and
+/// `fit_checks` are `align_trajectories`'s (degrees of freedom, pinned first
+/// pair, pairing rule, gravity check, fit-quality refusals).
 #[pyfunction(name = "convert")]
-#[pyo3(signature = (log_or_path, *, keyframe_topic=None, graph_topic=None, pose_topic=None, tf_parent=None, tf_child=None, max_diff=0.01, offset=0.0, n_to_align=None, scale=true, method="horn", filter=None, octree_resolution=None, octree_max_range=None, prob_hit=0.7, prob_miss=0.4, clamp_min=0.1192, clamp_max=0.971, skip_init=None, robust=None, inlier_threshold=None, loss="huber", use_orientations=false, estimate_offset=false, max_offset=0.5, body_from_cam=None, compare_windowed=None, windowed_cloud=false, imu_topic=None, imu_from_cam=None, gravity=9.81, level=0.95, reference=None, reference_format=None, reference_time_unit=None, time_unit=None, cloud=None, colmap_format=None, depth_filter=true, depth_threshold=0.005, depth_min_count=2, min_disparity_ratio=0.5))]
+#[pyo3(signature = (log_or_path, *, keyframe_topic=None, graph_topic=None, pose_topic=None, tf_parent=None, tf_child=None, max_diff=0.01, offset=0.0, n_to_align=None, scale=true, method="horn", filter=None, octree_resolution=None, octree_max_range=None, prob_hit=0.7, prob_miss=0.4, clamp_min=0.1192, clamp_max=0.971, skip_init=None, robust=None, inlier_threshold=None, loss="huber", use_orientations=false, estimate_offset=false, max_offset=0.5, body_from_cam=None, compare_windowed=None, windowed_cloud=false, imu_topic=None, imu_from_cam=None, gravity=9.81, level=0.95, dof="sim3", anchor=None, association="evo", max_tilt_deg=Some(crate::defaults::MAX_TILT_DEG), reference_noise=None, fit_checks=true, reference=None, reference_format=None, reference_time_unit=None, time_unit=None, cloud=None, colmap_format=None, depth_filter=true, depth_threshold=0.005, depth_min_count=2, min_disparity_ratio=0.5),
+       text_signature = "(log_or_path, *, keyframe_topic=None, graph_topic=None, pose_topic=None, \
+                         tf_parent=None, tf_child=None, max_diff=0.01, offset=0.0, n_to_align=None, \
+                         scale=True, method='horn', filter=None, octree_resolution=None, \
+                         octree_max_range=None, prob_hit=0.7, prob_miss=0.4, clamp_min=0.1192, \
+                         clamp_max=0.971, skip_init=None, robust=None, inlier_threshold=None, \
+                         loss='huber', use_orientations=False, estimate_offset=False, max_offset=0.5, \
+                         body_from_cam=None, compare_windowed=None, windowed_cloud=False, \
+                         imu_topic=None, imu_from_cam=None, gravity=9.81, level=0.95, dof='sim3', \
+                         anchor=None, association='evo', max_tilt_deg=2.0, reference_noise=None, \
+                         fit_checks=True, reference=None, reference_format=None, \
+                         reference_time_unit=None, time_unit=None, cloud=None, colmap_format=None, \
+                         depth_filter=True, depth_threshold=0.005, depth_min_count=2, \
+                         min_disparity_ratio=0.5)")]
 #[allow(clippy::too_many_arguments)]
 fn convert_py(
     py: Python<'_>,
@@ -243,6 +259,12 @@ fn convert_py(
     imu_from_cam: Option<PyRef<'_, PySim3>>,
     gravity: f64,
     level: f64,
+    dof: &str,
+    anchor: Option<&str>,
+    association: &str,
+    max_tilt_deg: Option<f64>,
+    reference_noise: Option<f64>,
+    fit_checks: bool,
     reference: Option<PathBuf>,
     reference_format: Option<&str>,
     reference_time_unit: Option<&str>,
@@ -278,6 +300,14 @@ fn convert_py(
         estimate_offset,
         max_offset,
         body_from_cam.map(|b| b.inner),
+        FitDof {
+            dof,
+            anchor,
+            association,
+            max_tilt_deg,
+            reference_noise,
+            fit_checks,
+        },
     )?;
     let compare_windowed = match compare_windowed {
         Some(w) if !w.is_none() => Some(window_arg(w, "compare_windowed")?),

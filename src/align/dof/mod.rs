@@ -45,7 +45,7 @@ use crate::geometry::Sim3;
 
 /// Tilt of the estimate's gravity, by the Sim(3) fit, above which a yaw-only
 /// fit is refused by default, degrees.
-pub const DEFAULT_MAX_TILT_DEG: f64 = 2.0;
+pub const DEFAULT_MAX_TILT_DEG: f64 = crate::defaults::MAX_TILT_DEG;
 
 /// Yaw determinacy ([`DofDiagnostics::yaw_determinacy`]) at or below which
 /// the yaw is refused as undetermined.
@@ -53,7 +53,16 @@ pub const MIN_YAW_DETERMINACY: f64 = 1e-10;
 
 /// The transforms a fit may choose from.
 #[derive(
-    Clone, Copy, Debug, Default, PartialEq, Eq, Hash, serde::Serialize, serde::Deserialize,
+    Clone,
+    Copy,
+    Debug,
+    Default,
+    PartialEq,
+    Eq,
+    Hash,
+    serde::Serialize,
+    serde::Deserialize,
+    schemars::JsonSchema,
 )]
 pub enum Dof {
     /// Rotation, translation and scale (7 DoF): monocular SLAM with unknown
@@ -111,6 +120,20 @@ impl Dof {
         }
     }
 
+    /// The dof fitted when the scale is also switched by a flag (`scale:
+    /// false`, `--no-scale`): `sim3` becomes `se3`; `scale+4dof` without scale
+    /// is a contradiction ([`Error::InvalidArgument`]); the others stay.
+    pub fn with_scale_flag(self, scale: bool) -> Result<Dof> {
+        match (self, scale) {
+            (Dof::Sim3, false) => Ok(Dof::Se3),
+            (Dof::ScaleFourDof, false) => Err(Error::invalid(
+                "scale",
+                "scale=false (--no-scale) contradicts dof=\"scale+4dof\"; use dof=\"4dof\"",
+            )),
+            (d, _) => Ok(d),
+        }
+    }
+
     /// Fewest pairs that can determine the transform (3 non-collinear points
     /// for a full rotation, 2 horizontally apart for a yaw), anchor included.
     pub fn min_pairs(self) -> usize {
@@ -148,7 +171,16 @@ impl std::str::FromStr for Dof {
 
 /// Which pair, if any, the fit maps exactly.
 #[derive(
-    Clone, Copy, Debug, Default, PartialEq, Eq, Hash, serde::Serialize, serde::Deserialize,
+    Clone,
+    Copy,
+    Debug,
+    Default,
+    PartialEq,
+    Eq,
+    Hash,
+    serde::Serialize,
+    serde::Deserialize,
+    schemars::JsonSchema,
 )]
 pub enum Anchor {
     /// No pair is pinned: the plain least-squares fit.
@@ -237,7 +269,7 @@ impl DofOptions {
 }
 
 /// What a fit of [`align_dof`] adds to [`AlignDiagnostics`].
-#[derive(Clone, Debug, PartialEq, serde::Serialize)]
+#[derive(Clone, Debug, PartialEq, serde::Serialize, schemars::JsonSchema)]
 pub struct DofDiagnostics {
     /// The degrees of freedom fitted.
     pub dof: Dof,
