@@ -738,7 +738,9 @@ fn paired_by_name(
 
 /// The options a conversion of `rec` runs with, where they differ from `opts`:
 /// - paired by name: `max_diff = 0` (equal stamps only); a given `offset` or
-///   an offset estimate is refused (names carry no clock);
+///   an offset estimate is refused (names carry no clock); without a stated
+///   reference noise, the refusals that rest on the noise estimated from
+///   second differences (a static reference, an unmoved scale) are off;
 /// - DROID-SLAM keyframes (depth-filtered as read, without variances) are
 ///   backprojected with [`PointFilter::none`] when `opts.filter` is the
 ///   LSD-SLAM viewer's default (which would drop the first six keyframes and
@@ -770,6 +772,13 @@ pub fn effective_options<'a>(
             ));
         }
         o.align.max_diff = 0.0;
+        // Images in name order are no path: the reference noise estimated
+        // from second differences means nothing there, so the two refusals
+        // that rest on it are made only with a stated noise.
+        if o.align.checks.reference_noise.is_none() {
+            o.align.checks.min_spread_over_noise = 0.0;
+            o.align.checks.min_scale_change = 0.0;
+        }
     }
     if droid_filter {
         o.filter = PointFilter::none();
