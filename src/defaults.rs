@@ -65,6 +65,15 @@ pub const SPARSIFY: u32 = 1;
 /// LSD-SLAM viewer's `cutFirstNKf`: keyframes whose arrival index is `≤` this are dropped.
 pub const CUT_FIRST_KEYFRAMES: usize = 5;
 
+/// DROID-SLAM's depth filter: largest depth difference of an agreeing
+/// neighbour keyframe, depth units (its viewers' 0.005).
+pub const DEPTH_THRESHOLD: f64 = 0.005;
+/// DROID-SLAM's depth filter: neighbour keyframes that must agree (its viewers' 2).
+pub const DEPTH_MIN_COUNT: u32 = 2;
+/// DROID-SLAM's depth filter: kept disparities exceed this fraction of the
+/// keyframe's mean (`visualization.py`'s 0.5).
+pub const MIN_DISPARITY_RATIO: f64 = 0.5;
+
 /// OctoMap's `prob_hit`: occupancy probability of a ray's end voxel.
 pub const PROB_HIT: f64 = 0.7;
 /// OctoMap's `prob_miss`: occupancy probability of a voxel a ray crosses.
@@ -127,6 +136,9 @@ pub const TABLE: &[(&str, Value)] = &[
         "cut_first_keyframes",
         Value::Int(CUT_FIRST_KEYFRAMES as i64),
     ),
+    ("depth_threshold", Value::Float(DEPTH_THRESHOLD)),
+    ("depth_min_count", Value::Int(DEPTH_MIN_COUNT as i64)),
+    ("min_disparity_ratio", Value::Float(MIN_DISPARITY_RATIO)),
     ("prob_hit", Value::Float(PROB_HIT)),
     ("prob_miss", Value::Float(PROB_MISS)),
     ("clamp_min", Value::Float(CLAMP_MIN)),

@@ -255,6 +255,7 @@ fn a_failed_rerun_leaves_the_previous_outputs_and_stale_ones_go() {
             "map.bt",
             "report.html",
             "report.json",
+            "trajectory.txt",
             "world.mcap"
         ]
     );
@@ -279,7 +280,13 @@ fn a_failed_rerun_leaves_the_previous_outputs_and_stale_ones_go() {
     assert!(String::from_utf8_lossy(&o.stdout).contains("removed"));
     assert_eq!(
         names(&out),
-        ["cloud.ply", "report.html", "report.json", "world.mcap"]
+        [
+            "cloud.ply",
+            "report.html",
+            "report.json",
+            "trajectory.txt",
+            "world.mcap"
+        ]
     );
     // -o naming a file is an output folder that is a file.
     let o = run(&["convert", s(&log), "-o", s(&log), "-q"]);

@@ -706,10 +706,14 @@ class Conversion:
     def write_html(
         self, path: str | os.PathLike[str], *, max_points: int = 300_000, max_cubes: int = 200_000
     ) -> None: ...
+    @property
+    def model(self) -> ColmapModel | None: ...
+    def write_tum(self, path: str | os.PathLike[str]) -> None: ...
+    def write_model(self, path: str | os.PathLike[str], format: str | None = None) -> None: ...
     def write_all(self, directory: str | os.PathLike[str], *, ros2: bool = False) -> None: ...
 
 def convert(
-    log_or_path: Log | str | os.PathLike[str],
+    log_or_path: Log | Reconstruction | str | os.PathLike[str],
     *,
     keyframe_topic: str | None = None,
     graph_topic: str | None = None,
@@ -749,6 +753,16 @@ def convert(
     max_tilt_deg: float | None = 2.0,
     reference_noise: float | None = None,
     fit_checks: bool = True,
+    reference: str | os.PathLike[str] | None = None,
+    reference_format: str | None = None,
+    reference_time_unit: str | None = None,
+    time_unit: str | None = None,
+    cloud: str | os.PathLike[str] | None = None,
+    colmap_format: str | None = None,
+    depth_filter: bool = True,
+    depth_threshold: float = 0.005,
+    depth_min_count: int = 2,
+    min_disparity_ratio: float = 0.5,
 ) -> Conversion: ...
 
 DEFAULTS: dict[str, float | int | str]
@@ -868,6 +882,55 @@ class TextInfo:
 def read_trajectory(
     path: _Path, *, time_unit: str | None = None
 ) -> tuple[Trajectory, TextInfo]: ...
+
+@final
+class Reconstruction:
+    @property
+    def path(self) -> pathlib.Path: ...
+    @property
+    def kind(self) -> str: ...
+    @property
+    def flavour(self) -> str | None: ...
+    @property
+    def frames(self) -> Trajectory | None: ...
+    @property
+    def names(self) -> list[str] | None: ...
+    @property
+    def cameras(self) -> list[PinholeCamera | None] | None: ...
+    @property
+    def keyframes(self) -> list[Keyframe]: ...
+    @property
+    def cloud(self) -> PointCloud | None: ...
+    @property
+    def model(self) -> ColmapModel | None: ...
+    @property
+    def reference(self) -> Trajectory | None: ...
+    @property
+    def text_info(self) -> TextInfo | None: ...
+    @property
+    def frame_times(self) -> str: ...
+    @property
+    def notes(self) -> list[str]: ...
+    def with_reference(
+        self,
+        reference: _Path,
+        *,
+        reference_format: str | None = None,
+        reference_time_unit: str | None = None,
+    ) -> Reconstruction: ...
+    def __len__(self) -> int: ...
+
+def read_reconstruction(
+    path: _Path,
+    *,
+    time_unit: str | None = None,
+    cloud: _Path | None = None,
+    colmap_format: str | None = None,
+    depth_filter: bool = True,
+    depth_threshold: float = 0.005,
+    depth_min_count: int = 2,
+    min_disparity_ratio: float = 0.5,
+) -> Reconstruction: ...
 
 # ---------------------------------------------------------------- geodesy and GNSS
 

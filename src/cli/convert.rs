@@ -1,29 +1,86 @@
-//! `slam2world convert LOG -o OUTDIR`: `world.mcap`, `cloud.ply`, `report.json`,
-//! `report.html`, and with `--octree RES` the occupancy map `map.bt` (its
-//! occupied voxels also in `world.mcap` and the page).
+//! `slam2world convert INPUT -o OUTDIR`: `world.mcap`, `cloud.ply`,
+//! `trajectory.txt`, `report.json`, `report.html`, with `--octree RES` the
+//! occupancy map `map.bt` (its occupied voxels also in `world.mcap` and the
+//! page), and for a COLMAP model the model in metres (`model/`).
+//!
+//! INPUT is a log (MCAP, ROS 1 bag, rosbag2 folder or .db3) or a
+//! reconstruction (COLMAP / GLOMAP model folder, DROID-SLAM folder, TUM-order
+//! trajectory file with its PLY), told apart by its contents; a
+//! reconstruction takes its metric reference from `--reference` (poses by
+//! time, or positions by image name).
 
 use std::path::PathBuf;
 
 use clap::Args;
 use indicatif::{ProgressBar, ProgressDrawTarget, ProgressStyle};
 
-use super::args::{finite, parse_transform, positive, print, FitArgs};
+use super::args::{finite, non_negative, parse_transform, positive, print, FitArgs};
 use crate::cloud::PointFilter;
 use crate::defaults;
-use crate::error::Result;
+use crate::error::{Error, Result};
+use crate::io::colmap::ColmapFormat;
+use crate::io::droid::DepthFilter;
 use crate::io::log::ReadOptions;
 use crate::io::mcap::WorldFlavor;
+use crate::io::text::TimeUnit;
 use crate::map::MapParams;
+use crate::pipeline::native::ReferenceFormat;
 use crate::pipeline::outputs::output_set;
-use crate::pipeline::report::ImuReport;
-use crate::pipeline::{convert_source, source, ConvertOptions};
+use crate::pipeline::reconstruction::{open_input, ReconstructionOptions, ReferenceSpec};
+use crate::pipeline::report::{ImuReport, Report, TextInfoReport};
+use crate::pipeline::{convert_source, ConvertOptions};
+
+fn reference_format(s: &str) -> std::result::Result<ReferenceFormat, String> {
+    s.parse().map_err(|e: Error| e.to_string())
+}
+
+fn time_unit(s: &str) -> std::result::Result<TimeUnit, String> {
+    TimeUnit::parse(s).map_err(|e| e.to_string())
+}
+
+fn colmap_format(s: &str) -> std::result::Result<ColmapFormat, String> {
+    ColmapFormat::parse(s).map_err(|e| e.to_string())
+}
 
 /// Arguments of `convert`.
 #[derive(Args, Debug)]
 pub struct ConvertArgs {
-    /// The log with LSD-SLAM keyframes and reference poses or raw IMU: MCAP,
-    /// ROS 1 bag, rosbag2 folder or .db3 (found from the bytes).
+    /// The input: a log (LSD-SLAM keyframes and reference poses or raw IMU;
+    /// MCAP, ROS 1 bag, rosbag2 folder or .db3, found from the bytes) or a
+    /// reconstruction (COLMAP/GLOMAP model folder, DROID-SLAM folder,
+    /// trajectory file: DPVO, MASt3R-SLAM, DSO, ORB-SLAM3).
     pub log: PathBuf,
+    /// Metric reference file: poses by time (TUM order, any time unit; EuRoC
+    /// CSV) or positions by image name (`name x y z`, COLMAP model_aligner's).
+    #[arg(long, value_name = "REF")]
+    pub reference: Option<PathBuf>,
+    /// Format of the reference (default: detected from its first lines).
+    #[arg(long, value_name = "names|tum|euroc", requires = "reference", value_parser = reference_format)]
+    pub reference_format: Option<ReferenceFormat>,
+    /// Unit of the reference's stamps (default: detected; EuRoC: ns).
+    #[arg(long, value_name = "s|ms|us|ns", requires = "reference", value_parser = time_unit)]
+    pub reference_time_unit: Option<TimeUnit>,
+    /// Unit of the stamps of a trajectory input (default: detected).
+    #[arg(long, value_name = "s|ms|us|ns", value_parser = time_unit)]
+    pub time_unit: Option<TimeUnit>,
+    /// Cloud of a trajectory input, PLY or x y z text (default: the PLY of the
+    /// same stem beside it).
+    #[arg(long, value_name = "PLY")]
+    pub cloud: Option<PathBuf>,
+    /// Flavour to read when a COLMAP folder holds both `.bin` and `.txt`.
+    #[arg(long, value_name = "bin|txt", value_parser = colmap_format)]
+    pub colmap_format: Option<ColmapFormat>,
+    /// DROID-SLAM depth filter: largest depth difference of an agreeing
+    /// neighbour keyframe (depth units).
+    #[arg(long, value_name = "D", default_value_t = defaults::DEPTH_THRESHOLD, value_parser = positive)]
+    pub depth_threshold: f64,
+    /// DROID-SLAM depth filter: neighbour keyframes that must agree.
+    #[arg(long, value_name = "N", default_value_t = defaults::DEPTH_MIN_COUNT)]
+    pub depth_min_count: u32,
+    /// DROID-SLAM depth filter: keep disparities above this fraction of the
+    /// keyframe's mean (0 keeps all).
+    #[arg(long, value_name = "R", default_value_t = defaults::MIN_DISPARITY_RATIO, value_parser = non_negative)]
+    pub min_disparity_ratio: f64,
     /// Output folder (created when missing).
     #[arg(short, long)]
     pub output: PathBuf,
@@ -57,7 +114,8 @@ pub struct ConvertArgs {
     /// TF child frame, when the reference is a tf2_msgs/TFMessage topic.
     #[arg(long)]
     pub tf_child: Option<String>,
-    /// Keep every pixel with a positive inverse depth (no viewer filters).
+    /// Keep every pixel with a positive inverse depth (no viewer filters, no
+    /// DROID-SLAM depth filter).
     #[arg(long)]
     pub no_filter: bool,
     /// Build an occupancy octree with this voxel edge (metres): writes `map.bt`
@@ -146,6 +204,30 @@ impl ConvertArgs {
             confidence: self.fit.confidence,
         })
     }
+
+    /// How a reconstruction input is read.
+    pub fn reconstruction_options(&self) -> ReconstructionOptions {
+        ReconstructionOptions {
+            time_unit: self.time_unit,
+            cloud: self.cloud.clone(),
+            colmap_format: self.colmap_format,
+            depth_filter: (!self.no_filter).then(|| DepthFilter {
+                threshold: self.depth_threshold,
+                min_count: self.depth_min_count,
+                min_disparity_ratio: self.min_disparity_ratio,
+                ..DepthFilter::default()
+            }),
+        }
+    }
+
+    /// The reference file, with `--reference`.
+    pub fn reference_spec(&self) -> Option<ReferenceSpec> {
+        self.reference.as_ref().map(|path| ReferenceSpec {
+            path: path.clone(),
+            format: self.reference_format,
+            time_unit: self.reference_time_unit,
+        })
+    }
 }
 
 /// Runs the conversion and writes the outputs.
@@ -164,8 +246,18 @@ pub fn run(args: &ConvertArgs) -> Result<()> {
     // Bad options and a bad output folder (a file, the input's folder) fail
     // before the log is read.
     opts.check()?;
-    let mut outputs = output_set(&args.output, [&args.log])?;
-    let src = source::open_log(&args.log, &opts.read)?;
+    let inputs = [
+        Some(&args.log),
+        args.reference.as_ref(),
+        args.cloud.as_ref(),
+    ];
+    let mut outputs = output_set(&args.output, inputs.into_iter().flatten())?;
+    let src = open_input(
+        &args.log,
+        &opts.read,
+        &args.reconstruction_options(),
+        args.reference_spec().as_ref(),
+    )?;
     bar.set_message(if opts.map.is_some() {
         "reading, aligning, backprojecting and building the octree"
     } else {
@@ -186,13 +278,21 @@ pub fn run(args: &ConvertArgs) -> Result<()> {
     }
     bar.inc(1);
     bar.finish_and_clear();
+    for w in warnings(&c.report) {
+        eprintln!("slam2world: warning: {w}");
+    }
     if args.quiet {
         return Ok(());
     }
     let r = &c.report;
     let t = &r.t_world_slam;
+    // A reconstruction's poses are frames (images, trajectory rows), DROID-SLAM's keyframes.
+    let rows = match &r.reconstruction {
+        Some(x) if x.kind != "droid" => "frames",
+        _ => "keyframes",
+    };
     let mut s = format!(
-        "{} keyframes, {} matched ({} dropped), fit on {}\n",
+        "{} {rows}, {} matched ({} dropped), fit on {}\n",
         r.keyframes,
         r.frames_used,
         r.frames_dropped.len(),
@@ -226,6 +326,7 @@ pub fn run(args: &ConvertArgs) -> Result<()> {
             o.time_s
         );
     }
+    s += &input_summary(r);
     for p in &done.written {
         s += &format!("wrote {}\n", p.display());
     }
@@ -265,6 +366,94 @@ fn write_rrd(out: &std::path::Path, rrd: &std::path::Path) -> Result<()> {
     }
     let err = String::from_utf8_lossy(&run.stderr);
     Err(why(err.lines().last().unwrap_or("failed").to_string()))
+}
+
+/// What the trajectory reader found, as a phrase (`ns (detected), comma-separated`).
+fn text_phrase(t: &TextInfoReport) -> String {
+    let mut s = format!(
+        "stamps in {} ({})",
+        t.unit,
+        if t.unit_detected { "detected" } else { "given" }
+    );
+    if t.delimiter == "comma" {
+        s += ", comma-separated";
+    }
+    if t.header {
+        s += ", a header line skipped";
+    }
+    s
+}
+
+/// Lines on how a reconstruction and its reference were read.
+fn input_summary(r: &Report) -> String {
+    let mut s = String::new();
+    if let Some(rec) = &r.reconstruction {
+        s += &format!(
+            "{}{}: {} frames, stamps from {}",
+            rec.kind,
+            rec.flavour
+                .as_ref()
+                .map_or(String::new(), |f| format!(" (.{f})")),
+            rec.frames,
+            rec.frame_times
+        );
+        if let Some(t) = &rec.text {
+            s += &format!("; {}", text_phrase(t));
+        }
+        s.push('\n');
+    }
+    if let Some(f) = &r.reference_file {
+        s += &format!(
+            "reference {} ({}{}), paired by {}",
+            f.path.display(),
+            f.format,
+            if f.format_detected { ", detected" } else { "" },
+            f.pairing
+        );
+        if let Some(t) = &f.text {
+            s += &format!("; {}", text_phrase(t));
+        }
+        if let Some(n) = &f.names {
+            s += &format!(
+                "; {} of {} names are images of the input",
+                n.matched, n.reference_names
+            );
+        }
+        s.push('\n');
+    }
+    s
+}
+
+/// What a user should see even with `--quiet`: repeated stamps dropped,
+/// reference names that name no image.
+fn warnings(r: &Report) -> Vec<String> {
+    let mut out = Vec::new();
+    let repeated = |what: &str, t: &TextInfoReport| {
+        (t.repeated_stamps > 0).then(|| {
+            format!(
+                "{what}: {} rows repeat the previous row's stamp; the first row of each stamp is kept",
+                t.repeated_stamps
+            )
+        })
+    };
+    if let Some(t) = r.reconstruction.as_ref().and_then(|x| x.text.as_ref()) {
+        out.extend(repeated(&r.input.display().to_string(), t));
+    }
+    if let Some(f) = &r.reference_file {
+        if let Some(t) = &f.text {
+            out.extend(repeated(&f.path.display().to_string(), t));
+        }
+        if let Some(n) = f.names.as_ref().filter(|n| n.unknown > 0) {
+            out.push(format!(
+                "{}: {} of {} names are no image of the input (e.g. {:?})",
+                f.path.display(),
+                n.unknown,
+                n.reference_names,
+                n.unknown_examples.first().map_or("", String::as_str)
+            ));
+        }
+    }
+    out
 }
 
 /// One line on the inertial initialisation.

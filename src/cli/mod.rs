@@ -35,7 +35,7 @@ enum Command {
     Align(Box<align::AlignArgs>),
     /// Metric scale, gravity direction and IMU biases of SLAM keyframes from raw IMU samples.
     ImuInit(imu_init::ImuInitArgs),
-    /// Convert a log (MCAP, ROS 1 bag, rosbag2) into world.mcap, cloud.ply and report.json.
+    /// Convert a log (MCAP, ROS 1 bag, rosbag2) or a reconstruction (COLMAP, DROID-SLAM, DPVO, MASt3R-SLAM, DSO, ORB-SLAM3) into metric, gravity-aligned outputs.
     Convert(Box<convert::ConvertArgs>),
     /// List the topics of a log (MCAP, ROS 1 bag, rosbag2) and what slam2world can use.
     Inspect(inspect::InspectArgs),

@@ -237,9 +237,9 @@ pub struct DepthFilter {
 impl Default for DepthFilter {
     fn default() -> Self {
         DepthFilter {
-            threshold: 0.005,
-            min_count: 2,
-            min_disparity_ratio: 0.5,
+            threshold: crate::defaults::DEPTH_THRESHOLD,
+            min_count: crate::defaults::DEPTH_MIN_COUNT,
+            min_disparity_ratio: crate::defaults::MIN_DISPARITY_RATIO,
             neighbours: vec![-1, -2, -3, 3, 4, 5],
         }
     }

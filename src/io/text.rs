@@ -8,7 +8,6 @@
 //! - EuRoC IMU CSV (`imu0/data.csv`): `timestamp [ns], w_x, w_y, w_z [rad/s],
 //!   a_x, a_y, a_z [m/s²]`.
 
-use std::io::Write;
 use std::path::Path;
 
 use nalgebra::{UnitQuaternion, Vector3};
@@ -199,26 +198,30 @@ pub fn read_euroc(path: impl AsRef<Path>) -> Result<Trajectory> {
 /// without orientation get the identity quaternion.
 pub fn write_tum(traj: &Trajectory, path: impl AsRef<Path>) -> Result<()> {
     let path = path.as_ref();
+    let bytes = tum_bytes(traj)?;
+    crate::io::atomic::write_bytes_atomic(path, &bytes)
+}
+
+/// The TUM text of `traj` ([`write_tum`]'s content).
+pub fn tum_bytes(traj: &Trajectory) -> Result<Vec<u8>> {
+    use std::fmt::Write as _;
     traj.check_lengths()?;
-    crate::io::atomic::write_atomic(path, |file| {
-        let mut w = std::io::BufWriter::new(file);
-        let io = |e| Error::io(path, e);
-        writeln!(w, "# timestamp tx ty tz qx qy qz qw").map_err(io)?;
-        for i in 0..traj.len() {
-            let p = traj.positions[i];
-            let q = match &traj.orientations {
-                Some(o) => o[i].coords, // (x, y, z, w)
-                None => UnitQuaternion::<f64>::identity().coords,
-            };
-            writeln!(
-                w,
-                "{} {} {} {} {} {} {} {}",
-                traj.timestamps[i], p.x, p.y, p.z, q[0], q[1], q[2], q[3]
-            )
-            .map_err(io)?;
-        }
-        w.flush().map_err(io)
-    })
+    let mut s = String::with_capacity(64 * (traj.len() + 1));
+    s.push_str("# timestamp tx ty tz qx qy qz qw\n");
+    for i in 0..traj.len() {
+        let p = traj.positions[i];
+        let q = match &traj.orientations {
+            Some(o) => o[i].coords, // (x, y, z, w)
+            None => UnitQuaternion::<f64>::identity().coords,
+        };
+        // Writing into a String cannot fail.
+        let _ = writeln!(
+            s,
+            "{} {} {} {} {} {} {} {}",
+            traj.timestamps[i], p.x, p.y, p.z, q[0], q[1], q[2], q[3]
+        );
+    }
+    Ok(s.into_bytes())
 }
 
 /// Reads EuRoC `imu0/data.csv` content: `timestamp [ns], w_x, w_y, w_z

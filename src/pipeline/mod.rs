@@ -1,12 +1,18 @@
 //! `convert`: a recording in, the metric world out.
 //!
 //! - [`source`]: what a conversion reads, one [`Recording`] from any input;
+//! - [`reconstruction`]: the reconstruction sources (COLMAP / GLOMAP models,
+//!   DROID-SLAM folders, trajectory files + PLY) and the reference files
+//!   beside them (poses by time, positions by image name); [`native`]: what
+//!   a reconstruction brings besides poses and points (its own model, frame
+//!   names, how its stamps were read);
 //! - [`options`]: everything it can be told ([`ConvertOptions`], checked once);
 //! - [`poses`] / [`imu`]: where `T_world_slam` comes from — a metric
 //!   reference trajectory, or the raw IMU when there is none;
 //! - [`report`]: the typed model of every JSON document the commands write;
-//! - [`outputs`]: `world.mcap`, `cloud.ply`, `map.bt`, `report.json`,
-//!   `report.html`;
+//! - [`outputs`]: `world.mcap`, `cloud.ply`, `trajectory.txt`, `map.bt`,
+//!   `report.json`, `report.html` and the input's own model (`model/`),
+//!   written as one set;
 //! - [`figures`] / [`html`]: what the report page draws, and the page.
 //!
 //! The SLAM poses (keyframes, or frames without depth) are associated with
@@ -15,14 +21,18 @@
 //! that came without keyframes is carried by `T_world_slam`). With
 //! [`ConvertOptions::map`] the world cloud also becomes an occupancy octree
 //! (OctoMap semantics): each keyframe's points are inserted as one scan from
-//! that keyframe's camera centre in the world frame.
+//! that keyframe's camera centre in the world frame; a cloud without
+//! keyframes whose points have ray origins ([`Recording::cloud_origins`], a
+//! COLMAP point's nearest observing image) is inserted from those.
 
 pub mod figures;
 pub mod html;
 pub mod imu;
+pub mod native;
 pub mod options;
 pub mod outputs;
 pub mod poses;
+pub mod reconstruction;
 pub mod report;
 pub mod source;
 
@@ -38,13 +48,19 @@ use crate::keyframe::Keyframe;
 use crate::map::{MapParams, OccupancyMap, VoxelState};
 use crate::trajectory::Trajectory;
 
+pub use native::NativeModel;
 pub use options::ConvertOptions;
-pub use outputs::{CLOUD_PLY, MAP_BT, REPORT_HTML, REPORT_JSON, WORLD_MCAP};
+pub use outputs::{
+    CLOUD_PLY, COLMAP_MODEL, MAP_BT, REPORT_HTML, REPORT_JSON, TRAJECTORY_TUM, WORLD_MCAP,
+};
 pub use poses::PoseFit;
 pub use report::Report;
 pub use source::{Recording, Source, SourceInfo};
 
-use report::{ApeReport, FitReport, OctreeReport, PairReport, Timing, TransformReport};
+use report::{
+    ApeReport, FitReport, OctreeReport, PairReport, ReconstructionReport, ReferenceReport, Timing,
+    TransformReport,
+};
 
 /// Where `T_world_slam` came from.
 #[derive(Clone, Debug)]
@@ -91,6 +107,9 @@ pub struct Conversion {
     pub report: Report,
     /// The occupancy octree of the world cloud (world frame), when asked for.
     pub octree: Option<OccupancyMap>,
+    /// The input's own model carried by `T_world_slam` (metres, world frame),
+    /// for reconstructions that have one (COLMAP).
+    pub native: Option<NativeModel>,
 }
 
 impl Conversion {
@@ -109,6 +128,42 @@ fn secs(t: Instant) -> f64 {
 fn camera_center(kf: &Keyframe, t_world_slam: &Sim3) -> [f32; 3] {
     let c = t_world_slam.transform_point(&kf.pose.translation);
     [c.x as f32, c.y as f32, c.z as f32]
+}
+
+/// The world-frame ray origins of a cloud without keyframes (`origins` in the
+/// SLAM frame, by the ids of `cloud.keyframe_ids`); an error naming the first
+/// point without one.
+fn cloud_ray_origins(
+    origins: &BTreeMap<i32, nalgebra::Vector3<f64>>,
+    cloud: &PointCloud,
+    t_world_slam: &Sim3,
+) -> Result<BTreeMap<i32, [f32; 3]>> {
+    if let Some(i) = cloud
+        .keyframe_ids
+        .iter()
+        .position(|id| !origins.contains_key(id))
+    {
+        let n = cloud
+            .keyframe_ids
+            .iter()
+            .filter(|id| !origins.contains_key(id))
+            .count();
+        return Err(Error::invalid(
+            "octree",
+            format!(
+                "point {i} (and {} more) has no ray origin (a point observed by no image): \
+                 the octree cannot say what space its ray crossed",
+                n - 1
+            ),
+        ));
+    }
+    Ok(origins
+        .iter()
+        .map(|(&id, c)| {
+            let w = t_world_slam.transform_point(c);
+            (id, [w.x as f32, w.y as f32, w.z as f32])
+        })
+        .collect())
 }
 
 /// Inserts the world cloud keyframe by keyframe, each from its camera centre
@@ -152,11 +207,23 @@ fn build_octree(
 /// than 3 pairs, degenerate motion); an octree for a cloud without keyframes.
 pub fn convert(rec: &Recording, opts: &ConvertOptions) -> Result<Conversion> {
     opts.check()?;
+    let effective = reconstruction::effective_options(rec, opts)?;
+    let opts: &ConvertOptions = &effective;
     let t0 = Instant::now();
     let (slam, rows) = rec.slam_trajectory()?;
     let world = match (&rec.reference, &rec.imu) {
         (Some(r), _) => WorldFrame::Poses(Box::new(poses::fit(rec, &slam, r, opts)?)),
         (None, Some(imu)) => WorldFrame::Imu(Box::new(imu::fit(&slam, imu, opts)?)),
+        (None, None) if rec.source.reconstruction.is_some() => {
+            return Err(Error::invalid(
+                "reference",
+                format!(
+                    "{} is a reconstruction without a metric reference: give a reference file \
+                     (poses by time, or positions by image name)",
+                    rec.source.path.display()
+                ),
+            ))
+        }
         (None, None) => {
             return Err(Error::Mcap {
                 path: rec.source.path.clone(),
@@ -166,7 +233,8 @@ pub fn convert(rec: &Recording, opts: &ConvertOptions) -> Result<Conversion> {
     };
     let align_s = secs(t0);
     let t = world.transform();
-    if rec.keyframes.is_empty() && (opts.map.is_some() || opts.windowed_cloud) {
+    let ray_origins = rec.keyframes.is_empty() && rec.cloud_origins.is_some();
+    if rec.keyframes.is_empty() && ((opts.map.is_some() && !ray_origins) || opts.windowed_cloud) {
         return Err(Error::invalid(
             if opts.map.is_some() {
                 "octree"
@@ -212,12 +280,15 @@ pub fn convert(rec: &Recording, opts: &ConvertOptions) -> Result<Conversion> {
 
     let (octree, octree_report) = match opts.map {
         Some(params) => {
-            let origins = rec
-                .keyframes
-                .iter()
-                .enumerate()
-                .map(|(i, kf)| (kf.id, camera_center(kf, &t_of(Some(i)))))
-                .collect();
+            let origins = match (&rec.cloud_origins, rec.keyframes.is_empty()) {
+                (Some(o), true) => cloud_ray_origins(o, &cloud, &t)?,
+                _ => rec
+                    .keyframes
+                    .iter()
+                    .enumerate()
+                    .map(|(i, kf)| (kf.id, camera_center(kf, &t_of(Some(i)))))
+                    .collect(),
+            };
             let (map, report) = build_octree(&origins, &cloud, params)?;
             (Some(map), Some(report))
         }
@@ -241,6 +312,11 @@ pub fn convert(rec: &Recording, opts: &ConvertOptions) -> Result<Conversion> {
 
     // Keyframe id of SLAM row `s` (the row index for frames without keyframes).
     let id_of = |s: usize| rows[s].map_or(s as i32, |i| rec.keyframes[i].id);
+    // Name of SLAM row `s` (frames of a reconstruction that names them).
+    let name_of = |s: usize| match rows[s] {
+        None => rec.frame_info.get(s).and_then(|f| f.name.clone()),
+        Some(_) => None,
+    };
     let mut used = vec![false; slam.len()];
     let (pairs, fit, fit_rmse, ape, pairs_fitted, imu_report) = match &world {
         WorldFrame::Poses(p) => {
@@ -258,6 +334,7 @@ pub fn convert(rec: &Recording, opts: &ConvertOptions) -> Result<Conversion> {
                     used[s] = true;
                     PairReport {
                         keyframe_id: id_of(s),
+                        name: name_of(s),
                         keyframe_time: slam.timestamps[s],
                         reference_time: reference[r],
                         error,
@@ -322,6 +399,16 @@ pub fn convert(rec: &Recording, opts: &ConvertOptions) -> Result<Conversion> {
         },
         imu: imu_report,
         octree: octree_report,
+        reconstruction: rec
+            .source
+            .reconstruction
+            .as_ref()
+            .map(|r| ReconstructionReport::of(r, slam.len(), rec.source.cloud_path.clone())),
+        reference_file: rec
+            .source
+            .reference_file
+            .as_ref()
+            .map(ReferenceReport::from),
     };
     Ok(Conversion {
         world,
@@ -331,6 +418,7 @@ pub fn convert(rec: &Recording, opts: &ConvertOptions) -> Result<Conversion> {
         reference: rec.reference.clone(),
         report,
         octree,
+        native: rec.native.as_ref().map(|m| m.transformed(&t)),
     })
 }
 

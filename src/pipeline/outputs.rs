@@ -1,8 +1,9 @@
 //! The files a conversion writes: `world.mcap` (Foxglove or ROS 2),
-//! `cloud.ply`, `map.bt` (with an octree), `report.json` and `report.html`, as one
-//! [`OutputSet`]: all written under temporary names, then published together,
-//! the names of [`OUTPUT_NAMES`] this run did not write removed; never over an
-//! input of the run.
+//! `cloud.ply`, `trajectory.txt`, `map.bt` (with an octree), the input's own
+//! model (`model/`, a COLMAP model folder in the input's flavour),
+//! `report.json` and `report.html`, as one [`OutputSet`]: all written under
+//! temporary names, then published together, the names of [`OUTPUT_NAMES`]
+//! this run did not write removed; never over an input of the run.
 
 use std::path::Path;
 use std::time::Instant;
@@ -14,6 +15,7 @@ use crate::map::{OccupancyMap, VoxelState};
 
 use super::figures::{FigureData, FigureOptions};
 use super::html::{render, Page, Summary};
+use super::native::NativeModel;
 use super::report::{to_json_bytes, DemoReport, Report};
 use super::Conversion;
 
@@ -37,11 +39,34 @@ pub struct HtmlOptions<'a> {
     /// Limits of the embedded cloud and voxels.
     pub figures: FigureOptions,
 }
+/// The SLAM poses in the world frame (`T_world_cam`), TUM format.
+pub const TRAJECTORY_TUM: &str = "trajectory.txt";
+/// The input's own model carried into the world frame (a COLMAP model
+/// folder, same flavour), written when the input has one.
+pub const COLMAP_MODEL: &str = "model";
 
 /// Every name a conversion may write into its output folder. A writer that
 /// adds an output adds its name here: a later run that does not produce it
 /// removes the stale one.
-pub const OUTPUT_NAMES: &[&str] = &[WORLD_MCAP, CLOUD_PLY, MAP_BT, REPORT_JSON, REPORT_HTML];
+/// (`model/…`: the files of a COLMAP model of either flavour.)
+pub const OUTPUT_NAMES: &[&str] = &[
+    WORLD_MCAP,
+    CLOUD_PLY,
+    TRAJECTORY_TUM,
+    MAP_BT,
+    REPORT_JSON,
+    REPORT_HTML,
+    "model/cameras.bin",
+    "model/rigs.bin",
+    "model/frames.bin",
+    "model/images.bin",
+    "model/points3D.bin",
+    "model/cameras.txt",
+    "model/rigs.txt",
+    "model/frames.txt",
+    "model/images.txt",
+    "model/points3D.txt",
+];
 
 /// The output set of a conversion in `dir`: the names of [`OUTPUT_NAMES`],
 /// none of which may be one of `inputs` (the log, the reference, the cloud).
@@ -182,12 +207,39 @@ impl Conversion {
         })
     }
 
-    /// Writes `world.mcap`, `cloud.ply`, `report.json`, `report.html` and,
-    /// with an octree, `map.bt` into `dir` (created when missing); the written
-    /// report (in both files the same) carries the write time. All or nothing: when one fails (or the run is
+    /// Writes the SLAM poses in the world frame (`T_world_cam`, the frames'
+    /// stamps) as a TUM file, atomically.
+    pub fn write_tum(&self, path: impl AsRef<Path>) -> Result<()> {
+        let mut set = OutputSet::new().with_inputs([&self.report.input]);
+        let path = path.as_ref();
+        set.write_bytes(path, &crate::io::text::tum_bytes(&self.slam_trajectory)?)?;
+        set.commit().map(|_| ())
+    }
+
+    /// Writes the input's own model in the world frame into the folder
+    /// `path` (COLMAP: `format`, default the input's flavour). Error when the
+    /// input had no model of its own.
+    pub fn write_model(
+        &self,
+        path: impl AsRef<Path>,
+        format: Option<crate::io::colmap::ColmapFormat>,
+    ) -> Result<()> {
+        match &self.native {
+            Some(NativeModel::Colmap(m)) => m.write(path.as_ref(), format),
+            None => Err(Error::invalid(
+                "model",
+                "the input has no model of its own to write (only COLMAP models have one)",
+            )),
+        }
+    }
+
+    /// Writes `world.mcap`, `cloud.ply`, `trajectory.txt`, `report.json`, `report.html`,
+    /// with an octree `map.bt`, and with a model of the input's own `model/`
+    /// into `dir` (created when missing); the written report carries the
+    /// write time. All or nothing: when one fails (or the run is
     /// interrupted), the previous outputs in `dir` stay as they were; on
-    /// success, a `map.bt` of an earlier run is removed when this one has no
-    /// octree. Never writes over the conversion's input.
+    /// success, a `map.bt` or `model/` file of an earlier run that this one
+    /// does not produce is removed. Never writes over the conversion's input.
     pub fn write_all(&self, dir: impl AsRef<Path>, flavor: WorldFlavor) -> Result<Committed> {
         self.write_all_with(dir, flavor, self.octree.as_ref())
     }
@@ -236,12 +288,28 @@ impl Conversion {
         html: &HtmlOptions<'_>,
     ) -> Result<()> {
         let t = Instant::now();
-        let [world, cloud, bt, json, page] =
-            [WORLD_MCAP, CLOUD_PLY, MAP_BT, REPORT_JSON, REPORT_HTML].map(|n| set.path(n));
+        let [world, cloud, tum, bt, json, page] = [
+            WORLD_MCAP,
+            CLOUD_PLY,
+            TRAJECTORY_TUM,
+            MAP_BT,
+            REPORT_JSON,
+            REPORT_HTML,
+        ]
+        .map(|n| set.path(n));
         self.world_mcap_into(set, &world, flavor, octree)?;
         self.ply_into(set, &cloud)?;
+        set.write_bytes(&tum, &crate::io::text::tum_bytes(&self.slam_trajectory)?)?;
         if octree.is_some() {
             write_bt_into(set, octree, &bt)?;
+        }
+        if let Some(NativeModel::Colmap(m)) = &self.native {
+            let dir = set.path(COLMAP_MODEL);
+            std::fs::create_dir_all(&dir).map_err(|e| Error::io(&dir, e))?;
+            for (stem, bytes) in m.encode(&dir, m.format)? {
+                let name = format!("{COLMAP_MODEL}/{stem}.{}", m.format.extension());
+                set.write_bytes(&set.path(&name), &bytes)?;
+            }
         }
         let mut report = self.report.clone();
         report.timing.write_s = t.elapsed().as_secs_f64();

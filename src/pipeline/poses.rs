@@ -20,7 +20,8 @@ pub struct PoseFit {
 }
 
 /// Fits the recording's SLAM poses (`slam`, sorted by time) to `reference`.
-/// A match failure names the file and the topics.
+/// A match failure names the file and the topics (for a reconstruction it
+/// stays [`Error::Unmatched`], its time spans followed by the files).
 pub fn fit(
     rec: &Recording,
     slam: &Trajectory,
@@ -28,6 +29,27 @@ pub fn fit(
     opts: &ConvertOptions,
 ) -> Result<PoseFit> {
     let alignment = align_trajectories(slam, reference, &opts.align).map_err(|e| match e {
+        // A reconstruction keeps the variant, its spans naming the files.
+        Error::Unmatched {
+            matched,
+            need,
+            slam_span,
+            reference_span,
+            max_diff,
+            offset,
+            cause,
+        } if rec.source.reconstruction.is_some() => Error::Unmatched {
+            matched,
+            need,
+            slam_span: format!("{slam_span} ({})", rec.source.path.display()),
+            reference_span: match &rec.source.reference_path {
+                Some(p) => format!("{reference_span} ({})", p.display()),
+                None => reference_span,
+            },
+            max_diff,
+            offset,
+            cause,
+        },
         Error::Unmatched { .. } => Error::Mcap {
             path: rec.source.path.clone(),
             reason: format!(

@@ -26,9 +26,12 @@ use crate::align::trajectories::{ApeStats, TrajectoryAlignment};
 use crate::error::{Error, Result};
 use crate::geometry::Sim3;
 use crate::imu::{ImuAlignment, ImuInitDiagnostics};
+use crate::io::text::{Delimiter, TextInfo};
 use crate::sim::evaluate::{ErrorStats, TransformError};
 use crate::sim::SimConfig;
 use crate::trajectory::Association;
+
+use super::native::{Pairing, ReconstructionInfo, ReconstructionKind, ReferenceFileInfo};
 
 /// A Sim(3) as the reports write it.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize, JsonSchema)]
@@ -254,8 +257,11 @@ impl FitReport {
 /// One keyframe matched with a reference pose.
 #[derive(Clone, Debug, PartialEq, Serialize, JsonSchema)]
 pub struct PairReport {
-    /// Keyframe id.
+    /// Keyframe id (the row of a frame without keyframe).
     pub keyframe_id: i32,
+    /// The frame's image name, for reconstructions that name their frames.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub name: Option<String>,
     /// Keyframe time, seconds.
     pub keyframe_time: f64,
     /// Time of the matched reference pose, seconds.
@@ -483,6 +489,143 @@ pub struct Report {
     /// The occupancy octree, when one was built.
     #[serde(skip_serializing_if = "Option::is_none")]
     pub octree: Option<OctreeReport>,
+    /// How a reconstruction input was read (absent for logs).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub reconstruction: Option<ReconstructionReport>,
+    /// The reference file given beside the input (absent when the input
+    /// carries its reference).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub reference_file: Option<ReferenceReport>,
+}
+
+/// What a trajectory file's reader found out about it.
+#[derive(Clone, Debug, PartialEq, Serialize, JsonSchema)]
+pub struct TextInfoReport {
+    /// The unit its stamps were read in (`s`, `ms`, `us`, `ns`), converted to seconds.
+    pub unit: String,
+    /// True when the unit was detected from the stamps, false when it was given.
+    pub unit_detected: bool,
+    /// `whitespace` or `comma`.
+    pub delimiter: String,
+    /// True when a header line was skipped.
+    pub header: bool,
+    /// Rows whose stamp repeated the previous row's: dropped, the first row of
+    /// each stamp kept.
+    pub repeated_stamps: usize,
+}
+
+impl From<&TextInfo> for TextInfoReport {
+    fn from(t: &TextInfo) -> Self {
+        TextInfoReport {
+            unit: t.unit.symbol().into(),
+            unit_detected: t.unit_detected,
+            delimiter: match t.delimiter {
+                Delimiter::Whitespace => "whitespace",
+                Delimiter::Comma => "comma",
+            }
+            .into(),
+            header: t.header,
+            repeated_stamps: t.repeated_stamps,
+        }
+    }
+}
+
+/// How a reconstruction input was read.
+#[derive(Clone, Debug, PartialEq, Serialize, JsonSchema)]
+pub struct ReconstructionReport {
+    /// `colmap`, `droid` or `trajectory`.
+    pub kind: String,
+    /// The COLMAP flavour, `bin` or `txt`.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub flavour: Option<String>,
+    /// SLAM frames (images, keyframes or poses) the fit could use.
+    pub frames: usize,
+    /// How the frame stamps were made.
+    pub frame_times: String,
+    /// What the trajectory reader found out, for trajectory files.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub text: Option<TextInfoReport>,
+    /// The cloud file, when it is not the input itself.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub cloud: Option<PathBuf>,
+    /// Where an octree's rays start, for inputs whose points have origins.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub octree_origins: Option<String>,
+    /// Decisions the reader made (shared stamps of a rig, the depth filter, …).
+    pub notes: Vec<String>,
+}
+
+impl ReconstructionReport {
+    /// The report of `r`, with `frames` SLAM poses and the cloud file.
+    pub fn of(r: &ReconstructionInfo, frames: usize, cloud: Option<PathBuf>) -> Self {
+        ReconstructionReport {
+            kind: r.kind.name().into(),
+            flavour: match r.kind {
+                ReconstructionKind::Colmap(f) => Some(f.extension().into()),
+                _ => None,
+            },
+            frames,
+            frame_times: r.frame_times.describe().into(),
+            text: r.slam_text.as_ref().map(TextInfoReport::from),
+            cloud,
+            octree_origins: r.octree_origins.clone(),
+            notes: r.notes.clone(),
+        }
+    }
+}
+
+/// The outcome of pairing frames with a reference by image name.
+#[derive(Clone, Debug, PartialEq, Serialize, JsonSchema)]
+pub struct NamesReport {
+    /// Names in the reference file.
+    pub reference_names: usize,
+    /// Of those, names of the input's images.
+    pub matched: usize,
+    /// Reference names that name no image of the input.
+    pub unknown: usize,
+    /// The first of those (at most 10).
+    pub unknown_examples: Vec<String>,
+}
+
+/// The reference file given beside the input.
+#[derive(Clone, Debug, PartialEq, Serialize, JsonSchema)]
+pub struct ReferenceReport {
+    /// The file.
+    pub path: PathBuf,
+    /// `tum`, `euroc` or `names`.
+    pub format: String,
+    /// True when the format was detected, false when it was given.
+    pub format_detected: bool,
+    /// `time` or `name`.
+    pub pairing: String,
+    /// What the trajectory reader found out, for TUM-order files.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub text: Option<TextInfoReport>,
+    /// The name pairing, when paired by name.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub names: Option<NamesReport>,
+}
+
+impl From<&ReferenceFileInfo> for ReferenceReport {
+    fn from(r: &ReferenceFileInfo) -> Self {
+        ReferenceReport {
+            path: r.path.clone(),
+            format: r.format.name().into(),
+            format_detected: r.format_detected,
+            pairing: match r.pairing {
+                Pairing::Time => "time",
+                Pairing::Name => "name",
+            }
+            .into(),
+            text: r.text.as_ref().map(TextInfoReport::from),
+            names: r.names.as_ref().map(|n| NamesReport {
+                reference_names: n.reference_names,
+                matched: n.matched,
+                unknown: n.unknown,
+                unknown_examples: n.unknown_examples.clone(),
+            }),
+        }
+    }
 }
 
 /// The estimated camera–body extrinsic in `align --json`.

@@ -35,8 +35,12 @@
 //! optional reference trajectory `T_world_body`; optional raw IMU; and in
 //! [`SourceInfo`] where each part came from.
 
+use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
 
+use nalgebra::Vector3;
+
+use super::native::{FrameInfo, NativeModel, ReconstructionInfo, ReferenceFileInfo};
 use crate::cloud::PointCloud;
 use crate::error::{Error, Result};
 use crate::imu::ImuSamples;
@@ -78,6 +82,10 @@ pub struct SourceInfo {
     pub graph_updates: usize,
     /// True when a log was read through its index (false: a linear scan).
     pub indexed: bool,
+    /// How a reconstruction input was read (`None` for logs).
+    pub reconstruction: Option<ReconstructionInfo>,
+    /// The reference file given beside the input, when there is one.
+    pub reference_file: Option<ReferenceFileInfo>,
 }
 
 /// Everything a conversion needs, from any source.
@@ -97,6 +105,14 @@ pub struct Recording {
     pub reference: Option<Trajectory>,
     /// Raw IMU samples, sorted by time.
     pub imu: Option<ImuSamples>,
+    /// Name and camera of each row of `frames` (empty when the input has none).
+    pub frame_info: Vec<FrameInfo>,
+    /// Ray origins of the cloud's points in the SLAM frame, by the ids in
+    /// `cloud.keyframe_ids` (a COLMAP point's observing image), for the octree
+    /// of a cloud without keyframes.
+    pub cloud_origins: Option<BTreeMap<i32, Vector3<f64>>>,
+    /// The input's own model, written back in its format by the conversion.
+    pub native: Option<NativeModel>,
 }
 
 impl From<Log> for Recording {
@@ -117,12 +133,14 @@ impl From<Log> for Recording {
                 graph_messages: log.graph_messages,
                 graph_updates: log.graph_updates,
                 indexed: log.indexed,
+                ..SourceInfo::default()
             },
             keyframes: log.keyframes,
             frames: log.frames,
             cloud: None,
             reference: log.reference,
             imu: log.imu,
+            ..Recording::default()
         }
     }
 }
@@ -191,6 +209,7 @@ impl Source for TrajectoryFiles {
             cloud,
             reference,
             imu: None,
+            ..Recording::default()
         })
     }
 }

@@ -19,6 +19,7 @@ mod imu;
 mod io;
 mod map;
 mod pipeline;
+mod reconstruction;
 mod sim;
 mod text;
 mod trajectory;
@@ -41,6 +42,7 @@ fn _slam2world(m: &Bound<'_, PyModule>) -> PyResult<()> {
     colmap::register(m)?;
     droid::register(m)?;
     text::register(m)?;
+    reconstruction::register(m)?;
     geo::register(m)?;
     Ok(())
 }

@@ -7,15 +7,18 @@ use pyo3::sync::PyOnceLock;
 
 use super::align::{fit_options, window_arg, FitDof, PyTrajectoryAlignment};
 use super::cloud::{PyPointCloud, PyPointFilter};
+use super::colmap::PyColmapModel;
 use super::geometry::PySim3;
 use super::imu::PyImuAlignment;
 use super::io::PyLog;
 use super::map::PyOccupancyMap;
+use super::reconstruction::{reading_options, reference_spec, PyReconstruction};
 use super::trajectory::PyTrajectory;
 use crate::io::log::ReadOptions;
 use crate::io::mcap::WorldFlavor;
 use crate::map::MapParams;
-use crate::pipeline::{self, ConvertOptions};
+use crate::pipeline::reconstruction::{attach_reference, open_input};
+use crate::pipeline::{self, ConvertOptions, NativeModel};
 
 /// The result of `convert`: the alignment, the world cloud, the report, the
 /// octree, and methods that write each output.
@@ -163,8 +166,35 @@ impl PyConversion {
         };
         self.with_octree(py, |c, m| c.write_html_with(&path, m, &opts))
     }
-    /// Writes `world.mcap`, `cloud.ply`, `report.json`, `report.html` and,
-    /// with an octree, `map.bt` into `directory`.
+    /// The input's own model in the world frame (a COLMAP model carried by
+    /// `T_world_slam`: metres, gravity up), else None.
+    #[getter]
+    fn model(&self) -> Option<PyColmapModel> {
+        self.inner
+            .native
+            .as_ref()
+            .and_then(NativeModel::colmap)
+            .map(|m| PyColmapModel { inner: m.clone() })
+    }
+    /// Writes the SLAM poses in the world frame (T_world_cam) as a TUM file.
+    fn write_tum(&self, py: Python<'_>, path: PathBuf) -> PyResult<()> {
+        py.detach(|| self.inner.write_tum(&path))?;
+        Ok(())
+    }
+    /// Writes the input's own model in the world frame into the folder `path`
+    /// (`format` "bin" / "txt", default the input's); InvalidInputError when
+    /// the input had none.
+    #[pyo3(signature = (path, format=None))]
+    fn write_model(&self, py: Python<'_>, path: PathBuf, format: Option<&str>) -> PyResult<()> {
+        let f = format
+            .map(crate::io::colmap::ColmapFormat::parse)
+            .transpose()?;
+        py.detach(|| self.inner.write_model(&path, f))?;
+        Ok(())
+    }
+    /// Writes `world.mcap`, `cloud.ply`, `trajectory.txt`, `report.json`, `report.html`,
+    /// with an octree `map.bt`, and with a model of the input's own `model/`
+    /// into `directory`, as one set (written aside, then moved in).
     #[pyo3(signature = (directory, *, ros2=false))]
     fn write_all(&self, py: Python<'_>, directory: PathBuf, ros2: bool) -> PyResult<()> {
         self.with_octree(py, |c, m| {
@@ -173,10 +203,19 @@ impl PyConversion {
     }
 }
 
-/// Aligns a log's keyframes with its reference and builds the world cloud.
-/// `log_or_path` is a `Log` or a path of any container (MCAP, ROS 1 bag,
+/// Aligns a log's keyframes or a reconstruction's frames with a metric
+/// reference and builds the world cloud. `log_or_path` is a `Log`, a
+/// `Reconstruction` or a path: a log of any container (MCAP, ROS 1 bag,
 /// rosbag2 folder or `.db3`, read with the topic arguments; `est_topic`: SLAM
-/// poses without depth instead of keyframes);
+/// poses without depth instead of keyframes) or a
+/// reconstruction (COLMAP / GLOMAP model folder, DROID-SLAM folder, TUM-order
+/// trajectory file with its PLY; read with `time_unit`, `cloud`,
+/// `colmap_format` and DROID-SLAM's depth filter `depth_*`,
+/// `min_disparity_ratio`, see `read_reconstruction`). `reference` is a file
+/// of poses by time (TUM order, time unit detected unless
+/// `reference_time_unit`; EuRoC CSV) or of positions by image name
+/// (`name x y z`), `reference_format` ("names", "tum", "euroc") detected
+/// unless given; a log's own reference is replaced by it.
 /// `filter=None` means the LSD-SLAM viewer's defaults. `octree_resolution`
 /// (metres) also builds the occupancy octree, each keyframe's points inserted
 /// from its camera centre, with OctoMap's `prob_hit`, `prob_miss`,
@@ -194,7 +233,7 @@ impl PyConversion {
 /// `fit_checks` are `align_trajectories`'s (degrees of freedom, pinned first
 /// pair, pairing rule, gravity check, fit-quality refusals).
 #[pyfunction(name = "convert")]
-#[pyo3(signature = (log_or_path, *, keyframe_topic=None, graph_topic=None, pose_topic=None, est_topic=None, tf_parent=None, tf_child=None, max_diff=0.01, offset=0.0, n_to_align=None, scale=true, method="horn", filter=None, octree_resolution=None, octree_max_range=None, prob_hit=0.7, prob_miss=0.4, clamp_min=0.1192, clamp_max=0.971, skip_init=None, robust=None, inlier_threshold=None, loss="huber", use_orientations=false, estimate_offset=false, max_offset=0.5, body_from_cam=None, compare_windowed=None, windowed_cloud=false, imu_topic=None, imu_from_cam=None, gravity=9.81, level=0.95, dof="sim3", anchor=None, association="evo", max_tilt_deg=Some(crate::defaults::MAX_TILT_DEG), reference_noise=None, fit_checks=true),
+#[pyo3(signature = (log_or_path, *, keyframe_topic=None, graph_topic=None, pose_topic=None, est_topic=None, tf_parent=None, tf_child=None, max_diff=0.01, offset=0.0, n_to_align=None, scale=true, method="horn", filter=None, octree_resolution=None, octree_max_range=None, prob_hit=0.7, prob_miss=0.4, clamp_min=0.1192, clamp_max=0.971, skip_init=None, robust=None, inlier_threshold=None, loss="huber", use_orientations=false, estimate_offset=false, max_offset=0.5, body_from_cam=None, compare_windowed=None, windowed_cloud=false, imu_topic=None, imu_from_cam=None, gravity=9.81, level=0.95, dof="sim3", anchor=None, association="evo", max_tilt_deg=Some(crate::defaults::MAX_TILT_DEG), reference_noise=None, fit_checks=true, reference=None, reference_format=None, reference_time_unit=None, time_unit=None, cloud=None, colmap_format=None, depth_filter=true, depth_threshold=0.005, depth_min_count=2, min_disparity_ratio=0.5),
        text_signature = "(log_or_path, *, keyframe_topic=None, graph_topic=None, pose_topic=None, \
                          est_topic=None, tf_parent=None, tf_child=None, max_diff=0.01, offset=0.0, n_to_align=None, \
                          scale=True, method='horn', filter=None, octree_resolution=None, \
@@ -204,7 +243,10 @@ impl PyConversion {
                          body_from_cam=None, compare_windowed=None, windowed_cloud=False, \
                          imu_topic=None, imu_from_cam=None, gravity=9.81, level=0.95, dof='sim3', \
                          anchor=None, association='evo', max_tilt_deg=2.0, reference_noise=None, \
-                         fit_checks=True)")]
+                         fit_checks=True, reference=None, reference_format=None, \
+                         reference_time_unit=None, time_unit=None, cloud=None, colmap_format=None, \
+                         depth_filter=True, depth_threshold=0.005, depth_min_count=2, \
+                         min_disparity_ratio=0.5)")]
 #[allow(clippy::too_many_arguments)]
 fn convert_py(
     py: Python<'_>,
@@ -247,7 +289,27 @@ fn convert_py(
     max_tilt_deg: Option<f64>,
     reference_noise: Option<f64>,
     fit_checks: bool,
+    reference: Option<PathBuf>,
+    reference_format: Option<&str>,
+    reference_time_unit: Option<&str>,
+    time_unit: Option<&str>,
+    cloud: Option<PathBuf>,
+    colmap_format: Option<&str>,
+    depth_filter: bool,
+    depth_threshold: f64,
+    depth_min_count: u32,
+    min_disparity_ratio: f64,
 ) -> PyResult<PyConversion> {
+    let reference = reference_spec(reference, reference_format, reference_time_unit)?;
+    let reading = reading_options(
+        time_unit,
+        cloud,
+        colmap_format,
+        depth_filter,
+        depth_threshold,
+        depth_min_count,
+        min_disparity_ratio,
+    )?;
     let align = fit_options(
         max_diff,
         offset,
@@ -304,17 +366,35 @@ fn convert_py(
         }),
         confidence: level,
     };
+    // A recording in memory, with the reference file attached to a copy.
+    let with_reference = |rec: &pipeline::Recording| -> crate::Result<pipeline::Conversion> {
+        match &reference {
+            Some(spec) => {
+                let mut rec = rec.clone();
+                attach_reference(&mut rec, spec)?;
+                pipeline::convert(&rec, &opts)
+            }
+            None => pipeline::convert(rec, &opts),
+        }
+    };
     let mut conversion = if let Ok(log) = log_or_path.cast::<PyLog>() {
         let log = log.get();
-        interruptible(py, || pipeline::convert(&log.log, &opts))?
+        interruptible(py, || with_reference(&log.log))?
+    } else if let Ok(r) = log_or_path.cast::<PyReconstruction>() {
+        let r = r.get();
+        interruptible(py, || with_reference(&r.rec))?
     } else {
         let path: PathBuf = log_or_path.extract().map_err(|_| {
             PyErr::from(crate::Error::invalid(
                 "log_or_path",
-                "expected a Log or a path (str or os.PathLike)",
+                "expected a Log, a Reconstruction or a path (str or os.PathLike)",
             ))
         })?;
-        interruptible(py, || pipeline::convert_path(&path, &opts))?
+        interruptible(py, || {
+            opts.check()?;
+            let src = open_input(&path, &opts.read, &reading, reference.as_ref())?;
+            pipeline::convert_source(&*src, &opts)
+        })?
     };
     let alignment = match &conversion.world {
         pipeline::WorldFrame::Poses(p) => Some(Py::new(

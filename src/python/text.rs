@@ -11,7 +11,7 @@ use crate::io::text::{read_trajectory, Delimiter, TextInfo, TimeUnit};
 /// What `read_trajectory` found out about a file.
 #[pyclass(name = "TextInfo", module = "slam2world._slam2world", frozen)]
 pub struct PyTextInfo {
-    inner: TextInfo,
+    pub(crate) inner: TextInfo,
 }
 
 #[pymethods]

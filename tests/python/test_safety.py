@@ -157,6 +157,7 @@ def test_outputs_of_a_conversion_never_replace_its_input(tmp_path: Path) -> None
         "cloud.ply",
         "report.html",
         "report.json",
+        "trajectory.txt",
         "world.mcap",
     ]
     assert conv.report["points_non_finite"] == 0

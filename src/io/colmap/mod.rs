@@ -694,7 +694,37 @@ impl ColmapModel {
                 reason: "rigs and frames come together; the model has only one of them".into(),
             });
         }
-        let mut files: Vec<(&str, Vec<u8>)> = Vec::new();
+        let files = self.encode(dir, format)?;
+        // One output set: every file written under a temporary name, then all
+        // renamed together.
+        let mut set = crate::io::atomic::OutputSet::new();
+        for (stem, bytes) in &files {
+            set.write_bytes(&file(dir, stem, format), bytes)?;
+        }
+        set.commit()?;
+        if self.rigs.is_none() {
+            for stem in ["rigs", "frames"] {
+                let p = file(dir, stem, format);
+                if p.is_file() {
+                    std::fs::remove_file(&p).map_err(|e| Error::io(&p, e))?;
+                }
+            }
+        }
+        Ok(())
+    }
+
+    /// The model's files in `format`, as `(stem, bytes)` (`cameras`, `rigs`
+    /// and `frames` when the model has them, `images`, `points3D`); `dir` is
+    /// where they will go, for the messages. The file names are
+    /// `STEM.bin` / `STEM.txt` ([`ColmapFormat::extension`]).
+    pub fn encode(&self, dir: &Path, format: ColmapFormat) -> Result<Vec<(&'static str, Vec<u8>)>> {
+        if self.rigs.is_some() != self.frames.is_some() {
+            return Err(Error::Reconstruction {
+                path: dir.into(),
+                reason: "rigs and frames come together; the model has only one of them".into(),
+            });
+        }
+        let mut files: Vec<(&'static str, Vec<u8>)> = Vec::new();
         match format {
             ColmapFormat::Binary => {
                 files.push(("cameras", binary::write_cameras(&self.cameras)));
@@ -719,22 +749,7 @@ impl ColmapModel {
                 ));
             }
         }
-        // One output set: every file written under a temporary name, then all
-        // renamed together.
-        let mut set = crate::io::atomic::OutputSet::new();
-        for (stem, bytes) in &files {
-            set.write_bytes(&file(dir, stem, format), bytes)?;
-        }
-        set.commit()?;
-        if self.rigs.is_none() {
-            for stem in ["rigs", "frames"] {
-                let p = file(dir, stem, format);
-                if p.is_file() {
-                    std::fs::remove_file(&p).map_err(|e| Error::io(&p, e))?;
-                }
-            }
-        }
-        Ok(())
+        Ok(files)
     }
 
     /// The camera with this id.
