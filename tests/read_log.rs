@@ -264,6 +264,12 @@ fn a_type_without_a_decoder_is_named_with_file_and_topic() {
         matches!(log_reason(&e), Some(LogError::WrongType { role: "imu", topic, .. }) if topic == "/odom"),
         "{e:?}"
     );
+    // A name without its leading `/` finds the topic (ROS resolves `odom` as `/odom`).
+    let e = read_log(&f, &opts(|o| o.imu_topic = Some("odom".into()))).unwrap_err();
+    assert!(
+        matches!(log_reason(&e), Some(LogError::WrongType { role: "imu", topic, .. }) if topic == "odom"),
+        "{e:?}"
+    );
     let e = read_log(&f, &opts(|o| o.pose_topic = Some("/gps".into()))).unwrap_err();
     assert!(
         matches!(log_reason(&e), Some(LogError::NoTopic { topic, topics, .. })

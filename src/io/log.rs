@@ -209,7 +209,14 @@ fn choose<'c>(
     exclude: Option<u16>,
 ) -> Result<Option<&'c ChannelInfo>> {
     if let Some(topic) = named {
-        let Some(c) = channels.values().find(|c| c.topic == topic) else {
+        // The exact name first; else the name without a leading `/` on either side
+        // (ROS resolves `x` in the root namespace as `/x`; some bags store either).
+        let bare = |t: &str| t.strip_prefix('/').unwrap_or(t).to_string();
+        let found = channels
+            .values()
+            .find(|c| c.topic == topic)
+            .or_else(|| channels.values().find(|c| bare(&c.topic) == bare(topic)));
+        let Some(c) = found else {
             return Err(log_err(
                 path,
                 LogError::NoTopic {
