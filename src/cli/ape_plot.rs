@@ -93,7 +93,9 @@ pub fn plane_of_most_motion(p: &[Vector3<f64>]) -> (usize, usize) {
             });
         *s = if hi >= lo { hi - lo } else { 0.0 };
     }
+    // Ties (a flat or empty path) drop the last axis first: z, then y.
     let least = (0..3)
+        .rev()
         .min_by(|&a, &b| spread[a].total_cmp(&spread[b]))
         .unwrap_or(2);
     match least {
