@@ -146,6 +146,7 @@ def test_secret_sim3_model_converts_back_by_name(tmp_path: Path, fmt: str, model
     assert sorted(p.name for p in out.iterdir()) == [
         "cloud.ply",
         "model",
+        "report.html",
         "report.json",
         "trajectory.txt",
         "world.mcap",

@@ -49,8 +49,8 @@ def fit(slam: npt.NDArray[np.float64], world: npt.NDArray[np.float64]) -> tuple[
 
 
 def test_typed_alignment() -> None:
-    rng = np.random.default_rng(0)
-    slam = rng.normal(size=(10, 3))
+    t = np.linspace(0.0, 3.0, 10)
+    slam = np.column_stack([np.cos(t), np.sin(t), 0.1 * t])  # a path, not scattered points
     world = s2w.Sim3.from_quaternion([0.0, 0.0, 0.0, 1.0], [1.0, 0.0, 0.0], 2.0).apply(slam)
     s, rmse = fit(slam, world)
     assert abs(s - 2.0) < 1e-12 and rmse < 1e-12
