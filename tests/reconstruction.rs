@@ -27,8 +27,8 @@ use slam2world::pipeline::reconstruction::{
     read_reconstruction, ReconstructionOptions, ReferenceSpec,
 };
 use slam2world::pipeline::{
-    convert, convert_source, ConvertOptions, CLOUD_PLY, COLMAP_MODEL, MAP_BT, REPORT_JSON,
-    TRAJECTORY_TUM, WORLD_MCAP,
+    convert, convert_source, ConvertOptions, CLOUD_PLY, COLMAP_MODEL, MAP_BT, REPORT_HTML,
+    REPORT_JSON, TRAJECTORY_TUM, WORLD_MCAP,
 };
 use slam2world::trajectory::Trajectory;
 use slam2world::{Error, Sim3};
@@ -293,6 +293,7 @@ fn colmap_by_name_converts_back_to_the_true_model_as_one_output_set() {
             [
                 CLOUD_PLY,
                 COLMAP_MODEL,
+                REPORT_HTML,
                 REPORT_JSON,
                 TRAJECTORY_TUM,
                 WORLD_MCAP
