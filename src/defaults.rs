@@ -32,7 +32,7 @@ pub const ASSOCIATION: &str = "evo";
 /// yaw-only fit (`4dof`, `scale+4dof`) accepts.
 pub const MAX_TILT_DEG: f64 = 2.0;
 
-/// Fit-quality refusals ([`crate::align::checks`]): a reference whose rms
+/// Fit-quality refusals (`align::checks`): a reference whose rms
 /// spread about its centroid is at most this many times its noise is static.
 pub const MIN_SPREAD_OVER_NOISE: f64 = 2.0;
 /// A fit whose rmse is at least this fraction of the reference's rms spread

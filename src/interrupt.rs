@@ -5,7 +5,7 @@
 //! core (MCAP chunks, backprojection, octree insertion, output writing) call
 //! [`check`], which then returns [`Error::Interrupted`]. The error travels up
 //! like any other: temporary output files are removed on the way
-//! ([`crate::io::atomic`]) and the previous outputs stay as they were. The
+//! (`io::atomic`) and the previous outputs stay as they were. The
 //! command line exits with `128 + signal` (130, 143), the Python bindings
 //! raise `KeyboardInterrupt`.
 //!

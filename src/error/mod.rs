@@ -72,7 +72,7 @@ pub enum Error {
     },
     /// The reference positions of the fitted pairs stay within their noise
     /// of each other: there is no motion to fit a transform to
-    /// ([`crate::align::checks`]).
+    /// (`align::checks`).
     #[error(
         "the reference does not move: its positions spread {spread_m:.6} m (rms about their \
          centroid, {n} pairs), at most {threshold} times its noise of {noise_m:.6} m \
@@ -92,7 +92,7 @@ pub enum Error {
     },
     /// The fit explains almost none of the reference's spread: its rmse is
     /// close to the rms spread of the reference about its centroid
-    /// ([`crate::align::checks`]).
+    /// (`align::checks`).
     #[error(
         "the fit explains almost none of the reference's motion: rmse {rmse_m:.6} m is \
          {ratio:.3} of the reference's rms spread of {spread_m:.6} m about its centroid \
@@ -112,7 +112,7 @@ pub enum Error {
     },
     /// A fit that estimates the scale left it at 1 (within `threshold`)
     /// while the residual is far above the noise: nothing was fitted
-    /// ([`crate::align::checks`]).
+    /// (`align::checks`).
     #[error(
         "nothing was fitted: the scale stayed at {scale} ({scale_change:.3e} from 1, below \
          {threshold:e}) while the fit rmse of {rmse_m:.6} m is far above the reference noise \
@@ -289,7 +289,7 @@ pub enum Error {
         /// largest reason, and every `Result` carries the error's size).
         reason: Box<LogError>,
     },
-    /// A path that is no log slam2world reads (see [`crate::io::container::detect`]).
+    /// A path that is no log slam2world reads (see `io::container::detect`).
     #[error("{}: {reason}", path.display())]
     Container {
         /// The path given.
@@ -298,7 +298,7 @@ pub enum Error {
         reason: ContainerError,
     },
     /// An output that would destroy or misuse what is at its path: an input
-    /// of the same run, a folder, a block device (see [`crate::io::atomic`]).
+    /// of the same run, a folder, a block device (see `io::atomic`).
     #[error("{}: {reason}", path.display())]
     Output {
         /// The output path given.
@@ -315,7 +315,7 @@ pub enum Error {
         /// Bytes asked for.
         bytes: u128,
     },
-    /// The run was stopped by SIGINT (Ctrl-C) or SIGTERM ([`crate::interrupt`]);
+    /// The run was stopped by SIGINT (Ctrl-C) or SIGTERM (`interrupt`);
     /// the outputs of the run were not written, the previous ones are intact.
     #[error("interrupted by {}: no output written", signal_name(*signal))]
     Interrupted {
