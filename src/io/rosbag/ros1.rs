@@ -956,8 +956,35 @@ pub(crate) fn decompress<'a>(
                 .map_err(failed)?;
         }
         _ => {
+            // Reads into the whole free part of the buffer, so that the frame
+            // decoder writes each block straight into it (a small `read_to_end`
+            // step makes it decode into its own block buffer and copy out).
             let mut d = lz4::Decoder::new(data).map_err(failed)?;
-            (&mut d).take(size + 1).read_to_end(buf).map_err(failed)?;
+            let limit = size as usize + 1;
+            buf.resize(ahead as usize + 1, 0);
+            let mut filled = 0;
+            loop {
+                if filled == buf.len() {
+                    if buf.len() >= limit {
+                        break;
+                    }
+                    let grown = (buf.len() * 2).min(limit);
+                    buf.try_reserve_exact(grown - buf.len()).map_err(|_| {
+                        BagError::ChunkTooLarge {
+                            size,
+                            limit: MAX_CHUNK,
+                        }
+                    })?;
+                    buf.resize(grown, 0);
+                }
+                match d.read(&mut buf[filled..]) {
+                    Ok(0) => break,
+                    Ok(n) => filled += n,
+                    Err(e) if e.kind() == std::io::ErrorKind::Interrupted => {}
+                    Err(e) => return Err(failed(e)),
+                }
+            }
+            buf.truncate(filled);
         }
     }
     if buf.len() as u64 != size {

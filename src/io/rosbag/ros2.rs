@@ -559,8 +559,11 @@ fn sqlite_scan<T: Send + Default>(
     }
     let list: Vec<String> = wanted.iter().map(i64::to_string).collect();
     let sql = format!(
+        // In id (rowid) order, which is the table's own: `ORDER BY timestamp, id`
+        // would sort every row, data and all, in a temporary b-tree (4x slower
+        // on 1e6 PoseStamped); `scan_map`'s stable sort by time gives that order.
         "SELECT id, topic_id, timestamp, data FROM messages WHERE topic_id IN ({}) \
-         ORDER BY timestamp, id",
+         ORDER BY id",
         list.join(",")
     );
     let mut stmt = db.prepare(&sql).map_err(|e| at(e.into()))?;
