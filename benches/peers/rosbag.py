@@ -164,19 +164,32 @@ def bag_chunks(path: Path) -> Iterator[tuple[str, bytes, int]]:
     issue="#14",
 )
 def _ros1_poses(n: int) -> Case:
+    return _pose_row(n, "ros1")
+
+
+def _pose_row(n: int, kind: str) -> Case:
+    """``read_log(...).reference`` of ``n`` PoseStamped against ``rosbags``' reader
+    and deserialiser of that bag kind (``ros1``: a ``.bag``; ``ros2``: a ``.db3``),
+    the peer timed on its first ``PEER_MESSAGES``."""
     rb = _rosbags()
     from rosbags.typesys import Stores, get_typestore
 
-    path = Path(_TMP.name) / f"poses_{n}_lz4.bag"
+    if kind == "ros1":
+        path = Path(_TMP.name) / f"poses_{n}_lz4.bag"
+        write, store = pose_bag, get_typestore(Stores.ROS1_NOETIC)
+        reader, deserialize = rb.rosbag1.Reader, store.deserialize_ros1
+    else:
+        path = Path(_TMP.name) / f"poses_{n}_db3"
+        write, store = pose_db3, get_typestore(Stores.ROS2_HUMBLE)
+        reader, deserialize = rb.rosbag2.Reader, store.deserialize_cdr
     if not path.exists():
-        pose_bag(path, n)
-    store = get_typestore(Stores.ROS1_NOETIC)
+        write(path, n)
     peer_n = min(n, PEER_MESSAGES)
 
     def peer() -> None:
-        with rb.rosbag1.Reader(path) as reader:
-            for i, (conn, _, raw) in enumerate(reader.messages()):
-                msg: Any = store.deserialize_ros1(raw, conn.msgtype)
+        with reader(path) as r:
+            for i, (conn, _, raw) in enumerate(r.messages()):
+                msg: Any = deserialize(raw, conn.msgtype)
                 _ = msg.pose.position.x
                 if i + 1 == peer_n:
                     break
@@ -258,21 +271,4 @@ def _ros1_keyframes_bz2(k: int) -> Case:
     issue="#14",
 )
 def _db3_poses(n: int) -> Case:
-    rb = _rosbags()
-    from rosbags.typesys import Stores, get_typestore
-
-    path = Path(_TMP.name) / f"poses_{n}_db3"
-    if not path.exists():
-        pose_db3(path, n)
-    store = get_typestore(Stores.ROS2_HUMBLE)
-    peer_n = min(n, PEER_MESSAGES)
-
-    def peer() -> None:
-        with rb.rosbag2.Reader(path) as reader:
-            for i, (conn, _, raw) in enumerate(reader.messages()):
-                msg: Any = store.deserialize_cdr(raw, conn.msgtype)
-                _ = msg.pose.position.x
-                if i + 1 == peer_n:
-                    break
-
-    return Case(lambda: s2w.read_log(path).reference, peer, n, peer_n)
+    return _pose_row(n, "ros2")

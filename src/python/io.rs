@@ -6,6 +6,7 @@ use std::path::PathBuf;
 use numpy::PyUntypedArrayMethods;
 use pyo3::prelude::*;
 use pyo3::sync::PyOnceLock;
+use rayon::prelude::*;
 
 use super::cloud::PyKeyframe;
 use super::geometry::PySim3;
@@ -14,6 +15,7 @@ use super::trajectory::PyTrajectory;
 use crate::geometry::Sim3;
 use crate::io::log::{read_log, ReadOptions};
 use crate::io::mcap::{self as io_mcap, WorldFlavor, WorldScene};
+use crate::keyframe::Keyframe;
 use crate::pipeline::Recording;
 
 /// A log read by `read_log` or `read_mcap`: the recording a conversion reads.
@@ -53,10 +55,12 @@ impl PyLog {
     #[getter]
     fn keyframes(&self, py: Python<'_>) -> PyResult<Vec<Py<PyKeyframe>>> {
         let list = self.keyframes.get_or_try_init(py, || {
-            self.log
-                .keyframes
-                .iter()
-                .map(|k| Py::new(py, PyKeyframe { inner: k.clone() }))
+            // The copies (megabytes a keyframe) are made in parallel, without the GIL.
+            let copies: Vec<Keyframe> =
+                py.detach(|| self.log.keyframes.par_iter().cloned().collect());
+            copies
+                .into_iter()
+                .map(|inner| Py::new(py, PyKeyframe { inner }))
                 .collect::<PyResult<Vec<_>>>()
         })?;
         Ok(list.iter().map(|k| k.clone_ref(py)).collect())

@@ -342,26 +342,34 @@ impl Ros2Bag {
             for (topic_id, info) in topics(&db).map_err(at)? {
                 ids.insert(topic_id, table.intern(info).map_err(at)?);
             }
+            // One pass in rowid order, counted here: `GROUP BY topic_id` sorts
+            // every row in a temporary b-tree (no index on topic_id), 4x slower.
             let mut stmt = db
-                .prepare(
-                    "SELECT topic_id, COUNT(*), MIN(timestamp), MAX(timestamp), MIN(id) \
-                     FROM messages GROUP BY topic_id",
-                )
+                .prepare("SELECT id, topic_id, timestamp FROM messages")
                 .map_err(|e| at(e.into()))?;
             let mut rows = stmt.query([]).map_err(|e| at(e.into()))?;
+            let mut last: Option<(i64, u16)> = None;
             while let Some(row) = rows.next().map_err(|e| at(e.into()))? {
-                let topic_id: i64 = row.get(0).map_err(|e| at(e.into()))?;
-                let n: i64 = row.get(1).map_err(|e| at(e.into()))?;
-                let lo: i64 = row.get(2).map_err(|e| at(e.into()))?;
-                let hi: i64 = row.get(3).map_err(|e| at(e.into()))?;
-                let Some(&id) = ids.get(&topic_id) else {
-                    let row: i64 = row.get(4).map_err(|e| at(e.into()))?;
-                    return Err(at(BagError::UnknownTopic { topic_id, row }));
+                let row_id: i64 = row.get(0).map_err(|e| at(e.into()))?;
+                let topic_id: i64 = row.get(1).map_err(|e| at(e.into()))?;
+                let stamp = row.get::<_, i64>(2).map_err(|e| at(e.into()))?.max(0) as u64;
+                let id = match last {
+                    Some((t, id)) if t == topic_id => id,
+                    _ => {
+                        let Some(&id) = ids.get(&topic_id) else {
+                            return Err(at(BagError::UnknownTopic {
+                                topic_id,
+                                row: row_id,
+                            }));
+                        };
+                        last = Some((topic_id, id));
+                        id
+                    }
                 };
                 let s = stats.entry(id).or_insert((0, u64::MAX, 0));
-                s.0 += n.max(0) as u64;
-                s.1 = s.1.min(lo.max(0) as u64);
-                s.2 = s.2.max(hi.max(0) as u64);
+                s.0 += 1;
+                s.1 = s.1.min(stamp);
+                s.2 = s.2.max(stamp);
             }
             Ok(())
         })?;
