@@ -3,7 +3,8 @@
 //! [`MappedScan`], [`ReadMode`]) and the decoders of the message encodings.
 //!
 //! - [`wire`]: byte-level readers of ROS 1, ROS 2 CDR and protobuf;
-//! - [`decode`]: the messages slam2world uses, by [`decode::MessageKind`].
+//! - [`decode`]: the messages slam2world uses, by [`decode::MessageKind`];
+//! - [`gnss`]: `sensor_msgs/NavSatFix` and `foxglove.LocationFix` fixes.
 //!
 //! The readers of MCAP files ([`crate::io::mcap`]) and ROS bags
 //! ([`crate::io::rosbag`]) fill these types; the log assembly
@@ -13,6 +14,7 @@
 use std::collections::BTreeMap;
 
 pub mod decode;
+pub mod gnss;
 pub mod wire;
 
 /// A channel of a log with its schema (empty name and encoding when schemaless).
