@@ -776,7 +776,7 @@ def convert(
     gnss_format: str | None = None,
     geoid_offset: float = 0.0,
     gnss_topic: str | None = None,
-    origin: str | tuple[float, float, float] | None = None,
+    origin: str | tuple[float, float, float] = "first",
     lever_arm: Sequence[float] | None = None,
     gnss_weights: bool = True,
     gnss_max_gap: float = 0.5,

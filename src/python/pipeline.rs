@@ -24,6 +24,15 @@ use crate::pipeline::gnss::{
 use crate::pipeline::reconstruction::{attach_reference, open_input};
 use crate::pipeline::{self, ConvertOptions, NativeModel};
 
+/// `convert`'s `origin`: `"first"`, `"mean"`, or a `(lat, lon, alt)` position.
+#[derive(FromPyObject)]
+pub(crate) enum OriginArg {
+    /// A rule (or `"LAT,LON,ALT"` text).
+    Name(String),
+    /// Degrees, degrees, metres above the ellipsoid.
+    Position([f64; 3]),
+}
+
 /// The result of `convert`: the alignment, the world cloud, the report, the
 /// octree, and methods that write each output.
 #[pyclass(name = "Conversion", module = "slam2world._slam2world", frozen)]
@@ -263,7 +272,7 @@ impl PyConversion {
 /// `fit_checks` are `align_trajectories`'s (degrees of freedom, pinned first
 /// pair, pairing rule, gravity check, fit-quality refusals).
 #[pyfunction(name = "convert")]
-#[pyo3(signature = (log_or_path, *, keyframe_topic=None, graph_topic=None, pose_topic=None, est_topic=None, tf_parent=None, tf_child=None, max_diff=0.01, offset=0.0, n_to_align=None, scale=true, method="horn", filter=None, octree_resolution=None, octree_max_range=None, prob_hit=0.7, prob_miss=0.4, clamp_min=0.1192, clamp_max=0.971, skip_init=None, robust=None, inlier_threshold=None, loss="huber", use_orientations=false, estimate_offset=false, max_offset=0.5, body_from_cam=None, compare_windowed=None, windowed_cloud=false, imu_topic=None, imu_from_cam=None, gravity=9.81, level=0.95, dof="sim3", anchor=None, association="evo", max_tilt_deg=Some(crate::defaults::MAX_TILT_DEG), reference_noise=None, fit_checks=true, reference=None, reference_format=None, reference_time_unit=None, time_unit=None, cloud=None, colmap_format=None, depth_filter=true, depth_threshold=0.005, depth_min_count=2, min_disparity_ratio=0.5, gnss=None, gnss_format=None, geoid_offset=0.0, gnss_topic=None, origin=None, lever_arm=None, gnss_weights=true, gnss_max_gap=crate::defaults::GNSS_MAX_GAP, las=None, laz=false, pcd=false, crs=crate::defaults::CRS),
+#[pyo3(signature = (log_or_path, *, keyframe_topic=None, graph_topic=None, pose_topic=None, est_topic=None, tf_parent=None, tf_child=None, max_diff=0.01, offset=0.0, n_to_align=None, scale=true, method="horn", filter=None, octree_resolution=None, octree_max_range=None, prob_hit=0.7, prob_miss=0.4, clamp_min=0.1192, clamp_max=0.971, skip_init=None, robust=None, inlier_threshold=None, loss="huber", use_orientations=false, estimate_offset=false, max_offset=0.5, body_from_cam=None, compare_windowed=None, windowed_cloud=false, imu_topic=None, imu_from_cam=None, gravity=9.81, level=0.95, dof="sim3", anchor=None, association="evo", max_tilt_deg=Some(crate::defaults::MAX_TILT_DEG), reference_noise=None, fit_checks=true, reference=None, reference_format=None, reference_time_unit=None, time_unit=None, cloud=None, colmap_format=None, depth_filter=true, depth_threshold=0.005, depth_min_count=2, min_disparity_ratio=0.5, gnss=None, gnss_format=None, geoid_offset=0.0, gnss_topic=None, origin=OriginArg::Name(crate::defaults::ORIGIN.into()), lever_arm=None, gnss_weights=true, gnss_max_gap=crate::defaults::GNSS_MAX_GAP, las=None, laz=false, pcd=false, crs=crate::defaults::CRS),
        text_signature = "(log_or_path, *, keyframe_topic=None, graph_topic=None, pose_topic=None, \
                          est_topic=None, tf_parent=None, tf_child=None, max_diff=0.01, offset=0.0, n_to_align=None, \
                          scale=True, method='horn', filter=None, octree_resolution=None, \
@@ -277,7 +286,7 @@ impl PyConversion {
                          reference_time_unit=None, time_unit=None, cloud=None, colmap_format=None, \
                          depth_filter=True, depth_threshold=0.005, depth_min_count=2, \
                          min_disparity_ratio=0.5, gnss=None, gnss_format=None, geoid_offset=0.0, \
-                         gnss_topic=None, origin=None, lever_arm=None, gnss_weights=True, \
+                         gnss_topic=None, origin='first', lever_arm=None, gnss_weights=True, \
                          gnss_max_gap=0.5, las=None, laz=False, pcd=False, crs='utm')")]
 #[allow(clippy::too_many_arguments)]
 fn convert_py(
@@ -335,7 +344,7 @@ fn convert_py(
     gnss_format: Option<&str>,
     geoid_offset: f64,
     gnss_topic: Option<String>,
-    origin: Option<&Bound<'_, PyAny>>,
+    origin: OriginArg,
     lever_arm: Option<[f64; 3]>,
     gnss_weights: bool,
     gnss_max_gap: f64,
@@ -353,19 +362,10 @@ fn convert_py(
         None => None,
     };
     let origin = match origin {
-        None => crate::geo::Origin::First,
-        Some(o) => match o.extract::<String>() {
-            Ok(name) => parse_origin(&name)?,
-            Err(_) => {
-                let v: [f64; 3] = o.extract().map_err(|_| {
-                    PyErr::from(crate::Error::invalid(
-                        "origin",
-                        "expected \"first\", \"mean\" or a (lat, lon, alt) triple",
-                    ))
-                })?;
-                crate::geo::Origin::Given(crate::geo::Geodetic::try_new(v[0], v[1], v[2])?)
-            }
-        },
+        OriginArg::Name(name) => parse_origin(&name)?,
+        OriginArg::Position(v) => {
+            crate::geo::Origin::Given(crate::geo::Geodetic::try_new(v[0], v[1], v[2])?)
+        }
     };
     let gnss_options = GnssOptions {
         origin,

@@ -64,6 +64,9 @@ YAW = float(_SECRET.uniform(-np.pi, np.pi))  # ENU = yaw(YAW) · sim world
 SIGMA_H, SIGMA_V = 1.5, 3.0  # m, one sigma per axis
 LEVER = np.array([0.12, -0.16, 0.0])  # antenna in the camera frame, 0.2 m
 T0 = 1_700_000_000.0  # Unix stamps, as a receiver gives them
+# The simulator's scene is a room (8 m across); the flight is that motion
+# scaled up K times (the SLAM side does not change: only its true scale).
+K = 30.0
 
 
 def _yaw(a: float) -> np.ndarray:
@@ -84,22 +87,28 @@ def _quat_to_matrix(q: np.ndarray) -> np.ndarray:
 
 @pytest.fixture(scope="module")
 def flight() -> s2w.Simulation:
-    # A 260 m flight over 30 s (8.7 m/s), SLAM scale settled from the start.
+    # 120 s, 120 keyframes, SLAM scale settled from the start; K times the
+    # room's 25 m path is a 740 m flight (6 m/s) over 230 m x 100 m.
     return s2w.simulate(
         seed=16,
         reduced=8,
-        n_frames=1800,
-        n_keyframes=60,
-        path_length=260.0,
+        n_frames=7200,
+        n_keyframes=120,
         converge_start=0,
         stable_start=0,
     )
 
 
-def _write_flight(sim: s2w.Simulation, path: Path, *, no_fix: int = 0) -> dict[str, Any]:
-    """Keyframes and 5 Hz NavSatFix of the antenna into one MCAP; returns the truth."""
+def _write_flight(
+    sim: s2w.Simulation, path: Path, *, no_fix: int = 0, level: bool = False
+) -> dict[str, Any]:
+    """Keyframes and 5 Hz NavSatFix of the antenna into one MCAP; returns the truth.
+    With `level`, the SLAM frame is turned to have z along gravity (as a
+    visual-inertial SLAM's is), for the yaw-only fits."""
     rng = np.random.default_rng(7)
-    Kf = generate_dynamic("lsd_slam_viewer/keyframeMsg", KEYFRAME_MSG)["lsd_slam_viewer/keyframeMsg"]
+    Kf = generate_dynamic("lsd_slam_viewer/keyframeMsg", KEYFRAME_MSG)[
+        "lsd_slam_viewer/keyframeMsg"
+    ]
     Fix = generate_dynamic("sensor_msgs/NavSatFix", NAVSATFIX)["sensor_msgs/NavSatFix"]
     fx, fy, cx, cy, width, height = sim.camera
     idepth, var, grey = sim.keyframe_idepth, sim.keyframe_idepth_var, sim.keyframe_intensity
@@ -110,6 +119,7 @@ def _write_flight(sim: s2w.Simulation, path: Path, *, no_fix: int = 0) -> dict[s
     r_enu = _yaw(YAW)
     cov = [SIGMA_H**2, 0.0, 0.0, 0.0, SIGMA_H**2, 0.0, 0.0, 0.0, SIGMA_V**2]
     antenna = []
+    turn = s2w.Sim3(rotation=sim.t_world_slam.rotation) if level else s2w.Sim3.identity()
     with open(path, "wb") as f:
         w = Ros1Writer(f)
         for k, (kid, t, pose) in enumerate(
@@ -118,6 +128,7 @@ def _write_flight(sim: s2w.Simulation, path: Path, *, no_fix: int = 0) -> dict[s
             rec = np.zeros((height, width), dtype=[("d", "<f4"), ("v", "<f4"), ("c", "u1", (4,))])
             rec["d"], rec["v"] = idepth[k], var[k]
             rec["c"][..., :3] = grey[k][..., None]
+            pose = turn @ pose
             q = np.asarray(pose.quaternion) * pose.scale  # LSD-SLAM: |q| is the scale
             c2w = [float(v) for v in q] + [float(v) for v in pose.translation]
             msg = Kf(id=int(kid), time=T0 + float(t), isKeyframe=True, camToWorld=c2w)
@@ -125,7 +136,7 @@ def _write_flight(sim: s2w.Simulation, path: Path, *, no_fix: int = 0) -> dict[s
             msg.pointcloud = rec.tobytes()
             w.write_message("/lsd_slam/keyframes", msg, log_time=int((T0 + t) * 1e9))
         for i, t in enumerate(fix_times):
-            p_world = poses.positions[i] + _quat_to_matrix(poses.orientations[i]) @ LEVER
+            p_world = K * poses.positions[i] + _quat_to_matrix(poses.orientations[i]) @ LEVER
             p_enu = r_enu @ p_world
             antenna.append(p_enu)
             noisy = p_enu + rng.normal(0.0, [SIGMA_H, SIGMA_H, SIGMA_V])
@@ -141,12 +152,12 @@ def _write_flight(sim: s2w.Simulation, path: Path, *, no_fix: int = 0) -> dict[s
             m.position_covariance_type = 2
             w.write_message("/fix", m, log_time=int(stamp * 1e9))
         w.finish()
-    return {"antenna_enu": np.array(antenna), "fix_times": fix_times}
+    return {"antenna_enu": np.array(antenna), "fix_times": fix_times, "turn": turn}
 
 
 def _true_enu_slam(sim: s2w.Simulation) -> s2w.Sim3:
-    """T_enu_slam of the truth: the secret yaw after the simulator's T_world_slam."""
-    return s2w.Sim3(rotation=_yaw(YAW)) @ sim.t_world_slam
+    """T_enu_slam of the truth: the secret yaw after the scaled-up T_world_slam."""
+    return s2w.Sim3(rotation=_yaw(YAW), scale=K) @ sim.t_world_slam
 
 
 def _path_length(p: np.ndarray) -> float:
@@ -221,7 +232,7 @@ def test_a_simulated_flight_converts_to_a_georeferenced_map(
 
 def test_outputs_options_and_origin_given(flight: s2w.Simulation, tmp_path: Path) -> None:
     log = tmp_path / "flight.mcap"
-    _write_flight(flight, log)
+    _write_flight(flight, log, level=True)
     conv = s2w.convert(
         log, gnss_topic="/fix", origin=ORIGIN, lever_arm=LEVER, dof="scale+4dof", laz=True, pcd=True
     )
@@ -286,7 +297,9 @@ def test_bad_gnss_input_is_refused_with_typed_errors(
     t = T0 + np.arange(200) * 0.2
     rng = np.random.default_rng(1)
     lat = 48.0 + rng.normal(0, 3e-6, 200)
-    np.savetxt(still, np.column_stack([t, lat, np.full(200, 11.0), np.full(200, 500.0)]), delimiter=",")
+    np.savetxt(
+        still, np.column_stack([t, lat, np.full(200, 11.0), np.full(200, 500.0)]), delimiter=","
+    )
     with pytest.raises(s2w.DegenerateError, match="never moves more than its noise"):
         s2w.convert(log, gnss=still)
     with pytest.raises(s2w.InvalidInputError, match="lever_arm"):
@@ -299,7 +312,7 @@ def test_bad_gnss_input_is_refused_with_typed_errors(
 
 def test_las_without_gnss_is_refused(tmp_path: Path) -> None:
     log = tmp_path / "sim.mcap"
-    argv = ["slam2world", "simulate", "-o", str(log), "--reduced", "8", "--seed", "3"]
+    argv = ["slam2world", "simulate", "-o", str(log), "--reduced", "4", "--seed", "1"]
     assert s2w._slam2world.run_cli(argv) == 0
     with pytest.raises(s2w.InvalidInputError, match="GNSS reference"):
         s2w.convert(log, las=True)
@@ -311,8 +324,9 @@ def test_las_without_gnss_is_refused(tmp_path: Path) -> None:
 
 
 def _bag_records(store: Any) -> tuple[list[tuple[int, str, str, Any]], s2w.Sim3]:
-    """Odometry of a SLAM-like estimate (its own frame and scale) at 10 Hz and
-    noise-free NavSatFix at 5 Hz of the same motion; returns T_enu_slam too."""
+    """Odometry of a SLAM-like estimate (its own frame and scale) and noise-free
+    NavSatFix of the same motion at the same 10 Hz stamps (so that the
+    interpolation at the SLAM stamps is exact); returns T_enu_slam too."""
     t = store.types
     truth = s2w.Sim3.from_quaternion([0.0, 0.0, np.sin(0.6), np.cos(0.6)], [3.0, -2.0, 1.0], 2.0)
     slam_from_enu = truth.inverse()
@@ -349,18 +363,17 @@ def _bag_records(store: Any) -> tuple[list[tuple[int, str, str, Any]], s2w.Sim3]
             twist=t["geometry_msgs/msg/TwistWithCovariance"](twist=twist, covariance=np.zeros(36)),
         )
         records.append((n, "/slam/odom", "nav_msgs/msg/Odometry", odom))
-        if i % 2 == 0:
-            lat, lon, alt = pm.enu2geodetic(*enu(s), *ORIGIN)
-            fix = t["sensor_msgs/msg/NavSatFix"](
-                header=header(n, "gps"),
-                status=t["sensor_msgs/msg/NavSatStatus"](status=0, service=1),
-                latitude=float(lat),
-                longitude=float(lon),
-                altitude=float(alt),
-                position_covariance=np.array([0.25, 0, 0, 0, 0.25, 0, 0, 0, 1.0]),
-                position_covariance_type=2,
-            )
-            records.append((n + 1, "/gps/fix", "sensor_msgs/msg/NavSatFix", fix))
+        lat, lon, alt = pm.enu2geodetic(*enu(s), *ORIGIN)
+        fix = t["sensor_msgs/msg/NavSatFix"](
+            header=header(n, "gps"),
+            status=t["sensor_msgs/msg/NavSatStatus"](status=0, service=1),
+            latitude=float(lat),
+            longitude=float(lon),
+            altitude=float(alt),
+            position_covariance=np.array([0.25, 0, 0, 0, 0.25, 0, 0, 0, 1.0]),
+            position_covariance_type=2,
+        )
+        records.append((n + 1, "/gps/fix", "sensor_msgs/msg/NavSatFix", fix))
     return records, truth
 
 
@@ -396,11 +409,11 @@ def test_navsatfix_in_ros_bags_is_the_reference(tmp_path: Path, container: str) 
                 w2.write(conns[topic], n, store.serialize_cdr(msg, ty))
         path = next(path.glob("*.db3"))
     log = s2w.read_log(path, est_topic="/slam/odom")
-    assert log.gnss_topic == "/gps/fix" and log.gnss is not None and len(log.gnss) == 100
+    assert log.gnss_topic == "/gps/fix" and log.gnss is not None and len(log.gnss) == 200
     conv = s2w.convert(path, est_topic="/slam/odom", gnss_topic="/gps/fix", origin=ORIGIN)
     r = conv.report
     assert r["format"] == container and r["gnss"]["topic"] == "/gps/fix"
-    # Noise-free fixes at the secret origin: the fit is the truth (f32-free path: 1e-6).
+    # Noise-free fixes at the secret origin: the fit is the truth (no f32 on this path).
     np.testing.assert_allclose(conv.transform.matrix(), truth.matrix(), atol=1e-6)
     assert r["fit_rmse"] < 1e-6
 
