@@ -111,7 +111,7 @@ pub struct Recording {
     /// Raw IMU samples, sorted by time.
     pub imu: Option<ImuSamples>,
     /// GNSS fixes (WGS84), the reference when present: the world frame is
-    /// then ENU at an origin ([`super::gnss`]).
+    /// then ENU at an origin (`pipeline::gnss`).
     pub gnss: Option<GnssFixes>,
     /// Name and camera of each row of `frames` (empty when the input has none).
     pub frame_info: Vec<FrameInfo>,

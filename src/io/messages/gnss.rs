@@ -13,7 +13,7 @@ use nalgebra::Matrix3;
 use serde::Deserialize;
 
 use super::decode::MessageKind;
-use super::wire::{pb_fields, Cdr, PbValue, Ros1, WireError, WireResult};
+use super::wire::{pb_fields, Cdr, PbValue, Ros1, RosReader, WireError, WireResult};
 use crate::geo::{FixStatus, GnssFix};
 
 /// `position_covariance_type` value meaning the covariance is unknown.
