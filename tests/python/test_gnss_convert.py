@@ -234,12 +234,28 @@ def test_outputs_options_and_origin_given(flight: s2w.Simulation, tmp_path: Path
     log = tmp_path / "flight.mcap"
     _write_flight(flight, log, level=True)
     conv = s2w.convert(
-        log, gnss_topic="/fix", origin=ORIGIN, lever_arm=LEVER, dof="scale+4dof", laz=True, pcd=True
+        log,
+        gnss_topic="/fix",
+        origin=ORIGIN,
+        lever_arm=LEVER,
+        dof="scale+4dof",
+        laz=True,
+        pcd=True,
+        octree_resolution=2.0,
     )
     out = tmp_path / "out"
     conv.write_all(out)
     names = sorted(p.name for p in out.iterdir())
     assert "cloud.laz" in names and "cloud.pcd" in names and "cloud.las" not in names
+    # map.bt is in ENU at the report's origin: its occupied voxels hold the cloud.
+    octree = conv.octree
+    assert octree is not None and "map.bt" in names
+    states = octree.state(conv.cloud.points[::50])
+    assert (states == 1).mean() > 0.8  # the rest cleared by later rays, as OctoMap does
+    centres = octree.occupied_centers()
+    lo, hi = conv.cloud.points.min(0), conv.cloud.points.max(0)
+    assert (centres >= lo - 2.0).all() and (centres <= hi + 2.0).all()
+    assert s2w.read_bt(out / "map.bt").count_occupied() == octree.count_occupied()
     g = conv.report["gnss"]
     assert g["origin_rule"] == "given" and g["origin"] == pytest.approx(list(ORIGIN))
     # With the secret origin given, ENU is the truth's frame: the fitted yaw is the secret one.
@@ -308,6 +324,25 @@ def test_bad_gnss_input_is_refused_with_typed_errors(
         s2w.convert(log, origin="middle")
     with pytest.raises(s2w.InvalidInputError, match="latitude"):
         s2w.convert(log, origin=(95.0, 0.0, 0.0))
+
+
+def test_the_command_line_takes_the_gnss_options(flight: s2w.Simulation, tmp_path: Path) -> None:
+    log = tmp_path / "flight.mcap"
+    _write_flight(flight, log)
+    out = tmp_path / "out"
+    lever = [str(v) for v in LEVER]
+    argv = ["slam2world", "convert", str(log), "-o", str(out), "-q", "--lever-arm", *lever]
+    assert s2w._slam2world.run_cli([*argv, "--pcd", "--crs", "ecef", "--origin", "mean"]) == 0
+    r = json.loads((out / "report.json").read_text())
+    assert r["gnss"]["origin_rule"] == "mean" and r["gnss"]["lever_arm"] == pytest.approx(
+        list(LEVER)
+    )
+    assert laspy.read(out / "cloud.las").header.parse_crs().to_epsg() == 4978
+    assert (out / "cloud.pcd").exists()
+    bad = tmp_path / "bad.csv"
+    bad.write_text("0,48.0,11.0,500\n1,91.0,11.0,500\n")
+    assert s2w._slam2world.run_cli([*argv, "--gnss", str(bad)]) == 1
+    assert s2w._slam2world.run_cli([*argv, "--origin", "north"]) == 2
 
 
 def test_las_without_gnss_is_refused(tmp_path: Path) -> None:
