@@ -16,6 +16,13 @@ pub const OFFSET: f64 = 0.0;
 pub const MAX_OFFSET: f64 = 0.5;
 /// Largest reference gap bridged by interpolation, seconds.
 pub const MAX_GAP: f64 = 0.1;
+/// Largest time between two GNSS fixes that a reference position
+/// interpolated at a SLAM stamp bridges, seconds (2.5 periods of a 5 Hz receiver).
+pub const GNSS_MAX_GAP: f64 = 0.5;
+/// Where the ENU origin of a GNSS reference is put (`first`, `mean`, or a position).
+pub const ORIGIN: &str = "first";
+/// CRS of the georeferenced cloud (`utm`: the zone of the ENU origin; `ecef`).
+pub const CRS: &str = "utm";
 /// Confidence level of the reported intervals.
 pub const CONFIDENCE: f64 = 0.95;
 /// IRLS loss of the robust fit.
@@ -111,6 +118,9 @@ pub const TABLE: &[(&str, Value)] = &[
     ("offset", Value::Float(OFFSET)),
     ("max_offset", Value::Float(MAX_OFFSET)),
     ("max_gap", Value::Float(MAX_GAP)),
+    ("gnss_max_gap", Value::Float(GNSS_MAX_GAP)),
+    ("convert.origin", Value::Str(ORIGIN)),
+    ("convert.crs", Value::Str(CRS)),
     ("level", Value::Float(CONFIDENCE)),
     ("loss", Value::Str(LOSS)),
     ("method", Value::Str(METHOD)),

@@ -635,6 +635,32 @@ fn real_bags_read_through_read_log() {
             ("sensor_msgs/NavSatFix", 989)
         );
     }
+    if let Some(p) = common::data("ros1_husky_gps", "test1.bag") {
+        // Naming the GNSS topic makes it the reference: no pose topic is read.
+        let log = read_log(&p, &opts(|o| o.gnss_topic = Some("/fix".into()))).unwrap();
+        assert_eq!(log.gnss_topic.as_deref(), Some("/fix"));
+        assert!(log.reference.is_none() && log.reference_topic.is_none());
+        let fixes = log.gnss.unwrap();
+        // PROVENANCE.md: 989 fixes, status SBAS throughout, diag (0.81, 0.81, 3.24) m².
+        assert_eq!((fixes.len(), fixes.dropped_no_fix), (989, 0));
+        assert_eq!(fixes.covariance[0].unwrap()[(2, 2)], 3.24);
+        assert!(fixes.lat.iter().all(|l| (42.3757..42.3772).contains(l)));
+        // One reference per conversion: a pose topic and a GNSS topic both named.
+        let both = opts(|o| {
+            o.gnss_topic = Some("/fix".into());
+            o.pose_topic = Some("/husky_velocity_controller/odom".into());
+        });
+        assert!(matches!(
+            read_log(&p, &both),
+            Err(Error::InvalidArgument { .. })
+        ));
+        // A GNSS topic of another type is named with its type.
+        let wrong = opts(|o| o.gnss_topic = Some("/imu/data".into()));
+        assert!(matches!(
+            log_reason(&read_log(&p, &wrong).unwrap_err()),
+            Some(LogError::WrongType { .. })
+        ));
+    }
     if let (Some(bag), Some(folder)) = (
         common::data("evo_tf_example", "tf_example.bag"),
         common::data("evo_tf_example", "tf_example"),

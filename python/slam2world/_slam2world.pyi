@@ -585,6 +585,10 @@ class Log:
     @property
     def imu_topic(self) -> str | None: ...
     @property
+    def gnss(self) -> GnssFixes | None: ...
+    @property
+    def gnss_topic(self) -> str | None: ...
+    @property
     def graph_updates(self) -> int: ...
     @property
     def topics(self) -> list[tuple[str, str, str, int]]: ...
@@ -609,6 +613,7 @@ def read_log(
     tf_parent: str | None = None,
     tf_child: str | None = None,
     est_topic: str | None = None,
+    gnss_topic: str | None = None,
 ) -> Log: ...
 def write_world_mcap(
     path: str | os.PathLike[str],
@@ -711,6 +716,10 @@ class Conversion:
     def write_tum(self, path: str | os.PathLike[str]) -> None: ...
     def write_model(self, path: str | os.PathLike[str], format: str | None = None) -> None: ...
     def write_all(self, directory: str | os.PathLike[str], *, ros2: bool = False) -> None: ...
+    @property
+    def enu_origin(self) -> tuple[float, float, float] | None: ...
+    def write_las(self, path: str | os.PathLike[str], *, crs: str | None = None) -> int: ...
+    def write_pcd(self, path: str | os.PathLike[str]) -> None: ...
 
 def convert(
     log_or_path: Log | Reconstruction | str | os.PathLike[str],
@@ -763,6 +772,18 @@ def convert(
     depth_threshold: float = 0.005,
     depth_min_count: int = 2,
     min_disparity_ratio: float = 0.5,
+    gnss: str | os.PathLike[str] | None = None,
+    gnss_format: str | None = None,
+    geoid_offset: float = 0.0,
+    gnss_topic: str | None = None,
+    origin: str | tuple[float, float, float] = "first",
+    lever_arm: Sequence[float] | None = None,
+    gnss_weights: bool = True,
+    gnss_max_gap: float = 0.5,
+    las: bool | None = None,
+    laz: bool = False,
+    pcd: bool = False,
+    crs: str = "utm",
 ) -> Conversion: ...
 
 DEFAULTS: dict[str, float | int | str]

@@ -446,7 +446,36 @@ pub fn align_trajectories(
     reference: &Trajectory,
     opts: &TrajectoryAlignOptions,
 ) -> Result<TrajectoryAlignment> {
+    align_trajectories_weighted(slam, reference, None, opts)
+}
+
+/// [`align_trajectories`] with one weight per reference pose
+/// (`reference_weights`, non-negative, e.g. `1/σ²` of a GNSS fix): each
+/// matched pair weighs what its reference pose does, in the closed-form fit
+/// and its covariance. Refused with a robust fit (which chooses its own
+/// weights) and with `use_orientations` (the joint fit takes none).
+pub fn align_trajectories_weighted(
+    slam: &Trajectory,
+    reference: &Trajectory,
+    reference_weights: Option<&[f64]>,
+    opts: &TrajectoryAlignOptions,
+) -> Result<TrajectoryAlignment> {
     opts.check()?;
+    if let Some(w) = reference_weights {
+        if w.len() != reference.len() {
+            return Err(Error::ShapeMismatch {
+                what: "reference weights".into(),
+                expected: format!("({},), one per reference pose", reference.len()),
+                got: format!("({},)", w.len()),
+            });
+        }
+        if opts.robust.is_some() || opts.use_orientations {
+            return Err(Error::invalid(
+                "weights",
+                "per-pose weights cannot be combined with a robust fit or use_orientations",
+            ));
+        }
+    }
     slam.check_lengths()?;
     reference.check_lengths()?;
     let mut offset = opts.offset;
@@ -478,7 +507,10 @@ pub fn align_trajectories(
 
     let (fit_start, end, stages, skip_reason) = fit_range(opts, &src, &dst)?;
     let range = fit_start..end;
-    let dopts = opts.dof_options()?;
+    let mut dopts = opts.dof_options()?;
+    let pair_weights: Option<Vec<f64>> =
+        reference_weights.map(|w| pairs[range.clone()].iter().map(|&(_, r)| w[r]).collect());
+    dopts.weights = pair_weights.clone();
     let dof = dopts.dof;
     let (fs, fd) = (&src[range.clone()], &dst[range.clone()]);
     // The reference's own poses over the fitted span, for its noise.
@@ -537,7 +569,8 @@ pub fn align_trajectories(
     let ape = ApeStats::from_errors(&errors)?;
     let weights: Option<Vec<f64>> = inliers
         .as_ref()
-        .map(|m| m.iter().map(|&b| f64::from(u8::from(b))).collect());
+        .map(|m| m.iter().map(|&b| f64::from(u8::from(b))).collect())
+        .or(pair_weights);
     let fitted_reference: Vec<Vector3<f64>> = match &inliers {
         Some(m) => fd
             .iter()

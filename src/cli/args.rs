@@ -295,3 +295,106 @@ pub(crate) fn print_json<T: serde::Serialize>(value: &T) -> Result<()> {
     text.push('\n');
     print(&text)
 }
+
+/// The GNSS reference and the georeferenced outputs of `convert`.
+#[derive(Args, Debug, Clone)]
+pub struct GnssArgs {
+    /// GNSS fixes as the reference, from a file: CSV / TXT `time, lat, lon,
+    /// alt[, covariance]` (degrees; metres above the WGS84 ellipsoid) or NMEA
+    /// (GGA, with GST accuracy); the world frame is then ENU at `--origin`.
+    #[arg(long, value_name = "FILE", conflicts_with_all = ["gnss_topic", "reference"])]
+    pub gnss: Option<std::path::PathBuf>,
+    /// Format of the `--gnss` file (default: detected from its first lines).
+    #[arg(long, value_name = "csv|nmea", requires = "gnss", value_parser = gnss_format)]
+    pub gnss_format: Option<crate::io::gnss::GnssFormat>,
+    /// Metres added to every height of the `--gnss` file (the geoid
+    /// separation, for heights above mean sea level).
+    #[arg(long, value_name = "M", requires = "gnss", default_value_t = 0.0, allow_hyphen_values = true, value_parser = finite)]
+    pub geoid_offset: f64,
+    /// GNSS fixes as the reference, from a log topic (`sensor_msgs/NavSatFix`
+    /// ros1 / cdr, `foxglove.LocationFix`); found by type when the log has no
+    /// pose topic.
+    #[arg(long, value_name = "TOPIC", conflicts_with = "pose_topic")]
+    pub gnss_topic: Option<String>,
+    /// ENU origin of a GNSS reference: `first` (fix), `mean` (ECEF centroid)
+    /// or `LAT,LON,ALT` (degrees, metres above the ellipsoid).
+    #[arg(long, value_name = "first|mean|LAT,LON,ALT", default_value = defaults::ORIGIN, allow_hyphen_values = true, value_parser = origin)]
+    pub origin: crate::geo::Origin,
+    /// The GNSS antenna in the body frame (`T_body_antenna`, metres; the body
+    /// is the SLAM camera unless `--body-from-cam` is given).
+    #[arg(long, num_args = 3, value_names = ["X", "Y", "Z"], allow_hyphen_values = true, value_parser = finite)]
+    pub lever_arm: Option<Vec<f64>>,
+    /// Fit every GNSS pair with the same weight (default: 1/σ² from each
+    /// fix's covariance, when every fix has one).
+    #[arg(long)]
+    pub no_gnss_weights: bool,
+    /// Largest time between two fixes that a reference position interpolated
+    /// at a SLAM stamp bridges, seconds.
+    #[arg(long, value_name = "S", default_value_t = defaults::GNSS_MAX_GAP, value_parser = positive)]
+    pub gnss_max_gap: f64,
+    /// Write `cloud.las` (the default with a GNSS reference; refused without one).
+    #[arg(long, conflicts_with = "no_las")]
+    pub las: bool,
+    /// Write no LAS file.
+    #[arg(long)]
+    pub no_las: bool,
+    /// Write the LAS file compressed, as `cloud.laz`.
+    #[arg(long, conflicts_with = "no_las")]
+    pub laz: bool,
+    /// Also write `cloud.pcd` (binary PCD, world-frame metres: ENU with GNSS).
+    #[arg(long)]
+    pub pcd: bool,
+    /// CRS of the LAS file: `utm` (the zone of the ENU origin) or `ecef`.
+    #[arg(long, value_name = "utm|ecef", default_value = defaults::CRS, value_parser = crs)]
+    pub crs: crate::geo::GeoCrs,
+}
+
+fn gnss_format(s: &str) -> std::result::Result<crate::io::gnss::GnssFormat, String> {
+    crate::io::gnss::GnssFormat::parse(s).map_err(|e| e.to_string())
+}
+
+fn origin(s: &str) -> std::result::Result<crate::geo::Origin, String> {
+    crate::pipeline::gnss::parse_origin(s).map_err(|e| e.to_string())
+}
+
+fn crs(s: &str) -> std::result::Result<crate::geo::GeoCrs, String> {
+    crate::geo::GeoCrs::parse(s, None).map_err(|e| e.to_string())
+}
+
+impl GnssArgs {
+    /// The GNSS options.
+    pub fn options(&self) -> crate::pipeline::gnss::GnssOptions {
+        crate::pipeline::gnss::GnssOptions {
+            origin: self.origin,
+            lever_arm: self
+                .lever_arm
+                .as_ref()
+                .map(|v| nalgebra::Vector3::new(v[0], v[1], v[2])),
+            weights: !self.no_gnss_weights,
+            max_gap: self.gnss_max_gap,
+        }
+    }
+
+    /// The georeferenced outputs.
+    pub fn outputs(&self) -> crate::pipeline::gnss::GeoOutputs {
+        crate::pipeline::gnss::GeoOutputs {
+            las: if self.no_las {
+                Some(false)
+            } else {
+                self.las.then_some(true)
+            },
+            laz: self.laz,
+            pcd: self.pcd,
+            crs: self.crs,
+        }
+    }
+
+    /// The `--gnss` file.
+    pub fn file(&self) -> Option<crate::pipeline::gnss::GnssFile> {
+        self.gnss.as_ref().map(|p| crate::pipeline::gnss::GnssFile {
+            path: p.clone(),
+            format: self.gnss_format,
+            geoid_offset: self.geoid_offset,
+        })
+    }
+}

@@ -14,7 +14,7 @@ use std::path::PathBuf;
 use clap::Args;
 use indicatif::{ProgressBar, ProgressDrawTarget, ProgressStyle};
 
-use super::args::{finite, non_negative, parse_transform, positive, print, FitArgs};
+use super::args::{finite, non_negative, parse_transform, positive, print, FitArgs, GnssArgs};
 use crate::cloud::PointFilter;
 use crate::defaults;
 use crate::error::{Error, Result};
@@ -24,6 +24,7 @@ use crate::io::log::ReadOptions;
 use crate::io::mcap::WorldFlavor;
 use crate::io::text::TimeUnit;
 use crate::map::MapParams;
+use crate::pipeline::gnss::WithGnss;
 use crate::pipeline::native::ReferenceFormat;
 use crate::pipeline::outputs::output_set;
 use crate::pipeline::reconstruction::{open_input, ReconstructionOptions, ReferenceSpec};
@@ -159,6 +160,9 @@ pub struct ConvertArgs {
     /// Association and fit options.
     #[command(flatten)]
     pub fit: FitArgs,
+    /// The GNSS reference and the georeferenced outputs.
+    #[command(flatten)]
+    pub gnss: GnssArgs,
 }
 
 impl ConvertArgs {
@@ -177,6 +181,7 @@ impl ConvertArgs {
                 tf_parent: self.tf_parent.clone(),
                 tf_child: self.tf_child.clone(),
                 est_topic: self.est_topic.clone(),
+                gnss_topic: self.gnss.gnss_topic.clone(),
             },
             align: self.fit.options(),
             filter: if self.no_filter {
@@ -202,6 +207,8 @@ impl ConvertArgs {
                 .map(crate::align::windowed::Window::Poses),
             windowed_cloud: self.windowed_cloud,
             confidence: self.fit.confidence,
+            gnss: self.gnss.options(),
+            geo_outputs: self.gnss.outputs(),
         })
     }
 
@@ -250,6 +257,7 @@ pub fn run(args: &ConvertArgs) -> Result<()> {
         Some(&args.log),
         args.reference.as_ref(),
         args.cloud.as_ref(),
+        args.gnss.gnss.as_ref(),
     ];
     let mut outputs = output_set(&args.output, inputs.into_iter().flatten())?;
     let src = open_input(
@@ -258,6 +266,10 @@ pub fn run(args: &ConvertArgs) -> Result<()> {
         &args.reconstruction_options(),
         args.reference_spec().as_ref(),
     )?;
+    let src: Box<dyn crate::pipeline::Source> = match args.gnss.file() {
+        Some(file) => Box::new(WithGnss { inner: src, file }),
+        None => src,
+    };
     bar.set_message(if opts.map.is_some() {
         "reading, aligning, backprojecting and building the octree"
     } else {
@@ -324,6 +336,25 @@ pub fn run(args: &ConvertArgs) -> Result<()> {
             o.nodes,
             o.memory_bytes as f64 / (1024.0 * 1024.0),
             o.time_s
+        );
+    }
+    if let Some(g) = &r.gnss {
+        s += &format!(
+            "GNSS {}: {} fixes ({} without a fix dropped), world = ENU at lat {:.7} lon {:.7} alt {:.3} m ({}), {}{}\n",
+            g.topic
+                .clone()
+                .or_else(|| g.file.as_ref().map(|p| p.display().to_string()))
+                .unwrap_or_default(),
+            g.fixes,
+            g.dropped_no_fix,
+            g.origin[0],
+            g.origin[1],
+            g.origin[2],
+            g.origin_rule,
+            g.utm_zone
+                .as_ref()
+                .map_or(String::new(), |z| format!("UTM zone {z}")),
+            if g.weighted { ", weighted by covariance" } else { "" }
         );
     }
     s += &input_summary(r);

@@ -76,7 +76,9 @@ impl FixStatus {
 }
 
 /// What the fix times count.
-#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, Serialize, Deserialize, Default)]
+#[derive(
+    Clone, Copy, Debug, PartialEq, Eq, Hash, Serialize, Deserialize, Default, schemars::JsonSchema,
+)]
 #[serde(rename_all = "snake_case")]
 pub enum TimeBase {
     /// Seconds as the source stamps them: Unix time (UTC, no leap seconds)

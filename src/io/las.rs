@@ -75,6 +75,25 @@ pub fn write_las_parts(
     origin: &Geodetic,
     crs: GeoCrs,
 ) -> Result<LasInfo> {
+    let compressed = path
+        .extension()
+        .and_then(|e| e.to_str())
+        .is_some_and(|e| e.eq_ignore_ascii_case("laz"));
+    let (bytes, info) = las_bytes(path, points, colors, origin, crs, compressed)?;
+    crate::io::atomic::write_bytes_atomic(path, &bytes)?;
+    Ok(info)
+}
+
+/// The bytes of the LAS (or, `compressed`, LAZ) file [`write_las_parts`]
+/// writes; `path` names the file in errors.
+pub fn las_bytes(
+    path: &Path,
+    points: &[f32],
+    colors: Option<&[u8]>,
+    origin: &Geodetic,
+    crs: GeoCrs,
+    compressed: bool,
+) -> Result<(Vec<u8>, LasInfo)> {
     let n = points.len() / 3;
     if let Some(c) = colors {
         if c.len() != 3 * n || points.len() % 3 != 0 {
@@ -115,10 +134,6 @@ pub fn write_las_parts(
         }
     }
 
-    let compressed = path
-        .extension()
-        .and_then(|e| e.to_str())
-        .is_some_and(|e| e.eq_ignore_ascii_case("laz"));
     let mut format = las::point::Format::new(if colors.is_some() { 7 } else { 6 })
         .map_err(|e| las_err(path, e))?;
     format.is_compressed = compressed;
@@ -170,13 +185,15 @@ pub fn write_las_parts(
         .into_inner()
         .map_err(|e| las_err(path, e))?
         .into_inner();
-    crate::io::atomic::write_bytes_atomic(path, &bytes)?;
-    Ok(LasInfo {
-        epsg: global.epsg,
-        zone: global.zone,
-        scale: [LAS_SCALE; 3],
-        offset,
-        compressed,
-        n_points: n,
-    })
+    Ok((
+        bytes,
+        LasInfo {
+            epsg: global.epsg,
+            zone: global.zone,
+            scale: [LAS_SCALE; 3],
+            offset,
+            compressed,
+            n_points: n,
+        },
+    ))
 }

@@ -19,11 +19,13 @@ use rayon::prelude::*;
 
 pub use crate::error::LogError;
 use crate::error::{Error, Result, WireError};
+use crate::geo::{GnssFix, GnssFixes, TimeBase};
 use crate::geometry::{PinholeCamera, Sim3};
 use crate::imu::ImuSamples;
 use crate::io::container::{detect, Container};
 use crate::io::mcap::reader::McapFile;
 use crate::io::messages::decode::{self, KeyframeMsg, MessageKind, StampedPose};
+use crate::io::messages::gnss;
 use crate::io::messages::{
     ChannelCount, ChannelInfo, Inventory, MappedMessage, MappedScan, MessageSource, RawMessage,
     ReadMode,
@@ -53,6 +55,11 @@ pub struct ReadOptions {
     /// without `keyframe_topic`, no keyframes are read, and the reference is
     /// never this topic.
     pub est_topic: Option<String>,
+    /// Topic of the GNSS fixes (`sensor_msgs/NavSatFix`, `foxglove.LocationFix`).
+    /// Found by type only when the log has no reference pose topic; naming it
+    /// makes the fixes the reference (no pose topic is then read unless one is
+    /// named too, which is refused: one reference).
+    pub gnss_topic: Option<String>,
 }
 
 /// One topic of the log, as [`read_log`] and `slam2world inspect` list it.
@@ -94,6 +101,9 @@ pub struct Log {
     pub reference: Option<Trajectory>,
     /// Raw IMU samples, sorted by time (samples with a repeated time dropped).
     pub imu: Option<ImuSamples>,
+    /// GNSS fixes in log order (their stamps are the messages' header times),
+    /// those without a fix dropped and counted.
+    pub gnss: Option<GnssFixes>,
     /// Topic the keyframes came from.
     pub keyframe_topic: Option<String>,
     /// Topic the graph updates came from.
@@ -104,6 +114,8 @@ pub struct Log {
     pub reference_topic: Option<String>,
     /// Topic the IMU came from.
     pub imu_topic: Option<String>,
+    /// Topic the GNSS fixes came from.
+    pub gnss_topic: Option<String>,
     /// Keyframe messages read (all versions) and graph messages applied.
     pub keyframe_messages: usize,
     /// Graph messages read.
@@ -299,13 +311,24 @@ struct Picks<'c> {
     est: Option<&'c ChannelInfo>,
     pose: Option<&'c ChannelInfo>,
     imu: Option<&'c ChannelInfo>,
+    gnss: Option<&'c ChannelInfo>,
 }
+
+/// The GNSS fix kinds.
+const GNSS_KINDS: [MessageKind; 2] = [MessageKind::NavSatFix, MessageKind::LocationFix];
 
 impl<'c> Picks<'c> {
     fn all(&self) -> impl Iterator<Item = &'c ChannelInfo> {
-        [self.keyframes, self.graph, self.est, self.pose, self.imu]
-            .into_iter()
-            .flatten()
+        [
+            self.keyframes,
+            self.graph,
+            self.est,
+            self.pose,
+            self.imu,
+            self.gnss,
+        ]
+        .into_iter()
+        .flatten()
     }
 }
 
@@ -354,15 +377,40 @@ fn pick<'c>(
     } else {
         None
     };
-    let pose = choose(
-        path,
-        "pose",
-        options.pose_topic.as_deref(),
-        &POSE_KINDS,
-        channels,
-        counts,
-        est.map(|c| c.id),
-    )?;
+    if let (Some(p), Some(g)) = (&options.pose_topic, &options.gnss_topic) {
+        return Err(Error::invalid(
+            "gnss_topic",
+            format!(
+                "a conversion has one reference: pose topic {p:?} and GNSS topic {g:?} both named"
+            ),
+        ));
+    }
+    let pose = if options.gnss_topic.is_some() {
+        None
+    } else {
+        choose(
+            path,
+            "pose",
+            options.pose_topic.as_deref(),
+            &POSE_KINDS,
+            channels,
+            counts,
+            est.map(|c| c.id),
+        )?
+    };
+    let gnss = if pose.is_none() {
+        choose(
+            path,
+            "gnss",
+            options.gnss_topic.as_deref(),
+            &GNSS_KINDS,
+            channels,
+            counts,
+            None,
+        )?
+    } else {
+        None
+    };
     let imu = choose(
         path,
         "imu",
@@ -378,6 +426,7 @@ fn pick<'c>(
         est,
         pose,
         imu,
+        gnss,
     };
     for c in picks.all() {
         if let Some(k) = kind_of(c) {
@@ -555,6 +604,7 @@ pub fn read_log_from<S: MessageSource>(
         est_topic: picks.est.map(|c| c.topic.clone()),
         reference_topic: picks.pose.map(|c| c.topic.clone()),
         imu_topic: picks.imu.map(|c| c.topic.clone()),
+        gnss_topic: picks.gnss.map(|c| c.topic.clone()),
         topics,
         indexed: scan.mode == ReadMode::Indexed,
         ..Log::default()
@@ -577,6 +627,9 @@ pub fn read_log_from<S: MessageSource>(
     if let Some(c) = picks.imu {
         log.imu = Some(read_imu(path, &messages, c)?);
     }
+    if let Some(c) = picks.gnss {
+        log.gnss = Some(read_fixes(path, &messages, c)?);
+    }
     Ok(log)
 }
 
@@ -595,13 +648,14 @@ enum Decoded {
     Pose(decode::PoseSample),
     Tf(Vec<StampedPose>),
     Imu(decode::ImuMsg),
+    Fix(GnssFix),
     Error(WireError),
     #[default]
     Other,
 }
 
 /// Every kind, for the per-channel cache of [`read_log_from`].
-const KINDS: [MessageKind; 10] = [
+const KINDS: [MessageKind; 12] = [
     MessageKind::Keyframe,
     MessageKind::KeyframeGraph,
     MessageKind::PoseStamped,
@@ -612,6 +666,8 @@ const KINDS: [MessageKind; 10] = [
     MessageKind::PosesInFrame,
     MessageKind::Tf,
     MessageKind::Imu,
+    MessageKind::NavSatFix,
+    MessageKind::LocationFix,
 ];
 
 fn decode_message(kind: Option<MessageKind>, c: &ChannelInfo, m: &RawMessage<'_>) -> Decoded {
@@ -640,6 +696,10 @@ fn decode_message(kind: Option<MessageKind>, c: &ChannelInfo, m: &RawMessage<'_>
         },
         Some(K::Imu) => match decode::imu(enc, m.data) {
             Ok(s) => Decoded::Imu(s),
+            Err(e) => err(e),
+        },
+        Some(k @ (K::NavSatFix | K::LocationFix)) => match gnss::gnss_fix(k, enc, m.data) {
+            Ok(f) => Decoded::Fix(f),
             Err(e) => err(e),
         },
         Some(k) if k.is_pose() => {
@@ -997,6 +1057,31 @@ fn read_imu(path: &Path, messages: &[Mapped], c: &ChannelInfo) -> Result<ImuSamp
     .map_err(|e| samples_err(path, &c.topic, e.to_string()))
 }
 
+/// The fixes of a GNSS channel, in log order, checked by
+/// [`GnssFixes::from_fixes`] (its index is the message's on the topic).
+fn read_fixes(path: &Path, messages: &[Mapped], c: &ChannelInfo) -> Result<GnssFixes> {
+    let mut fixes = Vec::new();
+    for (i, m) in messages.iter().filter(|m| m.channel_id == c.id).enumerate() {
+        match &m.value {
+            Decoded::Fix(f) => fixes.push(*f),
+            Decoded::Error(e) => return Err(at(path, &c.topic, i, m.log_time, e.clone())),
+            _ => {
+                return Err(at(
+                    path,
+                    &c.topic,
+                    i,
+                    m.log_time,
+                    WireError::schema("not a GNSS message"),
+                ))
+            }
+        }
+    }
+    GnssFixes::from_fixes(fixes, TimeBase::Source).map_err(|e| match e {
+        Error::InvalidFix { .. } => samples_err(path, &c.topic, e.to_string()),
+        e => e,
+    })
+}
+
 /// What `slam2world inspect` shows of a log of any container.
 #[derive(Clone, Debug)]
 pub struct Inspection {
@@ -1031,11 +1116,12 @@ pub fn inspect_source<S: MessageSource>(
         .map(|c| (c.channel.id, c.channel))
         .collect();
     use MessageKind as K;
-    let roles: [(&'static str, &[MessageKind]); 4] = [
+    let roles: [(&'static str, &[MessageKind]); 5] = [
         ("keyframes", &[K::Keyframe]),
         ("graph", &[K::KeyframeGraph]),
         ("reference", &POSE_KINDS),
         ("imu", &[K::Imu]),
+        ("gnss", &GNSS_KINDS),
     ];
     let mut picks = Vec::new();
     for (role, kinds) in roles {

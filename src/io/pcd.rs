@@ -14,6 +14,7 @@ use rayon::prelude::*;
 
 use crate::cloud::PointCloud;
 use crate::error::{Error, Result};
+use crate::io::atomic::OutputSet;
 
 /// PCL's packed colour: `0x00RRGGBB` as the bits of an `f32`.
 pub fn pack_rgb(r: u8, g: u8, b: u8) -> f32 {
@@ -27,6 +28,25 @@ pub fn write_pcd(path: impl AsRef<Path>, cloud: &PointCloud) -> Result<()> {
 
 /// [`write_pcd`] from the raw buffers: `points` `(N, 3)` f32, `colors` `(N, 3)` bytes.
 pub fn write_pcd_parts(path: &Path, points: &[f32], colors: Option<&[u8]>) -> Result<()> {
+    pcd_into(None, path, points, colors)
+}
+
+/// [`write_pcd_parts`] as one output of `set`.
+pub fn write_pcd_into(
+    set: &mut OutputSet,
+    path: &Path,
+    points: &[f32],
+    colors: Option<&[u8]>,
+) -> Result<()> {
+    pcd_into(Some(set), path, points, colors)
+}
+
+fn pcd_into(
+    set: Option<&mut OutputSet>,
+    path: &Path,
+    points: &[f32],
+    colors: Option<&[u8]>,
+) -> Result<()> {
     if points.len() % 3 != 0 {
         return Err(Error::ShapeMismatch {
             what: "points".into(),
@@ -54,7 +74,7 @@ pub fn write_pcd_parts(path: &Path, points: &[f32], colors: Option<&[u8]>) -> Re
     );
     const BATCH: usize = 1 << 18;
     let io_err = |e| Error::io(path, e);
-    crate::io::atomic::write_atomic(path, |file| {
+    let body = |file: &std::fs::File| {
         let mut w = BufWriter::with_capacity(1 << 20, file);
         w.write_all(header.as_bytes()).map_err(io_err)?;
         let mut buf = Vec::new();
@@ -77,7 +97,11 @@ pub fn write_pcd_parts(path: &Path, points: &[f32], colors: Option<&[u8]>) -> Re
             w.write_all(&buf).map_err(io_err)?;
         }
         w.flush().map_err(io_err)
-    })
+    };
+    match set {
+        Some(set) => set.write(path, body),
+        None => crate::io::atomic::write_atomic(path, body),
+    }
 }
 
 #[cfg(test)]

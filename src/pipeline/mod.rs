@@ -7,8 +7,9 @@
 //!   a reconstruction brings besides poses and points (its own model, frame
 //!   names, how its stamps were read);
 //! - [`options`]: everything it can be told ([`ConvertOptions`], checked once);
-//! - [`poses`] / [`imu`]: where `T_world_slam` comes from — a metric
-//!   reference trajectory, or the raw IMU when there is none;
+//! - [`poses`] / [`imu`] / [`gnss`]: where `T_world_slam` comes from — a
+//!   metric reference trajectory, the raw IMU when there is none, or GNSS
+//!   fixes (then the world frame is ENU at an origin the report carries);
 //! - [`report`]: the typed model of every JSON document the commands write;
 //! - [`outputs`]: `world.mcap`, `cloud.ply`, `trajectory.txt`, `map.bt`,
 //!   `report.json`, `report.html` and the input's own model (`model/`),
@@ -26,6 +27,7 @@
 //! COLMAP point's nearest observing image) is inserted from those.
 
 pub mod figures;
+pub mod gnss;
 pub mod html;
 pub mod imu;
 pub mod native;
@@ -110,6 +112,11 @@ pub struct Conversion {
     /// The input's own model carried by `T_world_slam` (metres, world frame),
     /// for reconstructions that have one (COLMAP).
     pub native: Option<NativeModel>,
+    /// The ENU frame the world is, when the reference was GNSS (its origin
+    /// is in the report's `gnss`).
+    pub enu: Option<crate::geo::EnuFrame>,
+    /// The georeferenced clouds to write beside the others.
+    pub geo_outputs: gnss::GeoOutputs,
 }
 
 impl Conversion {
@@ -211,8 +218,36 @@ pub fn convert(rec: &Recording, opts: &ConvertOptions) -> Result<Conversion> {
     let opts: &ConvertOptions = &effective;
     let t0 = Instant::now();
     let (slam, rows) = rec.slam_trajectory()?;
-    let world = match (&rec.reference, &rec.imu) {
-        (Some(r), _) => WorldFrame::Poses(Box::new(poses::fit(rec, &slam, r, opts)?)),
+    // GNSS fixes are the reference when present: ENU at an origin, the
+    // lever arm as a known extrinsic, the covariances as weights.
+    let gnss_ref = match &rec.gnss {
+        Some(f) => Some(gnss::reference(
+            f,
+            &slam,
+            &opts.gnss,
+            opts.align.offset,
+            opts.align.estimate_offset.is_none(),
+            opts.align.body_from_cam.as_ref(),
+        )?),
+        None => None,
+    };
+    opts.geo_outputs.las_for(gnss_ref.is_some())?;
+    let gnss_opts;
+    let (reference, weights, opts) = match &gnss_ref {
+        Some(g) => {
+            let mut o = opts.clone();
+            o.align.body_from_cam = g.antenna_from_cam;
+            if o.align.checks.reference_noise.is_none() {
+                o.align.checks.reference_noise = Some(g.noise);
+            }
+            gnss_opts = o;
+            let w = g.weights.as_deref().filter(|_| opts.align.robust.is_none());
+            (Some(&g.trajectory), w, &gnss_opts)
+        }
+        None => (rec.reference.as_ref(), None, opts),
+    };
+    let world = match (reference, &rec.imu) {
+        (Some(r), _) => WorldFrame::Poses(Box::new(poses::fit(rec, &slam, r, weights, opts)?)),
         (None, Some(imu)) => WorldFrame::Imu(Box::new(imu::fit(&slam, imu, opts)?)),
         (None, None) if rec.source.reconstruction.is_some() => {
             return Err(Error::invalid(
@@ -321,10 +356,7 @@ pub fn convert(rec: &Recording, opts: &ConvertOptions) -> Result<Conversion> {
     let (pairs, fit, fit_rmse, ape, pairs_fitted, imu_report) = match &world {
         WorldFrame::Poses(p) => {
             let a = &p.alignment;
-            let reference = rec
-                .reference
-                .as_ref()
-                .map_or(&[][..], |r| &r.timestamps[..]);
+            let reference = reference.map_or(&[][..], |r| &r.timestamps[..]);
             let pairs: Vec<PairReport> = a
                 .pairs
                 .iter()
@@ -374,7 +406,7 @@ pub fn convert(rec: &Recording, opts: &ConvertOptions) -> Result<Conversion> {
         graph_topic: rec.source.graph_topic.clone(),
         reference_topic: world.poses().and(rec.source.reference_topic.clone()),
         keyframes: slam.len(),
-        reference_poses: rec.reference.as_ref().map_or(0, Trajectory::len),
+        reference_poses: reference.map_or(0, Trajectory::len),
         frames_used: used.iter().filter(|u| **u).count(),
         frames_dropped,
         pairs_fitted,
@@ -409,16 +441,25 @@ pub fn convert(rec: &Recording, opts: &ConvertOptions) -> Result<Conversion> {
             .reference_file
             .as_ref()
             .map(ReferenceReport::from),
+        gnss: gnss_ref.as_ref().map(|g| report::GnssReport {
+            topic: rec.source.gnss_topic.clone(),
+            file: rec.source.gnss_path.clone(),
+            weighted: weights.is_some(),
+            weight_range: weights.and(g.report.weight_range),
+            ..g.report.clone()
+        }),
     };
     Ok(Conversion {
         world,
         cloud,
         slam_trajectory: world_slam,
         slam_frame: slam,
-        reference: rec.reference.clone(),
+        reference: reference.cloned(),
         report,
         octree,
         native: rec.native.as_ref().map(|m| m.transformed(&t)),
+        enu: gnss_ref.map(|g| g.frame),
+        geo_outputs: opts.geo_outputs,
     })
 }
 

@@ -9,6 +9,8 @@ use crate::imu::ImuInitOptions;
 use crate::io::log::ReadOptions;
 use crate::map::MapParams;
 
+use super::gnss::{GeoOutputs, GnssOptions};
+
 /// Everything `convert` can be told.
 #[derive(Clone, Debug, PartialEq)]
 pub struct ConvertOptions {
@@ -36,6 +38,10 @@ pub struct ConvertOptions {
     pub map: Option<MapParams>,
     /// Confidence level of the report's intervals.
     pub confidence: f64,
+    /// How GNSS fixes become the reference (used when the recording has fixes).
+    pub gnss: GnssOptions,
+    /// The georeferenced clouds written beside the others.
+    pub geo_outputs: GeoOutputs,
 }
 
 impl Default for ConvertOptions {
@@ -49,6 +55,8 @@ impl Default for ConvertOptions {
             imu: ImuInitOptions::default(),
             map: None,
             confidence: defaults::CONFIDENCE,
+            gnss: GnssOptions::default(),
+            geo_outputs: GeoOutputs::default(),
         }
     }
 }
@@ -59,6 +67,7 @@ impl ConvertOptions {
     /// `windowed_cloud` has its window.
     pub fn check(&self) -> Result<()> {
         self.align.check()?;
+        self.gnss.check()?;
         self.filter.validate()?;
         self.imu.validate()?;
         if let Some(map) = &self.map {

@@ -1,6 +1,8 @@
 //! The files a conversion writes: `world.mcap` (Foxglove or ROS 2),
 //! `cloud.ply`, `trajectory.txt`, `map.bt` (with an octree), the input's own
-//! model (`model/`, a COLMAP model folder in the input's flavour),
+//! model (`model/`, a COLMAP model folder in the input's flavour), with a
+//! GNSS reference `cloud.las` / `cloud.laz` (the UTM zone or ECEF) and, when
+//! asked, `cloud.pcd`,
 //! `report.json` and `report.html`, as one [`OutputSet`]: all written under
 //! temporary names, then published together, the names of [`OUTPUT_NAMES`]
 //! this run did not write removed; never over an input of the run.
@@ -9,14 +11,17 @@ use std::path::Path;
 use std::time::Instant;
 
 use crate::error::{Error, Result};
+use crate::geo::GeoCrs;
 use crate::io::atomic::{Committed, OutputSet};
+use crate::io::las::{las_bytes, LasInfo};
 use crate::io::mcap::{write_world_mcap_into, WorldFlavor, WorldScene};
+use crate::io::pcd::write_pcd_into;
 use crate::map::{OccupancyMap, VoxelState};
 
 use super::figures::{FigureData, FigureOptions};
 use super::html::{render, Page, Summary};
 use super::native::NativeModel;
-use super::report::{to_json_bytes, DemoReport, Report};
+use super::report::{to_json_bytes, DemoReport, GeoOutputReport, Report};
 use super::Conversion;
 
 /// The world cloud, both trajectories, `world → slam` and the occupied voxels.
@@ -29,6 +34,13 @@ pub const REPORT_JSON: &str = "report.json";
 pub const MAP_BT: &str = "map.bt";
 /// The report page (self-contained HTML: summary, paths, errors, cloud, voxels).
 pub const REPORT_HTML: &str = "report.html";
+/// The georeferenced world cloud, LAS 1.4 with its CRS (UTM zone or ECEF):
+/// written with a GNSS reference.
+pub const CLOUD_LAS: &str = "cloud.las";
+/// [`CLOUD_LAS`] compressed (LAZ), when asked for.
+pub const CLOUD_LAZ: &str = "cloud.laz";
+/// The world cloud as binary PCD (PCL), when asked for.
+pub const CLOUD_PCD: &str = "cloud.pcd";
 
 /// What `report.html` adds to the conversion: the demo's comparison with the
 /// truth, and the limits of what it embeds.
@@ -56,6 +68,9 @@ pub const OUTPUT_NAMES: &[&str] = &[
     MAP_BT,
     REPORT_JSON,
     REPORT_HTML,
+    CLOUD_LAS,
+    CLOUD_LAZ,
+    CLOUD_PCD,
     "model/cameras.bin",
     "model/rigs.bin",
     "model/frames.bin",
@@ -312,9 +327,87 @@ impl Conversion {
             }
         }
         let mut report = self.report.clone();
+        self.geo_clouds_into(set, &mut report)?;
         report.timing.write_s = t.elapsed().as_secs_f64();
         set.write_bytes(&page, self.page(&report, octree, html)?.as_bytes())?;
         set.write_bytes(&json, &to_json_bytes(&report)?)
+    }
+}
+
+impl Conversion {
+    /// The georeferenced clouds the conversion asks for (`cloud.las` /
+    /// `cloud.laz` in the CRS of [`super::gnss::GeoOutputs::crs`], `cloud.pcd` in the
+    /// world frame), named in `report.gnss.outputs`.
+    fn geo_clouds_into(&self, set: &mut OutputSet, report: &mut Report) -> Result<()> {
+        let geo = &self.geo_outputs;
+        let (points, colors) = (&self.cloud.points, self.cloud.colors.as_deref());
+        if let (Some(frame), true) = (&self.enu, geo.las_for(self.enu.is_some())?) {
+            let name = if geo.laz { CLOUD_LAZ } else { CLOUD_LAS };
+            let path = set.path(name);
+            let (bytes, info) =
+                las_bytes(&path, points, colors, &frame.origin(), geo.crs, geo.laz)?;
+            set.write_bytes(&path, &bytes)?;
+            if let Some(g) = report.gnss.as_mut() {
+                g.outputs.push(GeoOutputReport {
+                    name: name.into(),
+                    epsg: Some(info.epsg),
+                    offset: Some(info.offset),
+                });
+            }
+        }
+        if geo.pcd {
+            write_pcd_into(set, &set.path(CLOUD_PCD), points, colors)?;
+            if let Some(g) = report.gnss.as_mut() {
+                g.outputs.push(GeoOutputReport {
+                    name: CLOUD_PCD.into(),
+                    epsg: None,
+                    offset: None,
+                });
+            }
+        }
+        Ok(())
+    }
+
+    /// Writes the world cloud as LAS 1.4 (LAZ when `path` ends in `.laz`) in
+    /// `crs` (default: the UTM zone of the ENU origin); an error without a
+    /// GNSS reference.
+    pub fn write_las(&self, path: impl AsRef<Path>, crs: Option<GeoCrs>) -> Result<LasInfo> {
+        let Some(frame) = &self.enu else {
+            return Err(Error::invalid(
+                "las",
+                "a LAS file carries a CRS: it needs a GNSS reference (a gnss topic or file)",
+            ));
+        };
+        let path = path.as_ref();
+        let compressed = path
+            .extension()
+            .and_then(|e| e.to_str())
+            .is_some_and(|e| e.eq_ignore_ascii_case("laz"));
+        let mut set = OutputSet::new().with_inputs([&self.report.input]);
+        let (bytes, info) = las_bytes(
+            path,
+            &self.cloud.points,
+            self.cloud.colors.as_deref(),
+            &frame.origin(),
+            crs.unwrap_or(self.geo_outputs.crs),
+            compressed,
+        )?;
+        set.write_bytes(path, &bytes)?;
+        set.commit()?;
+        Ok(info)
+    }
+
+    /// Writes the world cloud as binary PCD (world-frame `f32` metres).
+    pub fn write_pcd(&self, path: impl AsRef<Path>) -> Result<()> {
+        let mut set = OutputSet::new().with_inputs([&self.report.input]);
+        let path = path.as_ref();
+        write_pcd_into(
+            &mut set,
+            path,
+            &self.cloud.points,
+            self.cloud.colors.as_deref(),
+        )?;
+        set.commit().map(|_| ())
     }
 }
 

@@ -1,7 +1,7 @@
 //! The pose-reference path of `convert`: `T_world_slam` fitted to a metric
 //! reference trajectory (and, when asked, a windowed fit beside it).
 
-use crate::align::trajectories::{align_trajectories, TrajectoryAlignment};
+use crate::align::trajectories::{align_trajectories_weighted, TrajectoryAlignment};
 use crate::align::windowed::{align_windowed, WindowedAlignment, WindowedOptions};
 use crate::error::{Error, Result};
 use crate::trajectory::Trajectory;
@@ -19,60 +19,64 @@ pub struct PoseFit {
     pub windowed: Option<WindowedAlignment>,
 }
 
-/// Fits the recording's SLAM poses (`slam`, sorted by time) to `reference`.
+/// Fits the recording's SLAM poses (`slam`, sorted by time) to `reference`
+/// (each pose weighing its `weights` entry, when given: a GNSS reference).
 /// A match failure names the file and the topics (for a reconstruction it
 /// stays [`Error::Unmatched`], its time spans followed by the files).
 pub fn fit(
     rec: &Recording,
     slam: &Trajectory,
     reference: &Trajectory,
+    weights: Option<&[f64]>,
     opts: &ConvertOptions,
 ) -> Result<PoseFit> {
-    let alignment = align_trajectories(slam, reference, &opts.align).map_err(|e| match e {
-        // A reconstruction keeps the variant, its spans naming the files.
-        Error::Unmatched {
-            matched,
-            need,
-            slam_span,
-            reference_span,
-            max_diff,
-            offset,
-            cause,
-        } if rec.source.reconstruction.is_some() => Error::Unmatched {
-            matched,
-            need,
-            slam_span: format!("{slam_span} ({})", rec.source.path.display()),
-            reference_span: match &rec.source.reference_path {
-                Some(p) => format!("{reference_span} ({})", p.display()),
-                None => reference_span,
+    let alignment = align_trajectories_weighted(slam, reference, weights, &opts.align).map_err(
+        |e| match e {
+            // A reconstruction keeps the variant, its spans naming the files.
+            Error::Unmatched {
+                matched,
+                need,
+                slam_span,
+                reference_span,
+                max_diff,
+                offset,
+                cause,
+            } if rec.source.reconstruction.is_some() => Error::Unmatched {
+                matched,
+                need,
+                slam_span: format!("{slam_span} ({})", rec.source.path.display()),
+                reference_span: match &rec.source.reference_path {
+                    Some(p) => format!("{reference_span} ({})", p.display()),
+                    None => reference_span,
+                },
+                max_diff,
+                offset,
+                cause,
             },
-            max_diff,
-            offset,
-            cause,
+            Error::Unmatched { .. } => Error::Mcap {
+                path: rec.source.path.clone(),
+                reason: format!(
+                    "keyframes{} against reference{}: {e}",
+                    rec.source
+                        .keyframe_topic
+                        .as_ref()
+                        .map_or(String::new(), |t| format!(" of topic {t}")),
+                    rec.source
+                        .reference_topic
+                        .as_ref()
+                        .map(|t| format!(" topic {t}"))
+                        .or_else(|| {
+                            rec.source
+                                .reference_path
+                                .as_ref()
+                                .map(|p| format!(" {}", p.display()))
+                        })
+                        .unwrap_or_default()
+                ),
+            },
+            e => e,
         },
-        Error::Unmatched { .. } => Error::Mcap {
-            path: rec.source.path.clone(),
-            reason: format!(
-                "keyframes{} against reference{}: {e}",
-                rec.source
-                    .keyframe_topic
-                    .as_ref()
-                    .map_or(String::new(), |t| format!(" of topic {t}")),
-                rec.source
-                    .reference_topic
-                    .as_ref()
-                    .map(|t| format!(" topic {t}"))
-                    .or_else(|| {
-                        rec.source
-                            .reference_path
-                            .as_ref()
-                            .map(|p| format!(" {}", p.display()))
-                    })
-                    .unwrap_or_default()
-            ),
-        },
-        e => e,
-    })?;
+    )?;
     let windowed = match opts.compare_windowed {
         Some(window) => Some(align_windowed(
             slam,

@@ -24,6 +24,7 @@ use crate::align::stages::Stages;
 use crate::align::time_offset::TimeOffset;
 use crate::align::trajectories::{ApeStats, TrajectoryAlignment};
 use crate::error::{Error, Result};
+use crate::geo::TimeBase;
 use crate::geometry::Sim3;
 use crate::imu::{ImuAlignment, ImuInitDiagnostics};
 use crate::io::text::{Delimiter, TextInfo};
@@ -496,6 +497,75 @@ pub struct Report {
     /// carries its reference).
     #[serde(skip_serializing_if = "Option::is_none")]
     pub reference_file: Option<ReferenceReport>,
+    /// The GNSS reference, when the reference was GNSS fixes: the world frame
+    /// is then ENU at `gnss.origin` and `t_world_slam` is `T_enu_slam`.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub gnss: Option<GnssReport>,
+}
+
+/// A GNSS reference: where its fixes came from, what was dropped, the ENU
+/// frame the world is (its geodetic origin), the CRS of the georeferenced
+/// cloud, the lever arm and weights of the fit.
+#[derive(Clone, Debug, PartialEq, Serialize, JsonSchema)]
+pub struct GnssReport {
+    /// The topic the fixes came from (a log's `NavSatFix` / `LocationFix`).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub topic: Option<String>,
+    /// The file the fixes came from (CSV / NMEA beside the input).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub file: Option<PathBuf>,
+    /// Fixes kept.
+    pub fixes: usize,
+    /// Fixes whose status said no fix (dropped).
+    pub dropped_no_fix: usize,
+    /// What the fix times count: `source` (the stamps as given: Unix time for
+    /// ROS / Foxglove and NMEA with a date) or `time_of_day` (NMEA without a date).
+    pub time_base: TimeBase,
+    /// How the origin was chosen: `first`, `mean` or `given`.
+    pub origin_rule: String,
+    /// The ENU origin: latitude, longitude (degrees), height above the WGS84
+    /// ellipsoid (metres).
+    pub origin: [f64; 3],
+    /// The origin in ECEF (EPSG:4978), metres.
+    pub origin_ecef: [f64; 3],
+    /// What the world frame is.
+    pub world_frame: String,
+    /// The UTM zone of the origin (`32N`), the CRS of `cloud.las` unless `ecef` is asked.
+    pub utm_zone: Option<String>,
+    /// Its EPSG code (326xx north, 327xx south).
+    pub utm_epsg: Option<u16>,
+    /// The antenna in the body frame (`T_body_antenna`'s translation), metres.
+    pub lever_arm: Option<[f64; 3]>,
+    /// True when the pairs were weighed by the fixes' covariances.
+    pub weighted: bool,
+    /// Smallest and largest pair weight, 1/m².
+    pub weight_range: Option<[f64; 2]>,
+    /// True when the fixes were interpolated at the SLAM stamps (false: used
+    /// at their own stamps, nearest-stamp pairing within `max_diff`).
+    pub interpolated: bool,
+    /// Largest time between two fixes an interpolated position bridges, seconds.
+    pub max_gap: f64,
+    /// Reference positions given to the fit.
+    pub reference_positions: usize,
+    /// SLAM stamps with no two fixes around them within `max_gap` (not
+    /// paired), when interpolated.
+    pub unpaired_stamps: usize,
+    /// The georeferenced clouds written (`cloud.las` / `cloud.laz`: CRS EPSG
+    /// code; `cloud.pcd`: ENU), filled in when written.
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub outputs: Vec<GeoOutputReport>,
+}
+
+/// A georeferenced cloud file.
+#[derive(Clone, Debug, PartialEq, Serialize, JsonSchema)]
+pub struct GeoOutputReport {
+    /// The file name in the output folder.
+    pub name: String,
+    /// EPSG code of its coordinates (326xx / 327xx UTM, 4978 ECEF); `null`
+    /// for ENU (PCD: local metres at the origin).
+    pub epsg: Option<u16>,
+    /// LAS offset per axis, metres (LAS only).
+    pub offset: Option<[f64; 3]>,
 }
 
 /// What a trajectory file's reader found out about it.

@@ -43,6 +43,7 @@ use nalgebra::Vector3;
 use super::native::{FrameInfo, NativeModel, ReconstructionInfo, ReferenceFileInfo};
 use crate::cloud::PointCloud;
 use crate::error::{Error, Result};
+use crate::geo::GnssFixes;
 use crate::imu::ImuSamples;
 use crate::io::container::detect;
 use crate::io::log::{read_log, Log, ReadOptions, TopicInfo};
@@ -68,6 +69,10 @@ pub struct SourceInfo {
     pub reference_topic: Option<String>,
     /// Topic of the raw IMU.
     pub imu_topic: Option<String>,
+    /// Topic of the GNSS fixes.
+    pub gnss_topic: Option<String>,
+    /// File of the GNSS fixes, when given beside the input.
+    pub gnss_path: Option<PathBuf>,
     /// File of the reference, when it is not the input itself.
     pub reference_path: Option<PathBuf>,
     /// File of the cloud, when it is not the input itself.
@@ -105,6 +110,9 @@ pub struct Recording {
     pub reference: Option<Trajectory>,
     /// Raw IMU samples, sorted by time.
     pub imu: Option<ImuSamples>,
+    /// GNSS fixes (WGS84), the reference when present: the world frame is
+    /// then ENU at an origin (`pipeline::gnss`).
+    pub gnss: Option<GnssFixes>,
     /// Name and camera of each row of `frames` (empty when the input has none).
     pub frame_info: Vec<FrameInfo>,
     /// Ray origins of the cloud's points in the SLAM frame, by the ids in
@@ -126,6 +134,7 @@ impl From<Log> for Recording {
                 est_topic: log.est_topic,
                 reference_topic: log.reference_topic,
                 imu_topic: log.imu_topic,
+                gnss_topic: log.gnss_topic,
                 reference_path: None,
                 cloud_path: None,
                 topics: log.topics,
@@ -140,6 +149,7 @@ impl From<Log> for Recording {
             cloud: None,
             reference: log.reference,
             imu: log.imu,
+            gnss: log.gnss,
             ..Recording::default()
         }
     }

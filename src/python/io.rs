@@ -79,6 +79,19 @@ impl PyLog {
     fn imu(&self) -> Option<PyImuSamples> {
         self.log.imu.clone().map(|inner| PyImuSamples { inner })
     }
+    /// GNSS fixes (the log's NavSatFix / LocationFix topic), or None.
+    #[getter]
+    fn gnss(&self) -> Option<super::geo::PyGnssFixes> {
+        self.log
+            .gnss
+            .clone()
+            .map(|inner| super::geo::PyGnssFixes { inner })
+    }
+    /// Topic of the GNSS fixes, or None.
+    #[getter]
+    fn gnss_topic(&self) -> Option<String> {
+        self.log.source.gnss_topic.clone()
+    }
     /// Topic of the keyframes, or None.
     #[getter]
     fn keyframe_topic(&self) -> Option<String> {
@@ -154,6 +167,7 @@ fn read_mcap_py(
         tf_parent,
         tf_child,
         est_topic: None,
+        gnss_topic: None,
     };
     let log = py.detach(|| crate::io::read_mcap(&path, &options))?;
     Ok(PyLog {
@@ -166,7 +180,7 @@ fn read_mcap_py(
 /// rosbag2 folder (or its `metadata.yaml`) or `.db3` (see the Rust
 /// `io::read_log`); the GIL is released.
 #[pyfunction(name = "read_log")]
-#[pyo3(signature = (path, *, keyframe_topic=None, graph_topic=None, pose_topic=None, imu_topic=None, tf_parent=None, tf_child=None, est_topic=None))]
+#[pyo3(signature = (path, *, keyframe_topic=None, graph_topic=None, pose_topic=None, imu_topic=None, tf_parent=None, tf_child=None, est_topic=None, gnss_topic=None))]
 #[allow(clippy::too_many_arguments)]
 fn read_log_py(
     py: Python<'_>,
@@ -178,6 +192,7 @@ fn read_log_py(
     tf_parent: Option<String>,
     tf_child: Option<String>,
     est_topic: Option<String>,
+    gnss_topic: Option<String>,
 ) -> PyResult<PyLog> {
     let options = ReadOptions {
         keyframe_topic,
@@ -187,6 +202,7 @@ fn read_log_py(
         tf_parent,
         tf_child,
         est_topic,
+        gnss_topic,
     };
     let log = py.detach(|| read_log(&path, &options))?;
     Ok(PyLog {

@@ -14,11 +14,24 @@ use super::io::PyLog;
 use super::map::PyOccupancyMap;
 use super::reconstruction::{reading_options, reference_spec, PyReconstruction};
 use super::trajectory::PyTrajectory;
+use crate::io::gnss::GnssFormat;
 use crate::io::log::ReadOptions;
 use crate::io::mcap::WorldFlavor;
 use crate::map::MapParams;
+use crate::pipeline::gnss::{
+    attach_gnss, parse_origin, GeoOutputs, GnssFile, GnssOptions, WithGnss,
+};
 use crate::pipeline::reconstruction::{attach_reference, open_input};
 use crate::pipeline::{self, ConvertOptions, NativeModel};
+
+/// `convert`'s `origin`: `"first"`, `"mean"`, or a `(lat, lon, alt)` position.
+#[derive(FromPyObject)]
+pub(crate) enum OriginArg {
+    /// A rule (or `"LAT,LON,ALT"` text).
+    Name(String),
+    /// Degrees, degrees, metres above the ellipsoid.
+    Position([f64; 3]),
+}
 
 /// The result of `convert`: the alignment, the world cloud, the report, the
 /// octree, and methods that write each output.
@@ -124,6 +137,32 @@ impl PyConversion {
     #[getter]
     fn octree(&self, py: Python<'_>) -> Option<Py<PyOccupancyMap>> {
         self.octree.as_ref().map(|m| m.clone_ref(py))
+    }
+    /// The ENU origin `(lat, lon, alt)` (degrees, metres above the WGS84
+    /// ellipsoid) when the reference was GNSS (the world frame is ENU there),
+    /// else None.
+    #[getter]
+    fn enu_origin(&self) -> Option<(f64, f64, f64)> {
+        self.inner.enu.map(|f| {
+            let o = f.origin();
+            (o.lat, o.lon, o.alt)
+        })
+    }
+    /// Writes the world cloud as LAS 1.4 (LAZ when the path ends in `.laz`)
+    /// with its CRS record: `crs="utm"` (the zone of the ENU origin) or
+    /// `"ecef"`; needs a GNSS reference. Returns the EPSG code written.
+    #[pyo3(signature = (path, *, crs=None))]
+    fn write_las(&self, py: Python<'_>, path: PathBuf, crs: Option<&str>) -> PyResult<u16> {
+        let crs = crs
+            .map(|c| crate::geo::GeoCrs::parse(c, None))
+            .transpose()?;
+        let inner = &self.inner;
+        Ok(interruptible(py, || inner.write_las(&path, crs))?.epsg)
+    }
+    /// Writes the world cloud as binary PCD (world-frame float32 metres).
+    fn write_pcd(&self, py: Python<'_>, path: PathBuf) -> PyResult<()> {
+        let inner = &self.inner;
+        Ok(interruptible(py, || inner.write_pcd(&path))?)
     }
     /// Writes `world.mcap` (Foxglove schemas, or ROS 2 with `ros2=True`).
     #[pyo3(signature = (path, *, ros2=false))]
@@ -233,7 +272,7 @@ impl PyConversion {
 /// `fit_checks` are `align_trajectories`'s (degrees of freedom, pinned first
 /// pair, pairing rule, gravity check, fit-quality refusals).
 #[pyfunction(name = "convert")]
-#[pyo3(signature = (log_or_path, *, keyframe_topic=None, graph_topic=None, pose_topic=None, est_topic=None, tf_parent=None, tf_child=None, max_diff=0.01, offset=0.0, n_to_align=None, scale=true, method="horn", filter=None, octree_resolution=None, octree_max_range=None, prob_hit=0.7, prob_miss=0.4, clamp_min=0.1192, clamp_max=0.971, skip_init=None, robust=None, inlier_threshold=None, loss="huber", use_orientations=false, estimate_offset=false, max_offset=0.5, body_from_cam=None, compare_windowed=None, windowed_cloud=false, imu_topic=None, imu_from_cam=None, gravity=9.81, level=0.95, dof="sim3", anchor=None, association="evo", max_tilt_deg=Some(crate::defaults::MAX_TILT_DEG), reference_noise=None, fit_checks=true, reference=None, reference_format=None, reference_time_unit=None, time_unit=None, cloud=None, colmap_format=None, depth_filter=true, depth_threshold=0.005, depth_min_count=2, min_disparity_ratio=0.5),
+#[pyo3(signature = (log_or_path, *, keyframe_topic=None, graph_topic=None, pose_topic=None, est_topic=None, tf_parent=None, tf_child=None, max_diff=0.01, offset=0.0, n_to_align=None, scale=true, method="horn", filter=None, octree_resolution=None, octree_max_range=None, prob_hit=0.7, prob_miss=0.4, clamp_min=0.1192, clamp_max=0.971, skip_init=None, robust=None, inlier_threshold=None, loss="huber", use_orientations=false, estimate_offset=false, max_offset=0.5, body_from_cam=None, compare_windowed=None, windowed_cloud=false, imu_topic=None, imu_from_cam=None, gravity=9.81, level=0.95, dof="sim3", anchor=None, association="evo", max_tilt_deg=Some(crate::defaults::MAX_TILT_DEG), reference_noise=None, fit_checks=true, reference=None, reference_format=None, reference_time_unit=None, time_unit=None, cloud=None, colmap_format=None, depth_filter=true, depth_threshold=0.005, depth_min_count=2, min_disparity_ratio=0.5, gnss=None, gnss_format=None, geoid_offset=0.0, gnss_topic=None, origin=OriginArg::Name(crate::defaults::ORIGIN.into()), lever_arm=None, gnss_weights=true, gnss_max_gap=crate::defaults::GNSS_MAX_GAP, las=None, laz=false, pcd=false, crs=crate::defaults::CRS),
        text_signature = "(log_or_path, *, keyframe_topic=None, graph_topic=None, pose_topic=None, \
                          est_topic=None, tf_parent=None, tf_child=None, max_diff=0.01, offset=0.0, n_to_align=None, \
                          scale=True, method='horn', filter=None, octree_resolution=None, \
@@ -246,7 +285,9 @@ impl PyConversion {
                          fit_checks=True, reference=None, reference_format=None, \
                          reference_time_unit=None, time_unit=None, cloud=None, colmap_format=None, \
                          depth_filter=True, depth_threshold=0.005, depth_min_count=2, \
-                         min_disparity_ratio=0.5)")]
+                         min_disparity_ratio=0.5, gnss=None, gnss_format=None, geoid_offset=0.0, \
+                         gnss_topic=None, origin='first', lever_arm=None, gnss_weights=True, \
+                         gnss_max_gap=0.5, las=None, laz=False, pcd=False, crs='utm')")]
 #[allow(clippy::too_many_arguments)]
 fn convert_py(
     py: Python<'_>,
@@ -299,7 +340,45 @@ fn convert_py(
     depth_threshold: f64,
     depth_min_count: u32,
     min_disparity_ratio: f64,
+    gnss: Option<PathBuf>,
+    gnss_format: Option<&str>,
+    geoid_offset: f64,
+    gnss_topic: Option<String>,
+    origin: OriginArg,
+    lever_arm: Option<[f64; 3]>,
+    gnss_weights: bool,
+    gnss_max_gap: f64,
+    las: Option<bool>,
+    laz: bool,
+    pcd: bool,
+    crs: &str,
 ) -> PyResult<PyConversion> {
+    let gnss_file = match gnss {
+        Some(path) => Some(GnssFile {
+            path,
+            format: gnss_format.map(GnssFormat::parse).transpose()?,
+            geoid_offset,
+        }),
+        None => None,
+    };
+    let origin = match origin {
+        OriginArg::Name(name) => parse_origin(&name)?,
+        OriginArg::Position(v) => {
+            crate::geo::Origin::Given(crate::geo::Geodetic::try_new(v[0], v[1], v[2])?)
+        }
+    };
+    let gnss_options = GnssOptions {
+        origin,
+        lever_arm: lever_arm.map(nalgebra::Vector3::from),
+        weights: gnss_weights,
+        max_gap: gnss_max_gap,
+    };
+    let geo_outputs = GeoOutputs {
+        las,
+        laz,
+        pcd,
+        crs: crate::geo::GeoCrs::parse(crs, None)?,
+    };
     let reference = reference_spec(reference, reference_format, reference_time_unit)?;
     let reading = reading_options(
         time_unit,
@@ -346,6 +425,7 @@ fn convert_py(
             tf_parent,
             tf_child,
             est_topic,
+            gnss_topic,
         },
         align,
         filter: filter.map(|f| f.inner).unwrap_or_default(),
@@ -365,17 +445,22 @@ fn convert_py(
             max_range: octree_max_range,
         }),
         confidence: level,
+        gnss: gnss_options,
+        geo_outputs,
     };
     // A recording in memory, with the reference file attached to a copy.
     let with_reference = |rec: &pipeline::Recording| -> crate::Result<pipeline::Conversion> {
-        match &reference {
-            Some(spec) => {
-                let mut rec = rec.clone();
-                attach_reference(&mut rec, spec)?;
-                pipeline::convert(&rec, &opts)
-            }
-            None => pipeline::convert(rec, &opts),
+        if reference.is_none() && gnss_file.is_none() {
+            return pipeline::convert(rec, &opts);
         }
+        let mut rec = rec.clone();
+        if let Some(spec) = &reference {
+            attach_reference(&mut rec, spec)?;
+        }
+        if let Some(file) = &gnss_file {
+            attach_gnss(&mut rec, file)?;
+        }
+        pipeline::convert(&rec, &opts)
     };
     let mut conversion = if let Ok(log) = log_or_path.cast::<PyLog>() {
         let log = log.get();
@@ -393,7 +478,10 @@ fn convert_py(
         interruptible(py, || {
             opts.check()?;
             let src = open_input(&path, &opts.read, &reading, reference.as_ref())?;
-            pipeline::convert_source(&*src, &opts)
+            match gnss_file.clone() {
+                Some(file) => pipeline::convert_source(&WithGnss { inner: src, file }, &opts),
+                None => pipeline::convert_source(&*src, &opts),
+            }
         })?
     };
     let alignment = match &conversion.world {

@@ -3,7 +3,8 @@
 //! [`MappedScan`], [`ReadMode`]) and the decoders of the message encodings.
 //!
 //! - [`wire`]: byte-level readers of ROS 1, ROS 2 CDR and protobuf;
-//! - [`decode`]: the messages slam2world uses, by [`decode::MessageKind`].
+//! - [`decode`]: the messages slam2world uses, by [`decode::MessageKind`];
+//! - [`gnss`]: `sensor_msgs/NavSatFix` and `foxglove.LocationFix` fixes.
 //!
 //! [`MessageSource`] is the reading face every container's reader gives
 //! (`io::mcap`, `io::rosbag`); the log assembly (`io::log`) reads through it,
@@ -17,6 +18,7 @@ use std::path::Path;
 use crate::error::Result;
 
 pub mod decode;
+pub mod gnss;
 pub mod wire;
 
 /// A channel of a log with its schema (empty name and encoding when schemaless).

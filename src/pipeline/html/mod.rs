@@ -22,7 +22,7 @@ use serde::Serialize;
 
 use super::figures::FigureData;
 use super::report::{
-    AlignReport, ApeReport, DemoReport, FitReport, ImuReport, OctreeReport, Report,
+    AlignReport, ApeReport, DemoReport, FitReport, GnssReport, ImuReport, OctreeReport, Report,
     TransformReport, WindowedReport,
 };
 use crate::error::{Error, Result};
@@ -437,6 +437,34 @@ fn imu_card(doc: &'static str, r: &ImuReport) -> Card {
     c
 }
 
+/// The GNSS reference: the ENU origin the world is, its UTM zone, the fixes.
+fn gnss_card(doc: &'static str, g: &GnssReport) -> Card {
+    let mut c = Card::new(doc, "GNSS reference (world = ENU)");
+    c.row(
+        "ENU origin (lat °, lon °, alt m)",
+        format!(
+            "{}, {}, {} ({})",
+            c.num("gnss.origin.0", g.origin[0], 10),
+            c.num("gnss.origin.1", g.origin[1], 10),
+            c.num("gnss.origin.2", g.origin[2], 7),
+            esc(&g.origin_rule)
+        ),
+    );
+    if let (Some(z), Some(e)) = (&g.utm_zone, g.utm_epsg) {
+        c.row("UTM zone", format!("{} (EPSG:{e})", esc(z)));
+    }
+    c.row(
+        "fixes",
+        format!(
+            "{} kept, {} without a fix dropped",
+            c.count("gnss.fixes", g.fixes),
+            c.count("gnss.dropped_no_fix", g.dropped_no_fix)
+        ),
+    );
+    c.note = "x east, y north, z up (metres); T_world_slam is T_enu_slam.".into();
+    c
+}
+
 fn octree_card(doc: &'static str, o: &OctreeReport, figures: &FigureData) -> Card {
     let mut c = Card::new(doc, "Occupancy octree");
     c.row(
@@ -610,6 +638,9 @@ fn convert_cards(r: &Report, figures: &FigureData) -> Vec<Card> {
     }
     if let Some(o) = &r.octree {
         cards.push(octree_card(doc, o, figures));
+    }
+    if let Some(g) = &r.gnss {
+        cards.push(gnss_card(doc, g));
     }
     let mut i = Card::new(doc, "Input");
     i.row("file", esc(&r.input.display().to_string()));
