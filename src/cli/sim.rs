@@ -24,7 +24,8 @@ use crate::error::{Error, Result};
 use crate::geometry::Sim3;
 use crate::io::atomic::write_bytes_atomic;
 use crate::io::atomic::OutputSet;
-use crate::io::mcap::{read_mcap, write_slam_log_into, SlamLogOptions, WorldFlavor};
+use crate::io::mcap::{write_slam_log_into, SlamLogOptions, WorldFlavor};
+use crate::io::read_mcap;
 use crate::map::{MapParams, VoxelState};
 use crate::pipeline::outputs::HtmlOptions;
 use crate::pipeline::report::{
