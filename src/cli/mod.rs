@@ -49,6 +49,21 @@ enum Command {
     TransformCloud(Box<transform_cloud::TransformCloudArgs>),
     /// Print the JSON Schema of a document the commands write (report.json, align --json, …).
     Schema(schema::SchemaArgs),
+    /// Convert many logs on Ray (one task per log): the `slam2world` console script of the Python package runs it.
+    Batch(BatchArgs),
+}
+
+/// `slam2world batch`: the arguments are read by the Python package's
+/// console script (`slam2world.batch`), which runs one `convert` per log on Ray.
+#[derive(clap::Args, Debug)]
+pub struct BatchArgs {
+    /// Inputs, `-o OUT/` and convert options, as `slam2world.batch` reads them.
+    #[arg(
+        trailing_var_arg = true,
+        allow_hyphen_values = true,
+        value_name = "ARGS"
+    )]
+    args: Vec<OsString>,
 }
 
 fn run(cli: Cli) -> Result<()> {
@@ -62,6 +77,37 @@ fn run(cli: Cli) -> Result<()> {
         Command::Demo(args) => sim::run_demo(&args),
         Command::TransformCloud(args) => transform_cloud::run(*args),
         Command::Schema(args) => schema::run(&args),
+        Command::Batch(_) => Err(crate::Error::invalid(
+            "batch",
+            "batch runs on Ray from the Python package: pip install 'slam2world[ray]', then run \
+             its `slam2world batch` console script (or slam2world.batch.convert_many)",
+        )),
+    }
+}
+
+/// Parses `args` (the program name first) as `slam2world convert …` and runs
+/// it, returning its error instead of printing it (the batch path of the
+/// Python package turns it into a typed exception and a summary row). A
+/// command line that does not parse, or names another command, is an
+/// [`crate::Error::InvalidArgument`] with clap's message.
+pub fn run_convert_args<I, T>(args: I) -> Result<()>
+where
+    I: IntoIterator<Item = T>,
+    T: Into<OsString> + Clone,
+{
+    let cli = Cli::try_parse_from(args)
+        .map_err(|e| crate::Error::invalid("convert arguments", e.to_string().trim_end()))?;
+    match cli.command {
+        Command::Convert(args) => {
+            let guard = crate::interrupt::Guard::new(crate::interrupt::Second::Terminates);
+            let r = convert::run(&args);
+            drop(guard);
+            r
+        }
+        _ => Err(crate::Error::invalid(
+            "convert arguments",
+            "the command line must be `slam2world convert …`",
+        )),
     }
 }
 

@@ -19,7 +19,19 @@ fn run_cli(py: Python<'_>, argv: Vec<std::ffi::OsString>) -> PyResult<i32> {
     Ok(code)
 }
 
+/// Runs `slam2world convert …` (`argv`, program name first) as the command
+/// line does, raising its error as the typed exception of
+/// `slam2world.errors` instead of printing it: the per-log work of
+/// `slam2world.batch`.
+#[pyfunction]
+fn convert_cli(py: Python<'_>, argv: Vec<std::ffi::OsString>) -> PyResult<()> {
+    let r = py.detach(|| crate::cli::run_convert_args(argv));
+    py.check_signals()?;
+    r.map_err(PyErr::from)
+}
+
 pub fn register(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_function(wrap_pyfunction!(run_cli, m)?)?;
+    m.add_function(wrap_pyfunction!(convert_cli, m)?)?;
     Ok(())
 }
