@@ -7,13 +7,17 @@
 //!   reference pose within `max_diff` (after `offset`), the rule of the
 //!   batch fit's `evo` association, decided as soon as a reference pose later
 //!   than `t + max_diff` has arrived (no later pose can be nearer).
-//! - Stages ([`Session::state`]): the start-up stages are found on the
-//!   matched tracked frames seen so far only ([`super::startup`]); the stable
-//!   stage is reported once the detection on the data so far puts its start
-//!   at least [`SessionOptions::stable_hold`] seconds back and the level has
-//!   stopped moving there (the spread of the rolling median about the level
-//!   is that of a median of noise). Before that, [`Session::transform`] says
-//!   why there is none.
+//! - Stages ([`Session::state`]), decided on the matched tracked frames seen
+//!   so far only: the stable stage is reported once the medians of `ln p_k`
+//!   over the last three spans of [`SessionOptions::stable_hold`] seconds
+//!   agree within [`SETTLED_Z`] standard errors (a level that no longer
+//!   wanders, jumps or ramps) after at least [`MIN_CONVERGING_S`] seconds of
+//!   converging were seen (or, without a convergence, after
+//!   [`LONG_SETTLED_HOLDS`] spans of steadiness); before, a steady move over
+//!   the spans is the converging stretch, anything else the start. Where the stable stage
+//!   starts (the fit's cut) is then found by the batch rule on the data so
+//!   far ([`super::startup`]). Before that, [`Session::transform`] says why
+//!   there is none.
 //! - Fit: once stable, the keyframe pairs stamped from the stable start on are
 //!   fitted from running moments (one O(1) update per pair, a pair moved by a
 //!   graph update taken out and put back); the closed form is that of the
@@ -52,9 +56,21 @@ use super::startup::{cut_of_pairs, LiveCut};
 /// Seconds of stable stage the detection must see before it is reported.
 pub const STABLE_HOLD_S: f64 = 5.0;
 
-/// How much the rolling median of `ln p_k` may spread about the level, in
-/// standard errors of a median of noise, for the level to count as settled.
-pub const SETTLED_SPREAD: f64 = 1.5;
+/// Standard errors within which the medians of `ln p_k` over the last three
+/// spans must agree for the level to count as settled.
+pub const SETTLED_Z: f64 = 2.0;
+
+/// Seconds of converging (a steady move of the level) that must have been
+/// seen before a steady level counts as the stable stage.
+pub const MIN_CONVERGING_S: f64 = 20.0;
+
+/// Without a convergence seen, a steady level counts as stable after this
+/// many [`SessionOptions::stable_hold`] spans of steadiness (a run without a
+/// start-up).
+pub const LONG_SETTLED_HOLDS: f64 = 6.0;
+
+/// Fewest factors in each span of the settling test.
+pub const SETTLED_MIN_FACTORS: usize = 30;
 
 /// Seconds of tracked frames between two stage detections (each one runs
 /// over every matched frame so far).
@@ -283,6 +299,8 @@ pub struct Session {
     stable_reported_at: Option<f64>,
     stage: Stage,
     reason: String,
+    converging_s: f64,
+    settled_s: f64,
     // The fit: moments over the fitted keyframes (by id), from `fit_from`.
     moments: Option<Moments>,
     fit_from: f64,
@@ -328,6 +346,8 @@ impl Session {
             cut: None,
             stable_reported_at: None,
             stage: Stage::Waiting,
+            converging_s: 0.0,
+            settled_s: 0.0,
             reason: "no tracked frame matched with a reference pose yet".into(),
             moments: None,
             fit_from: f64::INFINITY,
@@ -408,7 +428,8 @@ impl Session {
         self.latest = self.latest.max(time);
         self.match_pending(false);
         if time - self.last_detect >= DETECT_EVERY_S {
-            self.update()?;
+            // The stage only: the fit and the map move with keyframes.
+            self.detect(false);
         }
         Ok(())
     }
@@ -721,7 +742,7 @@ impl Session {
     fn update(&mut self) -> Result<()> {
         let t0 = Instant::now();
         self.last_update = UpdateTiming::default();
-        self.detect();
+        self.detect(true);
         if self.stage == Stage::Stable {
             let from = self.cut.as_ref().map_or(f64::INFINITY, |c| c.stable_time);
             if self.moments.is_none() || from != self.fit_from {
@@ -755,7 +776,14 @@ impl Session {
         Ok(())
     }
 
-    fn detect(&mut self) {
+    /// The stage on the data so far; once stable and with `cut`, where the
+    /// stable stage starts (the batch rule over every matched frame so far).
+    fn detect(&mut self, cut: bool) {
+        let dt = if self.last_detect.is_finite() {
+            (self.latest - self.last_detect).max(0.0)
+        } else {
+            0.0
+        };
         self.last_detect = self.latest;
         let n = self.live_times.len();
         if n < crate::align::stages::MIN_FACTORS + 1 {
@@ -764,57 +792,155 @@ impl Session {
             );
             return;
         }
-        let cut = match cut_of_pairs(&self.live_times, &self.live_slam, &self.live_ref) {
-            Ok(c) => c,
-            Err(e) => {
-                self.reason = format!("stage detection: {e}");
-                return;
+        if self.stage != Stage::Stable {
+            match self.settled() {
+                Ok(()) => {
+                    self.settled_s += dt;
+                    // The paper's order: a level that settles after converging;
+                    // without a convergence seen, a level steady for long.
+                    let after_converging = self.converging_s >= MIN_CONVERGING_S;
+                    let long = self.settled_s >= LONG_SETTLED_HOLDS * self.opts.stable_hold;
+                    if !(after_converging || long) {
+                        self.stage = Stage::Start;
+                        self.reason = format!(
+                            "start: the level is steady, but no convergence was seen yet \
+                             ({:.1} s converging of {MIN_CONVERGING_S} s; steady {:.1} s of {:.1} s)",
+                            self.converging_s,
+                            self.settled_s,
+                            LONG_SETTLED_HOLDS * self.opts.stable_hold
+                        );
+                        return;
+                    }
+                    self.stage = Stage::Stable;
+                    self.stable_reported_at = Some(self.latest);
+                }
+                Err((stage, why)) => {
+                    self.settled_s = 0.0;
+                    if stage == Stage::Converging {
+                        self.converging_s += dt;
+                    }
+                    self.stage = stage;
+                    self.reason = format!("{}: {why}", stage.name());
+                    return;
+                }
+            }
+        }
+        if !cut {
+            return;
+        }
+        // Stable: where the stage starts, by the batch rule on the data so far.
+        match cut_of_pairs(&self.live_times, &self.live_slam, &self.live_ref) {
+            Ok(cut) => {
+                self.reason = format!(
+                    "stable (reported at {:.3} s): {}",
+                    self.stable_reported_at.unwrap_or(self.latest),
+                    cut.describe()
+                );
+                self.cut = Some(cut);
+            }
+            Err(e) => self.reason = format!("stable, but the stage start is not found: {e}"),
+        }
+    }
+
+    /// Whether `ln p_k` of the matched frames has settled: its medians over
+    /// the last three spans of [`SessionOptions::stable_hold`] seconds agree
+    /// within [`SETTLED_Z`] standard errors (the spread from the pooled MAD).
+    /// Otherwise the stage it is in (a level far from the last span's: the
+    /// start; a steady trend: converging) and why.
+    fn settled(&self) -> std::result::Result<(), (Stage, String)> {
+        self.settled_with(self.opts.stable_hold)
+    }
+
+    /// The settling test's medians and standard error with spans of `hold`
+    /// seconds, for tracing (one line).
+    #[doc(hidden)]
+    pub fn debug_levels(&self, hold: f64) -> String {
+        if self.live_times.len() < 30 {
+            return String::new();
+        }
+        match self.settled_with(hold) {
+            Ok(()) => "settled".into(),
+            Err((s, why)) => format!("{} {why}", s.name()),
+        }
+    }
+
+    fn settled_with(&self, hold: f64) -> std::result::Result<(), (Stage, String)> {
+        let hold = hold.max(1e-9);
+        let n = self.live_times.len();
+        let now = self.live_times[n - 1];
+        let x: Vec<f64> = (1..n)
+            .map(|k| {
+                let ds = (self.live_slam[k] - self.live_slam[k - 1]).norm_squared();
+                let dr = (self.live_ref[k] - self.live_ref[k - 1]).norm_squared();
+                (dr / ds).ln()
+            })
+            .collect();
+        // Factor k belongs to the time of pair k + 1.
+        let span = |lo: f64, hi: f64| -> Vec<f64> {
+            let a = self.live_times.partition_point(|&t| t <= lo).max(1);
+            let b = self.live_times.partition_point(|&t| t <= hi);
+            x[a - 1..b.saturating_sub(1).max(a - 1)]
+                .iter()
+                .copied()
+                .filter(|v| v.is_finite())
+                .collect()
+        };
+        let spans = [
+            span(now - 3.0 * hold, now - 2.0 * hold),
+            span(now - 2.0 * hold, now - hold),
+            span(now - hold, now),
+        ];
+        let few = spans.iter().map(Vec::len).min().unwrap_or(0);
+        if now - self.live_times[0] < 3.0 * hold || few < SETTLED_MIN_FACTORS {
+            return Err((
+                Stage::Start,
+                format!(
+                    "{:.1} s of matched tracked frames: the level is judged over 3 × {hold} s",
+                    now - self.live_times[0]
+                ),
+            ));
+        }
+        let med = |v: &[f64]| {
+            let mut v = v.to_vec();
+            v.sort_by(f64::total_cmp);
+            let m = v.len() / 2;
+            if v.len() % 2 == 1 {
+                v[m]
+            } else {
+                0.5 * (v[m - 1] + v[m])
             }
         };
-        let now = self.live_times[n - 1];
-        let st = &cut.stages;
-        // The level has settled when the rolling median's spread about it is
-        // that of a median of noise, not a wander or a ramp.
-        let median_se = 1.2533 * st.noise / (st.window as f64).sqrt();
-        let settled = st.tolerance <= 4.0 * SETTLED_SPREAD * median_se.max(1e-12);
-        let held = now - cut.stable_time >= self.opts.stable_hold;
-        if self.stage == Stage::Stable || (settled && held) {
-            if self.stage != Stage::Stable {
-                self.stable_reported_at = Some(self.latest);
-            }
-            self.stage = Stage::Stable;
-            self.reason = format!(
-                "stable since {:.3} s (reported at {:.3} s): {}",
-                cut.stable_time,
-                self.stable_reported_at.unwrap_or(self.latest),
-                cut.describe()
-            );
-        } else {
-            self.stage = if st.converging_start > 0 && now >= cut.converging_time {
-                Stage::Converging
-            } else {
-                Stage::Start
-            };
-            self.reason = format!(
-                "{}: the scale has not settled yet ({}; {})",
-                self.stage.name(),
-                if settled {
-                    format!(
-                        "level steady for {:.1} of {:.1} s",
-                        (now - cut.stable_time).max(0.0),
-                        self.opts.stable_hold
-                    )
-                } else {
-                    format!(
-                        "rolling median spread {:.3} above {:.3}",
-                        st.tolerance / 4.0,
-                        SETTLED_SPREAD * median_se
-                    )
-                },
-                cut.describe()
-            );
+        let m: Vec<f64> = spans.iter().map(|v| med(v)).collect();
+        let dev: Vec<f64> = spans
+            .iter()
+            .zip(&m)
+            .flat_map(|(v, c)| v.iter().map(move |x| (x - c).abs()))
+            .collect();
+        let sigma = 1.4826 * med(&dev);
+        let se: Vec<f64> = spans
+            .iter()
+            .map(|v| 1.2533 * sigma / (v.len() as f64).sqrt())
+            .collect();
+        let z = |i: usize, j: usize| (m[i] - m[j]).abs() / (se[i] * se[i] + se[j] * se[j]).sqrt();
+        let (z01, z12, z02) = (z(0, 1), z(1, 2), z(0, 2));
+        if z01 <= SETTLED_Z && z12 <= SETTLED_Z && z02 <= SETTLED_Z {
+            return Ok(());
         }
-        self.cut = Some(cut);
+        // A steady move in one direction over the three spans: converging.
+        let monotone = (m[0] < m[1] && m[1] < m[2]) || (m[0] > m[1] && m[1] > m[2]);
+        let stage = if monotone && z12 <= 4.0 * SETTLED_Z {
+            Stage::Converging
+        } else {
+            Stage::Start
+        };
+        Err((
+            stage,
+            format!(
+                "median ln p over the last 3 × {hold} s: {:.3}, {:.3}, {:.3} (standard errors \
+                 {:.3}); not within {SETTLED_Z} standard errors of each other",
+                m[0], m[1], m[2], se[2]
+            ),
+        ))
     }
 
     // ------------------------------------------------------------ map
