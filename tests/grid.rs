@@ -535,12 +535,17 @@ fn convert_grid_marks_the_cubes_occupied_and_the_plane_between_them_free() {
                 .iter()
                 .map(|m| footprint_distance(m, scene.cube_size, x, y))
                 .fold(f64::INFINITY, f64::min);
-            let inside_plane = x.abs() < scene.plane_half[0] - 0.2 && y.abs() < scene.plane_half[1] - 0.2;
+            let inside_plane =
+                x.abs() < scene.plane_half[0] - 0.2 && y.abs() < scene.plane_half[1] - 0.2;
             // Cells on a cube's side faces: the voxels its points fall in.
             let on_rim = scene.cube_min.iter().any(|m| {
                 let e = scene.cube_size;
                 let inside = x > m.x && x < m.x + e && y > m.y && y < m.y + e;
-                let edge = (x - m.x).abs().min((x - m.x - e).abs()).min((y - m.y).abs()).min((y - m.y - e).abs());
+                let edge = (x - m.x)
+                    .abs()
+                    .min((x - m.x - e).abs())
+                    .min((y - m.y).abs())
+                    .min((y - m.y - e).abs());
                 inside && edge < RES
             });
             if on_rim {
@@ -605,10 +610,16 @@ fn convert_grid_marks_the_cubes_occupied_and_the_plane_between_them_free() {
     // The report says the same.
     let r = c.report.grid.as_ref().unwrap();
     assert_eq!((r.width, r.height), (g.width, g.height));
-    assert_eq!(r.cells_occupied + r.cells_free + r.cells_unknown, g.width * g.height);
+    assert_eq!(
+        r.cells_occupied + r.cells_free + r.cells_unknown,
+        g.width * g.height
+    );
     assert_eq!(
         r.cells_occupied,
-        states.iter().filter(|s| **s == slam2world::map::CellState::Occupied).count()
+        states
+            .iter()
+            .filter(|s| **s == slam2world::map::CellState::Occupied)
+            .count()
     );
 
     // Written with the other outputs; the grid channel in world.mcap.
@@ -626,7 +637,10 @@ fn convert_grid_marks_the_cubes_occupied_and_the_plane_between_them_free() {
         .values()
         .map(|c| c.topic.clone())
         .collect();
-    assert!(topics.iter().any(|t| t == grid_msgs::GRID_TOPIC), "{topics:?}");
+    assert!(
+        topics.iter().any(|t| t == grid_msgs::GRID_TOPIC),
+        "{topics:?}"
+    );
     // A conversion without a grid removes the stale grid files.
     let no_grid = ConvertOptions {
         grid: None,

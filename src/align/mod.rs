@@ -31,9 +31,9 @@ use rayon::prelude::*;
 use crate::error::{Error, Result};
 use crate::geometry::Sim3;
 
+pub(crate) use moments::Moments;
 pub use moments::Rows;
 use moments::{FlatRows, Prior};
-pub(crate) use moments::Moments;
 
 /// Relative eigen-gap of Horn's `N` below which the rotation is refused as
 /// undetermined (collinear points, or an exact reflection ambiguity).

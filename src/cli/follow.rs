@@ -33,7 +33,9 @@ use crate::io::mcap::{WorldFlavor, WorldScene};
 use crate::io::messages::decode::MessageKind;
 use crate::io::nav2::{write_nav2_into, Nav2Files};
 use crate::map::{GridParams, MapParams, VoxelState};
-use crate::pipeline::outputs::{MAP_BT, MAP_HEIGHT_NPY, MAP_PGM, MAP_YAML, REPORT_JSON, WORLD_MCAP};
+use crate::pipeline::outputs::{
+    MAP_BT, MAP_HEIGHT_NPY, MAP_PGM, MAP_YAML, REPORT_JSON, WORLD_MCAP,
+};
 use crate::pipeline::report::{to_json_bytes, FollowReport, TransformReport};
 use crate::pipeline::session::{LogFeed, Pushed, Session, SessionOptions, Stage};
 
@@ -77,7 +79,14 @@ pub struct FollowArgs {
 }
 
 /// The names `follow` writes (a stale one of an earlier run is removed).
-const NAMES: &[&str] = &[REPORT_JSON, MAP_BT, WORLD_MCAP, MAP_PGM, MAP_YAML, MAP_HEIGHT_NPY];
+const NAMES: &[&str] = &[
+    REPORT_JSON,
+    MAP_BT,
+    WORLD_MCAP,
+    MAP_PGM,
+    MAP_YAML,
+    MAP_HEIGHT_NPY,
+];
 
 /// A channel as the follower knows it.
 struct Chan {
@@ -278,7 +287,10 @@ pub fn run(args: &FollowArgs) -> Result<()> {
 fn status_line(session: &Session, id: i32, latency: f64) -> Result<()> {
     let s = session.state();
     let (scale, rmse) = match session.transform() {
-        Ok(t) => (format!("{:.6}", t.transform.scale), format!("{:.4}", t.rmse)),
+        Ok(t) => (
+            format!("{:.6}", t.transform.scale),
+            format!("{:.4}", t.rmse),
+        ),
         Err(_) => ("-".into(), "-".into()),
     };
     print(&format!(

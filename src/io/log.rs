@@ -315,8 +315,8 @@ impl<'c> Picks<'c> {
             self.pose,
             self.imu,
         ]
-            .into_iter()
-            .flatten()
+        .into_iter()
+        .flatten()
     }
 }
 

@@ -265,7 +265,10 @@ fn nav2_bytes(
     Ok([
         (files.image.clone(), pgm),
         (files.height.clone(), npy),
-        (files.yaml.clone(), yaml_text(grid, &image_name).into_bytes()),
+        (
+            files.yaml.clone(),
+            yaml_text(grid, &image_name).into_bytes(),
+        ),
     ])
 }
 

@@ -60,8 +60,8 @@ pub use report::Report;
 pub use source::{Recording, Source, SourceInfo};
 
 use report::{
-    ApeReport, FitReport, GridReport, OctreeReport, PairReport, ReconstructionReport, ReferenceReport, Timing,
-    TransformReport,
+    ApeReport, FitReport, GridReport, OctreeReport, PairReport, ReconstructionReport,
+    ReferenceReport, Timing, TransformReport,
 };
 
 /// Where `T_world_slam` came from.
@@ -431,16 +431,17 @@ pub fn convert(rec: &Recording, opts: &ConvertOptions) -> Result<Conversion> {
         imu: imu_report,
         octree: octree_report,
         grid: grid_report,
-        startup: world.poses().and_then(|p| p.startup.as_ref()).map(|c| {
-            report::StartupReport {
+        startup: world
+            .poses()
+            .and_then(|p| p.startup.as_ref())
+            .map(|c| report::StartupReport {
                 topic: rec.source.live_topic.clone(),
                 live_frames: rec.live.as_ref().map_or(0, Trajectory::len),
                 pairs: c.pairs,
                 converging_time: c.converging_time,
                 stable_time: c.stable_time,
                 stages: report::StagesReport::from(&c.stages),
-            }
-        }),
+            }),
         reconstruction: rec
             .source
             .reconstruction

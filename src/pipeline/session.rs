@@ -265,6 +265,9 @@ type Pending = (f64, Vector3<f64>);
 #[derive(Clone, Debug)]
 struct Kf {
     keyframe: Keyframe,
+    /// Order of first arrival (the batch's keyframe order, which the
+    /// viewer's `cutFirstNKf` counts in).
+    arrival: usize,
     /// The reference position it is paired with.
     reference: Option<Vector3<f64>>,
     /// The SLAM position that is in the moments (when it is fitted).
@@ -459,10 +462,12 @@ impl Session {
                 }
             }
             None => {
+                let arrival = self.kfs.len();
                 self.kfs.insert(
                     id,
                     Kf {
                         keyframe,
+                        arrival,
                         reference: None,
                         in_fit: None,
                     },
@@ -970,21 +975,32 @@ impl Session {
     }
 
     fn insert_one(&mut self, id: i32) -> Result<()> {
-        let Some(kf) = self.kfs.get(&id).map(|k| &k.keyframe) else {
+        let Some((kf, arrival)) = self.kfs.get(&id).map(|k| (&k.keyframe, k.arrival)) else {
             return Ok(());
         };
         let Some(t) = self.transform else {
             return Ok(());
         };
         let tb = Instant::now();
-        let (cloud, _) = backproject_counted(std::slice::from_ref(kf), &self.opts.filter, Some(&t))?;
+        // The viewer's cut counts keyframes in arrival order, not in this slice of one.
+        let filter = PointFilter {
+            cut_first_keyframes: None,
+            ..self.opts.filter
+        };
+        let (cloud, _) = if self.opts.filter.cuts(arrival) {
+            Default::default()
+        } else {
+            backproject_counted(std::slice::from_ref(kf), &filter, Some(&t))?
+        };
         self.last_update.backproject_s += tb.elapsed().as_secs_f64();
         let ti = Instant::now();
         let c = t.transform_point(&kf.pose.translation);
         let origin = [c.x as f32, c.y as f32, c.z as f32];
         let t_world_cam = t * kf.pose;
         if !cloud.points.is_empty() {
-            let map = self.map.get_or_insert(OccupancyMap::try_new(self.opts.map)?);
+            let map = self
+                .map
+                .get_or_insert(OccupancyMap::try_new(self.opts.map)?);
             map.insert_scan(&cloud.points, origin)?;
             self.points += cloud.len();
         }
@@ -1107,11 +1123,13 @@ impl LogFeed {
                     return Ok(Pushed::Other);
                 }
                 let (idepth, var, color) = decode::split_pointcloud(m.pointcloud);
-                let camera =
-                    crate::geometry::PinholeCamera::try_new(m.fx, m.fy, m.cx, m.cy, m.width, m.height)
-                        .map_err(|e| fail(format!("camera: {e}")))?;
-                let kf = Keyframe::try_new(m.id, m.time, pose, camera, idepth, Some(var), Some(color))
-                    .map_err(|e| fail(format!("keyframe {}: {e}", m.id)))?;
+                let camera = crate::geometry::PinholeCamera::try_new(
+                    m.fx, m.fy, m.cx, m.cy, m.width, m.height,
+                )
+                .map_err(|e| fail(format!("camera: {e}")))?;
+                let kf =
+                    Keyframe::try_new(m.id, m.time, pose, camera, idepth, Some(var), Some(color))
+                        .map_err(|e| fail(format!("keyframe {}: {e}", m.id)))?;
                 let decode_s = t0.elapsed().as_secs_f64();
                 let timing = self.session.push_keyframe(kf)?;
                 Ok(Pushed::Keyframe {
@@ -1140,7 +1158,11 @@ impl LogFeed {
                 Ok(Pushed::Other)
             }
             Some(k) if k.is_pose() && k != MessageKind::Tf => {
-                if self.reference_topic.get_or_insert_with(|| topic.to_string()) != topic {
+                if self
+                    .reference_topic
+                    .get_or_insert_with(|| topic.to_string())
+                    != topic
+                {
                     return Ok(Pushed::Ignored);
                 }
                 let (t, p, [x, y, z, w]) =

@@ -141,7 +141,13 @@ impl PySession {
     }
 
     /// A GNSS fix: raises (GNSS is not part of the online session yet).
-    fn push_fix(&mut self, time: f64, latitude: f64, longitude: f64, altitude: f64) -> PyResult<()> {
+    fn push_fix(
+        &mut self,
+        time: f64,
+        latitude: f64,
+        longitude: f64,
+        altitude: f64,
+    ) -> PyResult<()> {
         Ok(self.inner.push_fix(time, [latitude, longitude, altitude])?)
     }
 
@@ -176,7 +182,10 @@ impl PySession {
 
     /// `T_world_slam` once stable, else None (`state()["reason"]` says why).
     fn transform(&self) -> Option<PySim3> {
-        self.inner.transform().ok().map(|t| PySim3::from(t.transform))
+        self.inner
+            .transform()
+            .ok()
+            .map(|t| PySim3::from(t.transform))
     }
 
     /// The 7×7 covariance of `T_world_slam` over `(δθ ×3, δt ×3, ln s)`, or None.
@@ -190,9 +199,9 @@ impl PySession {
         let rows: Vec<Vec<f64>> = (0..7)
             .map(|i| (0..7).map(|j| c.matrix[(i, j)]).collect())
             .collect();
-        Ok(Some(numpy::PyArray2::from_vec2(py, &rows).map_err(|e| {
-            PyErr::from(crate::Error::invalid("covariance", e.to_string()))
-        })?))
+        Ok(Some(numpy::PyArray2::from_vec2(py, &rows).map_err(
+            |e| PyErr::from(crate::Error::invalid("covariance", e.to_string())),
+        )?))
     }
 
     /// A copy of the occupancy map (world frame), or None before the transform.
@@ -202,7 +211,13 @@ impl PySession {
 
     /// The 2-D occupancy grid of the map (see `OccupancyMap.grid`).
     #[pyo3(signature = (z_min, z_max, resolution=None))]
-    fn grid(&self, py: Python<'_>, z_min: f64, z_max: f64, resolution: Option<f64>) -> PyResult<PyGrid> {
+    fn grid(
+        &self,
+        py: Python<'_>,
+        z_min: f64,
+        z_max: f64,
+        resolution: Option<f64>,
+    ) -> PyResult<PyGrid> {
         let g = self.inner.grid(z_min, z_max, resolution)?;
         PyGrid::from_core(py, g)
     }

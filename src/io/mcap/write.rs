@@ -906,10 +906,10 @@ pub fn write_slam_log_live_into(
         let f = l.frames;
         for i in 0..f.len() {
             let t = nanos(path, "live frame", f.timestamps[i])?;
-            let q = f.orientations.as_ref().map_or_else(
-                nalgebra::UnitQuaternion::identity,
-                |o| o[i],
-            );
+            let q = f
+                .orientations
+                .as_ref()
+                .map_or_else(nalgebra::UnitQuaternion::identity, |o| o[i]);
             let pose = Sim3::try_new(q, f.positions[i], 1.0)?;
             msgs.push((
                 t,
@@ -1036,7 +1036,13 @@ pub fn write_slam_log_live_into(
                 None => None,
             },
             match live {
-                Some(l) => Some(add_channel(w, path, l.topic, schemas::ROS1_KEYFRAME, "ros1")?),
+                Some(l) => Some(add_channel(
+                    w,
+                    path,
+                    l.topic,
+                    schemas::ROS1_KEYFRAME,
+                    "ros1",
+                )?),
                 None => None,
             },
         ];
