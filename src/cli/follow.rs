@@ -37,7 +37,7 @@ use crate::pipeline::outputs::{
     MAP_BT, MAP_HEIGHT_NPY, MAP_PGM, MAP_YAML, REPORT_JSON, WORLD_MCAP,
 };
 use crate::pipeline::report::{to_json_bytes, FollowReport, TransformReport};
-use crate::pipeline::session::{LogFeed, Pushed, Session, SessionOptions, Stage};
+use crate::pipeline::session::{LogFeed, Pushed, Session, SessionOptions};
 
 /// Arguments of `follow`.
 #[derive(Args, Debug)]
@@ -402,6 +402,5 @@ impl FollowReport {
         self.backproject_s = t.backproject_s;
         self.insert_s = t.insert_s;
         self.latency_s = latency;
-        debug_assert!(s.stage != Stage::Stable || s.stable_reported_at.is_some());
     }
 }

@@ -11,8 +11,8 @@
 //!   so far only: the stable stage is reported once the medians of `ln p_k`
 //!   over the last three spans of [`SessionOptions::stable_hold`] seconds
 //!   agree within [`SETTLED_Z`] standard errors (a level that no longer
-//!   wanders, jumps or ramps) after at least [`MIN_CONVERGING_S`] seconds of
-//!   converging were seen (or, without a convergence, after
+//!   wanders, jumps or ramps) after at least [`MIN_CONVERGING_HOLDS`] spans
+//!   of converging were seen (or, without a convergence, after
 //!   [`LONG_SETTLED_HOLDS`] spans of steadiness); before, a steady move over
 //!   the spans is the converging stretch, anything else the start. Where the stable stage
 //!   starts (the fit's cut) is then found by the batch rule on the data so
@@ -60,9 +60,10 @@ pub const STABLE_HOLD_S: f64 = 5.0;
 /// spans must agree for the level to count as settled.
 pub const SETTLED_Z: f64 = 2.0;
 
-/// Seconds of converging (a steady move of the level) that must have been
-/// seen before a steady level counts as the stable stage.
-pub const MIN_CONVERGING_S: f64 = 20.0;
+/// [`SessionOptions::stable_hold`] spans of converging (a steady move of the
+/// level) that must have been seen before a steady level counts as the
+/// stable stage (20 s with the default hold).
+pub const MIN_CONVERGING_HOLDS: f64 = 4.0;
 
 /// Without a convergence seen, a steady level counts as stable after this
 /// many [`SessionOptions::stable_hold`] spans of steadiness (a run without a
@@ -304,6 +305,7 @@ pub struct Session {
     reason: String,
     converging_s: f64,
     settled_s: f64,
+    finished: bool,
     // The fit: moments over the fitted keyframes (by id), from `fit_from`.
     moments: Option<Moments>,
     fit_from: f64,
@@ -351,6 +353,7 @@ impl Session {
             stage: Stage::Waiting,
             converging_s: 0.0,
             settled_s: 0.0,
+            finished: false,
             reason: "no tracked frame matched with a reference pose yet".into(),
             moments: None,
             fit_from: f64::INFINITY,
@@ -497,10 +500,13 @@ impl Session {
     }
 
     /// Everything has been pushed: pairs every item still waiting (no later
-    /// reference pose will come), updates the stages and the fit, and rebuilds
+    /// reference pose will come), cuts by the batch rule on all the data (the
+    /// stable stage then holds even where it was not reported online:
+    /// `stable_reported_at` stays `None`), fits, and rebuilds
     /// the map when anything inserted moved at all, so that it equals the
     /// batch conversion's octree of the same data.
     pub fn finish(&mut self) -> Result<UpdateTiming> {
+        self.finished = true;
         self.match_pending(true);
         self.update()?;
         if self.transform.is_some() && self.map_moved(0.0) {
@@ -797,20 +803,26 @@ impl Session {
             );
             return;
         }
+        if self.finished && self.stage != Stage::Stable {
+            // The whole log is in: the batch rule decides (not reported online).
+            self.stage = Stage::Stable;
+        }
         if self.stage != Stage::Stable {
             match self.settled() {
                 Ok(()) => {
                     self.settled_s += dt;
                     // The paper's order: a level that settles after converging;
                     // without a convergence seen, a level steady for long.
-                    let after_converging = self.converging_s >= MIN_CONVERGING_S;
+                    let after_converging =
+                        self.converging_s >= MIN_CONVERGING_HOLDS * self.opts.stable_hold;
                     let long = self.settled_s >= LONG_SETTLED_HOLDS * self.opts.stable_hold;
                     if !(after_converging || long) {
                         self.stage = Stage::Start;
                         self.reason = format!(
                             "start: the level is steady, but no convergence was seen yet \
-                             ({:.1} s converging of {MIN_CONVERGING_S} s; steady {:.1} s of {:.1} s)",
+                             ({:.1} s converging of {:.1} s; steady {:.1} s of {:.1} s)",
                             self.converging_s,
+                            MIN_CONVERGING_HOLDS * self.opts.stable_hold,
                             self.settled_s,
                             LONG_SETTLED_HOLDS * self.opts.stable_hold
                         );
