@@ -714,9 +714,10 @@ class Conversion:
     def write_model(self, path: str | os.PathLike[str], format: str | None = None) -> None: ...
     def write_all(self, directory: str | os.PathLike[str], *, ros2: bool = False) -> None: ...
 
+@final
 class Session:
-    def __init__(
-        self,
+    def __new__(
+        cls,
         *,
         max_diff: float = 0.01,
         offset: float = 0.0,
@@ -730,7 +731,7 @@ class Session:
         clamp_max: float = 0.971,
         stable_hold: float = 5.0,
         rebuild_tolerance: float | None = None,
-    ) -> None: ...
+    ) -> Session: ...
     def push_reference(
         self, time: float, position: _ArrayLike, orientation_xyzw: _ArrayLike | None = None
     ) -> None: ...

@@ -49,7 +49,10 @@ pub struct PySession {
 #[pymethods]
 impl PySession {
     #[new]
-    #[pyo3(signature = (*, max_diff=0.01, offset=0.0, scale=true, filter=None, octree_resolution=0.1, octree_max_range=Some(10.0), prob_hit=0.7, prob_miss=0.4, clamp_min=0.1192, clamp_max=0.971, stable_hold=5.0, rebuild_tolerance=None))]
+    #[pyo3(signature = (*, max_diff=0.01, offset=0.0, scale=true, filter=None, octree_resolution=0.1, octree_max_range=Some(10.0), prob_hit=0.7, prob_miss=0.4, clamp_min=0.1192, clamp_max=0.971, stable_hold=5.0, rebuild_tolerance=None),
+           text_signature = "(*, max_diff=0.01, offset=0.0, scale=True, filter=None, octree_resolution=0.1, \
+                             octree_max_range=10.0, prob_hit=0.7, prob_miss=0.4, clamp_min=0.1192, \
+                             clamp_max=0.971, stable_hold=5.0, rebuild_tolerance=None)")]
     #[allow(clippy::too_many_arguments)]
     fn new(
         max_diff: f64,
