@@ -16,7 +16,8 @@ use std::time::Duration;
 
 use criterion::{criterion_group, criterion_main, BenchmarkId, Criterion, Throughput};
 use nalgebra::{UnitQuaternion, Vector3};
-use slam2world::io::mcap::{read_mcap, write_slam_log, ReadOptions, SlamLogOptions};
+use slam2world::io::mcap::{write_slam_log, SlamLogOptions};
+use slam2world::io::{read_mcap, ReadOptions};
 use slam2world::{Keyframe, PinholeCamera, Sim3, Trajectory};
 
 /// `default` under `cargo bench`; a small size when `cargo test` runs the bench once.

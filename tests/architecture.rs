@@ -1,6 +1,7 @@
 //! The house has no circles: the import graph of `src/` (one node per file,
-//! an edge for every `crate::…`, `super::…` or `self::…` path that names
-//! another file's module) has no cycle, and the pipeline sits on top: nothing
+//! an edge for every `crate::…`, `super::…` or `self::…` path, and every
+//! intra-doc link, that names another file's module) has no cycle, neither
+//! between files nor between folders, and the pipeline sits on top: nothing
 //! below it (`align/`, `imu/`, `io/`, `map/`, `sim/`, the models) imports it.
 
 use std::collections::{BTreeMap, BTreeSet};
@@ -32,7 +33,9 @@ fn rust_files(dir: &Path, out: &mut Vec<PathBuf>) {
 }
 
 /// The code of a file without its test module, comments, string and char
-/// literals (a path inside a doc comment or a message is not an import).
+/// literals (a path inside a message or a comment is not an import), but with
+/// the targets of the intra-doc links of its doc comments: rustdoc resolves
+/// `[`crate::a::b`]` like a `use`, so a link up the layers is a circle too.
 fn code_of(text: &str) -> String {
     let text = match text.find("#[cfg(test)]") {
         Some(i) => &text[..i],
@@ -44,8 +47,17 @@ fn code_of(text: &str) -> String {
     while i < c.len() {
         match c[i] {
             '/' if c.get(i + 1) == Some(&'/') => {
+                let start = i;
                 while i < c.len() && c[i] != '\n' {
                     i += 1;
+                }
+                let comment: String = c[start..i].iter().collect();
+                if comment.starts_with("///") || comment.starts_with("//!") {
+                    for target in doc_link_targets(&comment) {
+                        out.push(' ');
+                        out.push_str(&target);
+                        out.push(' ');
+                    }
                 }
             }
             '/' if c.get(i + 1) == Some(&'*') => {
@@ -110,6 +122,29 @@ fn code_of(text: &str) -> String {
                 out.push(ch);
                 i += 1;
             }
+        }
+    }
+    out
+}
+
+/// The targets of the intra-doc links of one doc-comment line:
+/// ``[`path`]`` and ``[text](path)``.
+fn doc_link_targets(line: &str) -> Vec<String> {
+    let mut out = Vec::new();
+    let mut rest = line;
+    while let Some(i) = rest.find("[`") {
+        rest = &rest[i + 2..];
+        if let Some(j) = rest.find("`]") {
+            out.push(rest[..j].to_string());
+            rest = &rest[j + 2..];
+        }
+    }
+    let mut rest = line;
+    while let Some(i) = rest.find("](") {
+        rest = &rest[i + 2..];
+        if let Some(j) = rest.find(')') {
+            out.push(rest[..j].to_string());
+            rest = &rest[j + 1..];
         }
     }
     out
@@ -344,6 +379,54 @@ fn no_file_imports_itself_through_another() {
     assert!(g[&m(&["align", "windowed"])].contains(&m(&["trajectory"])));
     let edges: usize = g.values().map(BTreeSet::len).sum();
     assert!(edges > 150, "{edges} edges");
+}
+
+/// The graph of the folders one level down (`io/mcap/reader.rs` and
+/// `io/mcap/write.rs` are one node `io::mcap`; `io/log.rs` is `io::log`): a
+/// folder is one layer, so no file inside it may be imported by a file that
+/// one of its files imports.
+fn folder_graph(g: &Graph) -> Graph {
+    let unit = |m: &Vec<String>| m[..m.len().min(2)].to_vec();
+    let mut out: Graph = BTreeMap::new();
+    for (m, targets) in g {
+        let entry = out.entry(unit(m)).or_default();
+        for t in targets {
+            if unit(t) != unit(m) {
+                entry.insert(unit(t));
+            }
+        }
+    }
+    out
+}
+
+#[test]
+fn no_folder_imports_itself_through_another() {
+    if let Some(cycle) = find_cycle(&folder_graph(&graph())) {
+        panic!("import cycle between folders: {}", cycle.join(" -> "));
+    }
+}
+
+#[test]
+fn a_doc_link_up_the_layers_is_an_edge() {
+    let dir = tempfile::tempdir().unwrap();
+    let src = dir.path();
+    std::fs::write(src.join("lib.rs"), "pub mod a;\npub mod b;\n").unwrap();
+    std::fs::write(src.join("a.rs"), "use crate::b::X;\n").unwrap();
+    // A plain code span names b's user without linking it: no edge.
+    std::fs::write(src.join("b.rs"), "//! Used by `crate::a`.\npub struct X;\n").unwrap();
+    assert_eq!(find_cycle(&graph_of(src)), None);
+    std::fs::write(
+        src.join("b.rs"),
+        "//! Used by [`crate::a`].\npub struct X;\n",
+    )
+    .unwrap();
+    assert!(find_cycle(&graph_of(src)).is_some());
+    std::fs::write(
+        src.join("b.rs"),
+        "/// See [the user](super::a::f).\npub struct X;\n",
+    )
+    .unwrap();
+    assert!(find_cycle(&graph_of(src)).is_some());
 }
 
 #[test]

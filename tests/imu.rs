@@ -658,7 +658,7 @@ fn write_log(s: &Scenario, path: &Path, with_reference: bool) {
 
 #[test]
 fn convert_takes_the_imu_path_without_reference_poses() {
-    use slam2world::io::mcap::{read_mcap, ReadOptions};
+    use slam2world::io::{read_mcap, ReadOptions};
     use slam2world::pipeline::{convert, ConvertOptions, Recording};
     let s = scenario(
         Motion {

@@ -6,9 +6,9 @@ use std::path::{Path, PathBuf};
 use nalgebra::{UnitQuaternion, Vector3};
 use slam2world::error::WireError;
 use slam2world::io::mcap::{
-    read_mcap, write_slam_log, write_world_mcap, McapFile, ReadMode, ReadOptions, SlamLogOptions,
-    WorldFlavor, WorldScene,
+    write_slam_log, write_world_mcap, McapFile, ReadMode, SlamLogOptions, WorldFlavor, WorldScene,
 };
+use slam2world::io::{read_mcap, ReadOptions};
 use slam2world::{Error, ImuSamples, Keyframe, PinholeCamera, Sim3, Trajectory};
 
 fn data_dir(folder: &str) -> Option<PathBuf> {
@@ -665,7 +665,7 @@ fn mutated_inputs_never_panic() {
 fn inspect_exits_0_on_a_log_and_1_on_bad_input() {
     let dir = tempfile::tempdir().unwrap();
     let path = written_log(dir.path(), Some(mcap::Compression::Lz4));
-    let inv = slam2world::io::mcap::inspect_mcap(&path).unwrap();
+    let inv = slam2world::io::inspect_mcap(&path).unwrap();
     let topics: Vec<&str> = inv.topics.iter().map(|t| t.topic.as_str()).collect();
     assert_eq!(topics.len(), 3, "{topics:?}");
     assert!(inv

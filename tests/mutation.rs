@@ -384,11 +384,12 @@ fn make_cases(reader: &str, dir: &Path, n: usize, seed: u64) -> Vec<(PathBuf, u6
 
 /// Reads one case with `reader`; `Ok` whether the reader accepted or refused it.
 fn read_case(reader: &str, path: &Path) -> Result<(), String> {
-    use slam2world::io::container::{AnyContainer, MessageSource};
+    use slam2world::io::messages::MessageSource;
+    use slam2world::io::AnyContainer;
     let r: slam2world::Result<()> = match reader {
-        "mcap" => slam2world::io::mcap::read_mcap(path, &Default::default())
+        "mcap" => slam2world::io::read_mcap(path, &Default::default())
             .map(|_| ())
-            .and_then(|_| slam2world::io::mcap::inspect_mcap(path).map(|_| ())),
+            .and_then(|_| slam2world::io::inspect_mcap(path).map(|_| ())),
         "ros1" => AnyContainer::open(path).and_then(|c| {
             c.inventory()?;
             c.scan_map(|_| true, |_, m| m.data.len()).map(|_| ())

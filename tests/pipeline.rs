@@ -259,7 +259,7 @@ fn convert_with_an_octree_writes_map_bt_and_the_occupied_voxels() {
 
     // The same map, built here scan by scan from the camera centres
     // T_world_slam · T_slam_cam of the fitted transform.
-    let log = slam2world::io::mcap::read_mcap(&path, &Default::default()).unwrap();
+    let log = slam2world::io::read_mcap(&path, &Default::default()).unwrap();
     let t = c.transform();
     let mut want = OccupancyMap::try_new(MapParams::new(res)).unwrap();
     for kf in &log.keyframes {

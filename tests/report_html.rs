@@ -6,7 +6,8 @@
 use std::path::Path;
 
 use slam2world::cli::main_with_args;
-use slam2world::io::mcap::{read_mcap, WorldFlavor};
+use slam2world::io::mcap::WorldFlavor;
+use slam2world::io::read_mcap;
 use slam2world::map::MapParams;
 use slam2world::pipeline::{convert, ConvertOptions, Recording, REPORT_HTML, REPORT_JSON};
 

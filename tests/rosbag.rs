@@ -11,12 +11,11 @@ use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 use serde::Deserialize;
 
-use slam2world::io::container::{
-    detect, AnyContainer, Container, ContainerError, Inventory, MessageSource,
-};
+use slam2world::io::container::{detect, Container, ContainerError};
 use slam2world::io::mcap::decode::{pose_sample, MessageKind};
-use slam2world::io::mcap::{ChannelInfo, MappedScan, ReadMode};
+use slam2world::io::messages::{ChannelInfo, Inventory, MappedScan, MessageSource, ReadMode};
 use slam2world::io::rosbag::{BagError, Ros1Bag, Ros2Bag, Ros2Compression, Ros2Storage};
+use slam2world::io::AnyContainer;
 use slam2world::Error;
 
 fn fixture(name: &str) -> PathBuf {

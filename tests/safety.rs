@@ -406,8 +406,7 @@ fn non_finite_points_are_dropped_counted_and_named() {
     let dir = tempfile::tempdir().unwrap();
     let log = dir.path().join("run.mcap");
     simulated_log(&log);
-    let mut rec =
-        Recording::from(slam2world::io::mcap::read_mcap(&log, &Default::default()).unwrap());
+    let mut rec = Recording::from(slam2world::io::read_mcap(&log, &Default::default()).unwrap());
     // An inverse depth so small that 1/idepth overflows f32.
     let kf = &mut rec.keyframes[2];
     let id = kf.id;
@@ -499,7 +498,7 @@ fn an_mcap_whose_summary_lost_a_chunk_index_is_read_whole() {
     }
     w.finish().unwrap();
     drop(w);
-    let full = slam2world::io::mcap::read_mcap(&path, &Default::default()).unwrap();
+    let full = slam2world::io::read_mcap(&path, &Default::default()).unwrap();
     assert_eq!(full.reference.as_ref().unwrap().len(), n as usize);
     assert!(full.indexed);
     // Drop the last ChunkIndex record of the summary (opcode 0x08).
@@ -520,7 +519,7 @@ fn an_mcap_whose_summary_lost_a_chunk_index_is_read_whole() {
     bytes[at] = 0x7f;
     let _ = len;
     std::fs::write(&path, &bytes).unwrap();
-    let log = slam2world::io::mcap::read_mcap(&path, &Default::default()).unwrap();
+    let log = slam2world::io::read_mcap(&path, &Default::default()).unwrap();
     assert_eq!(log.reference.as_ref().unwrap().len(), n as usize);
     assert!(!log.indexed, "read by a linear scan");
 }
@@ -626,7 +625,7 @@ fn an_mcap_chunk_that_declares_gigabytes_is_refused_before_allocating() {
     let dir = tempfile::tempdir().unwrap();
     let path = dir.path().join("bomb.mcap");
     zstd_pose_log(&path, 2000, 1 << 20);
-    assert!(slam2world::io::mcap::read_mcap(&path, &Default::default()).is_ok());
+    assert!(slam2world::io::read_mcap(&path, &Default::default()).is_ok());
     // Every chunk (opcode 0x06) and chunk index (0x08) declares 2.5 GB uncompressed.
     let mut bytes = std::fs::read(&path).unwrap();
     let huge = 2_500_000_000u64.to_le_bytes();
@@ -653,14 +652,12 @@ fn an_mcap_chunk_that_declares_gigabytes_is_refused_before_allocating() {
     assert!(patched >= 1);
     assert!(bytes.len() < 200_000, "{}", bytes.len());
     std::fs::write(&path, &bytes).unwrap();
-    let e = slam2world::io::mcap::read_mcap(&path, &Default::default())
+    let e = slam2world::io::read_mcap(&path, &Default::default())
         .unwrap_err()
         .to_string();
     assert!(e.contains("2500000000") && e.contains("bomb.mcap"), "{e}");
     assert!(e.len() < 400 && !e.contains('\n'), "{e}");
-    let e = slam2world::io::mcap::inspect_mcap(&path)
-        .map(|_| ())
-        .unwrap_err();
+    let e = slam2world::io::inspect_mcap(&path).map(|_| ()).unwrap_err();
     assert!(e.to_string().contains("2500000000"), "{e}");
 }
 

@@ -44,7 +44,7 @@ fn simulate_is_reproducible_byte_for_byte() {
     let ta = std::fs::read(dir.path().join("a.truth.json")).unwrap();
     assert_eq!(ta, std::fs::read(dir.path().join("b.truth.json")).unwrap());
     // The log reads back: keyframes, reference and IMU, truth in the metadata.
-    let log = slam2world::io::mcap::read_mcap(&a, &Default::default()).unwrap();
+    let log = slam2world::io::read_mcap(&a, &Default::default()).unwrap();
     assert_eq!(log.keyframes.len(), 4);
     assert!(log.reference.as_ref().is_some_and(|r| r.len() > 100));
     let text = String::from_utf8(ta).unwrap();

@@ -3,7 +3,7 @@
 #![no_main]
 
 use libfuzzer_sys::fuzz_target;
-use slam2world::io::mcap::{read_mcap, ReadOptions};
+use slam2world::io::{read_mcap, ReadOptions};
 
 fuzz_target!(|data: &[u8]| {
     let path = std::env::temp_dir().join(format!("slam2world-fuzz-{}.mcap", std::process::id()));

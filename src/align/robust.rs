@@ -150,7 +150,7 @@ pub(crate) fn check_robust(has_weights: bool, robust: &RobustOptions) -> Result<
 }
 
 /// The least-squares fits the robust loop drives: the Sim(3) / SE(3) of
-/// [`align`] here, the other degrees of freedom in [`super::dof`].
+/// [`align`] here, the other degrees of freedom in `align::dof`.
 pub(crate) trait Refit {
     /// Pairs drawn for one hypothesis.
     fn minimal(&self) -> usize;

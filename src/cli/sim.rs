@@ -25,7 +25,8 @@ use crate::geometry::Sim3;
 use crate::io::atomic::write_bytes_atomic;
 use crate::io::atomic::OutputSet;
 use crate::io::mcap::write::{write_slam_log_live_into, LiveLog};
-use crate::io::mcap::{read_mcap, SlamLogOptions, WorldFlavor};
+use crate::io::mcap::{SlamLogOptions, WorldFlavor};
+use crate::io::read_mcap;
 use crate::map::{MapParams, VoxelState};
 use crate::pipeline::outputs::HtmlOptions;
 use crate::pipeline::report::{

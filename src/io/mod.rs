@@ -25,4 +25,7 @@ pub mod ply;
 pub mod rosbag;
 pub mod text;
 
-pub use log::{inspect_log, read_log, Inspection, Log, LogError, ReadOptions, TopicInfo};
+pub use log::{
+    inspect_log, inspect_mcap, read_log, read_mcap, AnyContainer, Inspection, Log, LogError,
+    ReadOptions, TopicInfo,
+};

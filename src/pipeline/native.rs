@@ -1,5 +1,5 @@
 //! What a reconstruction brings besides poses and points, carried in the
-//! [`Recording`](super::source::Recording) so that a conversion can pair its
+//! `Recording` (`pipeline::source`) so that a conversion can pair its
 //! frames by name, give its points ray origins, say how its stamps were read,
 //! and write the result back in the input's own format.
 //!
@@ -19,7 +19,7 @@ use crate::io::colmap::{ColmapFormat, ColmapModel};
 use crate::io::text::TextInfo;
 
 /// The kinds of reconstruction slam2world reads (see
-/// [`super::reconstruction::detect_reconstruction`]).
+/// `pipeline::reconstruction::detect_reconstruction`).
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum ReconstructionKind {
     /// A COLMAP / GLOMAP sparse model folder of this flavour.

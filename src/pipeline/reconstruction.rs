@@ -44,8 +44,8 @@ use crate::io::colmap::{
     NamedPosition,
 };
 use crate::io::droid::{filter_consistent, read_droid, DepthFilter};
-use crate::io::mcap::ReadOptions;
 use crate::io::text::{read_euroc, read_trajectory, TimeUnit};
+use crate::io::ReadOptions;
 use crate::trajectory::Trajectory;
 
 /// How a reconstruction is read.

@@ -6,9 +6,9 @@
 //! and the keyframe pairs stamped before the stable stage's first live frame
 //! are left out of the fit.
 //!
-//! The batch conversion ([`super::poses`]) and the online session
-//! ([`super::session`]) both cut through [`live_cut`], so that a session fed
-//! a whole log ends on the batch cut.
+//! The batch conversion (`pipeline::poses`) and the online session
+//! (`pipeline::session`) both cut through [`cut_of_pairs`], so that a
+//! session fed a whole log ends on the batch cut.
 
 use crate::align::stages::{detect_stages, Stages};
 use crate::align::trajectories::{fit_scale_factors, TrajectoryAlignOptions};

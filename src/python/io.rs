@@ -128,7 +128,7 @@ impl PyLog {
     }
 }
 
-/// Reads an MCAP log (see the Rust `io::mcap::read_mcap`); the GIL is released.
+/// Reads an MCAP log (see the Rust `io::read_mcap`); the GIL is released.
 #[pyfunction(name = "read_mcap")]
 #[pyo3(signature = (path, *, keyframe_topic=None, graph_topic=None, pose_topic=None, imu_topic=None, tf_parent=None, tf_child=None))]
 #[allow(clippy::too_many_arguments)]
@@ -151,7 +151,7 @@ fn read_mcap_py(
         tf_child,
         est_topic: None,
     };
-    let log = py.detach(|| io_mcap::read_mcap(&path, &options))?;
+    let log = py.detach(|| crate::io::read_mcap(&path, &options))?;
     Ok(PyLog {
         log: Recording::from(log),
         keyframes: PyOnceLock::new(),

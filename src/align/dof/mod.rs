@@ -324,7 +324,7 @@ pub fn align_dof(
     Ok(a)
 }
 
-/// One window of the windowed fitter ([`super::windowed::windowed_fits_with`]):
+/// One window of the windowed fitter (`align::windowed::windowed_fits_with`):
 /// the `dof` fit of the window's pairs with its weights, without anchor and
 /// without the gravity check (the single fit over the run checks it once).
 pub fn fit_window(

@@ -17,7 +17,7 @@ use serde::Deserialize;
 
 use super::decode::MessageKind;
 use super::reader::{ChannelInfo, McapFile};
-use super::wire::{pb_fields, Cdr, PbValue, Ros1, WireError, WireResult};
+use super::wire::{pb_fields, Cdr, PbValue, Ros1, RosReader, WireError, WireResult};
 use crate::error::{Error, Result};
 use crate::geo::{FixStatus, GnssFix, GnssFixes, TimeBase};
 

@@ -1,12 +1,12 @@
-//! MCAP logs: reading SLAM and pose logs, writing results Foxglove shows.
+//! MCAP files: the container reader, and the writers of the results Foxglove shows.
 //!
 //! - [`reader`]: the container, over a memory map (indexed or linear, chunks
 //!   decompressed in parallel);
 //! - [`decode`] / [`wire`]: the message decoders, which live in
 //!   [`crate::io::messages`] (every container uses them) and are re-exported here;
 //!   [`gnss_decode`]: `NavSatFix` / `LocationFix` into GNSS fixes;
-//! - [`log`]: [`read_mcap`] into [`Log`] (keyframes, reference, IMU, topics),
-//!   the assembly of [`crate::io::log`] over an MCAP file;
+//! - reading an MCAP log into a `Log` (keyframes, reference, IMU, topics) is
+//!   the log assembly's, over every container: `io::read_mcap`, `io::read_log`;
 //! - [`write`]: `world.mcap` ([`write_world_mcap`]) and the SLAM-side log
 //!   ([`write_slam_log`]);
 //! - [`grid_msgs`]: the 2-D grid as `nav_msgs/OccupancyGrid` and `foxglove.Grid`.
@@ -15,7 +15,6 @@
 
 pub mod gnss_decode;
 pub mod grid_msgs;
-pub mod log;
 pub mod reader;
 pub mod schemas;
 pub mod stream;
@@ -25,7 +24,6 @@ pub use crate::io::messages::decode::MessageKind;
 pub use crate::io::messages::{
     decode, wire, ChannelInfo, MappedMessage, MappedScan, RawMessage, ReadMode,
 };
-pub use log::{inspect_mcap, read_mcap, Inventory, Log, ReadOptions, TopicInfo};
 pub use reader::{McapFile, Scan};
 pub use write::{
     write_slam_log, write_slam_log_into, write_world_mcap, write_world_mcap_into,

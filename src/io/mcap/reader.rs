@@ -16,6 +16,7 @@ use rayon::prelude::*;
 
 use crate::error::{Error, Result};
 pub use crate::io::messages::{ChannelInfo, RawMessage, ReadMode};
+use crate::io::messages::{Inventory, MappedScan, MessageSource};
 
 /// The 8 bytes every MCAP file starts and ends with.
 pub const MAGIC: &[u8; 8] = b"\x89MCAP0\r\n";
@@ -872,6 +873,32 @@ pub(crate) fn check_lengths(opcode: u8, body: &[u8]) -> std::result::Result<(), 
         }
     }
     Ok(())
+}
+
+impl MessageSource for McapFile {
+    fn path(&self) -> &Path {
+        McapFile::path(self)
+    }
+
+    fn channels(&self) -> Result<BTreeMap<u16, ChannelInfo>> {
+        McapFile::channels(self)
+    }
+
+    fn scan_map<T: Send + Default>(
+        &self,
+        want: impl Fn(&ChannelInfo) -> bool + Sync,
+        map: impl Fn(&ChannelInfo, &RawMessage<'_>) -> T + Sync,
+    ) -> Result<MappedScan<T>> {
+        McapFile::scan_map(self, want, map)
+    }
+
+    fn inventory(&self) -> Result<Inventory> {
+        Ok(Inventory::of_scan(&McapFile::scan_map(
+            self,
+            |_| true,
+            |_, _| (),
+        )?))
+    }
 }
 
 #[cfg(test)]

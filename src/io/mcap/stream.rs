@@ -1,6 +1,6 @@
 //! [`McapFile::scan_map`]: every message mapped to a compact value inside the
 //! parallel chunk tasks, so that a chunk's decompressed buffer is reused for the
-//! next chunk instead of being kept (the memory-lean path of [`crate::io::log`]).
+//! next chunk instead of being kept (the memory-lean path of `io::log`).
 
 use std::collections::BTreeMap;
 

@@ -4,10 +4,10 @@
 //! `foxglove.PosesInFrame` in protobuf and JSON) and `sensor_msgs/Imu`.
 //!
 //! Decoders return a [`WireError`] saying what was wrong and where in the
-//! message; the log assembly ([`crate::io::log`]) adds the file, topic and
+//! message; the log assembly (`io::log`) adds the file, topic and
 //! message index. The same decoders serve MCAP files and ROS bags.
 
-use super::wire::{pb_fields, Cdr, PbValue, Ros1, WireError, WireResult};
+use super::wire::{pb_fields, Cdr, PbValue, Ros1, RosReader, WireError, WireResult};
 
 /// Size of one LSD-SLAM `InputPointDense` (f32 idepth, f32 idepth_var, u8 color[4]).
 pub const POINT_BYTES: usize = 12;
@@ -36,9 +36,9 @@ pub enum MessageKind {
     Tf,
     /// `sensor_msgs/Imu`.
     Imu,
-    /// `sensor_msgs/NavSatFix` (decoded by [`crate::io::mcap::gnss_decode`]).
+    /// `sensor_msgs/NavSatFix` (decoded by `io::mcap::gnss_decode`).
     NavSatFix,
-    /// `foxglove.LocationFix` (decoded by [`crate::io::mcap::gnss_decode`]).
+    /// `foxglove.LocationFix` (decoded by `io::mcap::gnss_decode`).
     LocationFix,
 }
 
@@ -296,69 +296,11 @@ pub fn imu(encoding: &str, data: &[u8]) -> WireResult<ImuMsg> {
     }
 }
 
-/// Reads `f64`s from ROS 1 or CDR alike.
-trait Prim {
-    fn f64(&mut self) -> WireResult<f64>;
-    fn stamp_skip_frame(&mut self) -> WireResult<f64>;
-    fn skip_string(&mut self) -> WireResult<()>;
-    fn header(&mut self) -> WireResult<(f64, String)>;
-    fn string(&mut self) -> WireResult<String>;
-    fn count(&mut self) -> WireResult<usize>;
-}
-
-impl Prim for Ros1<'_> {
-    fn f64(&mut self) -> WireResult<f64> {
-        Ros1::f64(self)
-    }
-    fn stamp_skip_frame(&mut self) -> WireResult<f64> {
-        let _seq = self.u32()?;
-        let t = self.time()?;
-        Ros1::skip_string(self)?;
-        Ok(t)
-    }
-    fn skip_string(&mut self) -> WireResult<()> {
-        Ros1::skip_string(self)
-    }
-    fn header(&mut self) -> WireResult<(f64, String)> {
-        Ros1::header(self)
-    }
-    fn string(&mut self) -> WireResult<String> {
-        Ros1::string(self)
-    }
-    fn count(&mut self) -> WireResult<usize> {
-        Ok(self.u32()? as usize)
-    }
-}
-
-impl Prim for Cdr<'_> {
-    fn f64(&mut self) -> WireResult<f64> {
-        Cdr::f64(self)
-    }
-    fn stamp_skip_frame(&mut self) -> WireResult<f64> {
-        let sec = self.i32()?;
-        let nsec = self.u32()?;
-        Cdr::skip_string(self)?;
-        Ok(sec as f64 + nsec as f64 * 1e-9)
-    }
-    fn skip_string(&mut self) -> WireResult<()> {
-        Cdr::skip_string(self)
-    }
-    fn header(&mut self) -> WireResult<(f64, String)> {
-        Cdr::header(self)
-    }
-    fn string(&mut self) -> WireResult<String> {
-        Cdr::string(self)
-    }
-    fn count(&mut self) -> WireResult<usize> {
-        self.seq_len()
-    }
-}
-
 /// `(time, position, orientation xyzw)` of a single-pose message.
 pub type PoseSample = (f64, [f64; 3], [f64; 4]);
 
-fn ros_sample<R: Prim>(kind: MessageKind, r: &mut R) -> WireResult<PoseSample> {
-    let time = r.stamp_skip_frame()?;
+fn ros_sample<'a, R: RosReader<'a>>(kind: MessageKind, r: &mut R) -> WireResult<PoseSample> {
+    let time = r.header_stamp()?;
     // Odometry and TransformStamped have the child frame before the pose.
     if matches!(kind, MessageKind::Odometry | MessageKind::TransformStamped) {
         r.skip_string()?;
@@ -395,13 +337,13 @@ pub fn pose_sample(kind: MessageKind, encoding: &str, data: &[u8]) -> WireResult
     }
 }
 
-fn pose_fields<R: Prim>(r: &mut R) -> WireResult<([f64; 3], [f64; 4])> {
+fn pose_fields<'a, R: RosReader<'a>>(r: &mut R) -> WireResult<([f64; 3], [f64; 4])> {
     let p = [r.f64()?, r.f64()?, r.f64()?];
     let q = [r.f64()?, r.f64()?, r.f64()?, r.f64()?];
     Ok((p, q))
 }
 
-fn ros_pose<R: Prim>(kind: MessageKind, r: &mut R) -> WireResult<Vec<StampedPose>> {
+fn ros_pose<'a, R: RosReader<'a>>(kind: MessageKind, r: &mut R) -> WireResult<Vec<StampedPose>> {
     match kind {
         MessageKind::PoseStamped | MessageKind::PoseWithCovarianceStamped => {
             let (time, frame_id) = r.header()?;
@@ -429,7 +371,7 @@ fn ros_pose<R: Prim>(kind: MessageKind, r: &mut R) -> WireResult<Vec<StampedPose
             }])
         }
         MessageKind::Tf => {
-            let n = r.count()?;
+            let n = r.seq_len()?;
             let mut out = Vec::with_capacity(n.min(1024));
             for _ in 0..n {
                 let (time, frame_id) = r.header()?;

@@ -5,12 +5,16 @@
 //! - [`wire`]: byte-level readers of ROS 1, ROS 2 CDR and protobuf;
 //! - [`decode`]: the messages slam2world uses, by [`decode::MessageKind`].
 //!
-//! The readers of MCAP files ([`crate::io::mcap`]) and ROS bags
-//! ([`crate::io::rosbag`]) fill these types; the log assembly
-//! ([`crate::io::log`]) reads them, so that one decoder serves every container.
+//! [`MessageSource`] is the reading face every container's reader gives
+//! (`io::mcap`, `io::rosbag`); the log assembly (`io::log`) reads through it,
+//! so that one decoder serves every container. This module is the bottom of
+//! `io`: it names no reader.
 //! Times are `u64` nanoseconds (a container's log or record time).
 
 use std::collections::BTreeMap;
+use std::path::Path;
+
+use crate::error::Result;
 
 pub mod decode;
 pub mod wire;
@@ -92,4 +96,80 @@ pub struct MappedScan<T> {
     pub mode: ReadMode,
     /// The MCAP Header record's profile; `ros1` / `ros2` for bags.
     pub profile: String,
+}
+
+/// Messages and time range of one channel, as an index or a scan gives them.
+#[derive(Clone, Debug, PartialEq)]
+pub struct ChannelCount {
+    /// The channel (topic, type, encoding).
+    pub channel: ChannelInfo,
+    /// Messages on it.
+    pub count: u64,
+    /// First and last record (log) time, nanoseconds; `None` without messages.
+    pub time_range: Option<(u64, u64)>,
+}
+
+/// Every channel of a log with its counts: what `slam2world inspect` lists.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Inventory {
+    /// Channels by id.
+    pub channels: Vec<ChannelCount>,
+    /// How the counts were found: `Indexed` when from the index (a ROS 1 bag's
+    /// index records, a `.db3`'s SQL counts), `Linear` when by a scan.
+    pub mode: ReadMode,
+    /// True when no chunk had to be decompressed for the counts.
+    pub from_index: bool,
+}
+
+impl Inventory {
+    /// Counts of the messages of a scan (every channel listed, with 0 where none).
+    pub fn of_scan<T>(scan: &MappedScan<T>) -> Inventory {
+        let mut stats: BTreeMap<u16, (u64, u64, u64)> = BTreeMap::new();
+        for m in &scan.messages {
+            let s = stats.entry(m.channel_id).or_insert((0, u64::MAX, 0));
+            s.0 += 1;
+            s.1 = s.1.min(m.log_time);
+            s.2 = s.2.max(m.log_time);
+        }
+        let channels = scan
+            .channels
+            .values()
+            .map(|c| {
+                let (count, lo, hi) = stats.get(&c.id).copied().unwrap_or((0, 0, 0));
+                ChannelCount {
+                    channel: c.clone(),
+                    count,
+                    time_range: (count > 0).then_some((lo, hi)),
+                }
+            })
+            .collect();
+        Inventory {
+            channels,
+            mode: scan.mode,
+            from_index: false,
+        }
+    }
+}
+
+/// The reading API every container shares: the MCAP reader (`io::mcap::reader::McapFile`),
+/// the ROS 1 and the rosbag2 readers (`io::rosbag`) implement it; the log assembly
+/// (`io::log`) is written once over it.
+pub trait MessageSource {
+    /// The file (or folder) read.
+    fn path(&self) -> &Path;
+
+    /// The channels (topics with their types), by id.
+    fn channels(&self) -> Result<BTreeMap<u16, ChannelInfo>>;
+
+    /// Every message of a channel `want` keeps, passed to `map` (with its
+    /// channel) inside the parallel decompression tasks; only the mapped value
+    /// is kept. See each reader for the order of the messages.
+    fn scan_map<T: Send + Default>(
+        &self,
+        want: impl Fn(&ChannelInfo) -> bool + Sync,
+        map: impl Fn(&ChannelInfo, &RawMessage<'_>) -> T + Sync,
+    ) -> Result<MappedScan<T>>;
+
+    /// Counts and time ranges per channel, from the index where there is one.
+    fn inventory(&self) -> Result<Inventory>;
 }

@@ -10,25 +10,17 @@ pub use crate::error::WireError;
 /// The result of a wire read.
 pub type WireResult<T> = std::result::Result<T, WireError>;
 
-/// Reader of ROS 1 serialised messages (packed, little-endian).
-pub struct Ros1<'a> {
+/// The bytes of one message and the read position: what the ROS 1 and the
+/// CDR reader share.
+#[derive(Clone, Copy, Debug)]
+struct Cursor<'a> {
     buf: &'a [u8],
     pos: usize,
 }
 
-impl<'a> Ros1<'a> {
-    /// A reader at the start of `buf`.
-    pub fn new(buf: &'a [u8]) -> Self {
-        Ros1 { buf, pos: 0 }
-    }
-
-    /// Current offset in bytes.
-    pub fn pos(&self) -> usize {
-        self.pos
-    }
-
-    /// The next `n` bytes.
-    pub fn bytes(&mut self, n: usize) -> WireResult<&'a [u8]> {
+impl<'a> Cursor<'a> {
+    /// The next `n` bytes, or where the message was short.
+    fn bytes(&mut self, n: usize) -> WireResult<&'a [u8]> {
         let end = self.pos.checked_add(n).filter(|&e| e <= self.buf.len());
         match end {
             Some(end) => {
@@ -50,67 +42,139 @@ impl<'a> Ros1<'a> {
         a.copy_from_slice(b);
         Ok(a)
     }
+}
 
-    /// `uint8` / `bool`.
-    pub fn u8(&mut self) -> WireResult<u8> {
-        Ok(self.array::<1>()?[0])
+/// The reads of a ROS message encoding (ROS 1 or CDR): each encoding says how a
+/// primitive of `N` bytes is found ([`RosReader::primitive`]: its alignment,
+/// its byte order), how a string and a `std_msgs/Header` are laid out; the
+/// typed reads are the same for both.
+pub trait RosReader<'a> {
+    /// The next primitive of `N` bytes, aligned as the encoding asks, in
+    /// little-endian order.
+    fn primitive<const N: usize>(&mut self) -> WireResult<[u8; N]>;
+
+    /// The next `n` raw bytes (no alignment).
+    fn bytes(&mut self, n: usize) -> WireResult<&'a [u8]>;
+
+    /// `string`.
+    fn string(&mut self) -> WireResult<String>;
+
+    /// `std_msgs/Header`: (stamp seconds, frame_id).
+    fn header(&mut self) -> WireResult<(f64, String)>;
+
+    /// The stamp of a `std_msgs/Header`, its frame skipped (no allocation).
+    fn header_stamp(&mut self) -> WireResult<f64>;
+
+    /// The length of an array or sequence (`T[]`, `sequence<T>`).
+    fn seq_len(&mut self) -> WireResult<usize> {
+        Ok(self.u32()? as usize)
+    }
+
+    /// `uint8` / `int8` / `bool`.
+    fn u8(&mut self) -> WireResult<u8> {
+        Ok(self.primitive::<1>()?[0])
+    }
+    /// `uint16`.
+    fn u16(&mut self) -> WireResult<u16> {
+        Ok(u16::from_le_bytes(self.primitive()?))
     }
     /// `uint32`.
-    pub fn u32(&mut self) -> WireResult<u32> {
-        Ok(u32::from_le_bytes(self.array()?))
+    fn u32(&mut self) -> WireResult<u32> {
+        Ok(u32::from_le_bytes(self.primitive()?))
     }
     /// `int32`.
-    pub fn i32(&mut self) -> WireResult<i32> {
-        Ok(i32::from_le_bytes(self.array()?))
+    fn i32(&mut self) -> WireResult<i32> {
+        Ok(i32::from_le_bytes(self.primitive()?))
     }
     /// `float32`.
-    pub fn f32(&mut self) -> WireResult<f32> {
-        Ok(f32::from_le_bytes(self.array()?))
+    fn f32(&mut self) -> WireResult<f32> {
+        Ok(f32::from_le_bytes(self.primitive()?))
     }
     /// `float64`.
-    pub fn f64(&mut self) -> WireResult<f64> {
-        Ok(f64::from_le_bytes(self.array()?))
+    fn f64(&mut self) -> WireResult<f64> {
+        Ok(f64::from_le_bytes(self.primitive()?))
     }
+    /// Skips a `string` (u32 length, then that many bytes).
+    fn skip_string(&mut self) -> WireResult<()> {
+        let n = self.u32()? as usize;
+        self.bytes(n).map(|_| ())
+    }
+}
+
+/// Reader of ROS 1 serialised messages (packed, little-endian).
+pub struct Ros1<'a>(Cursor<'a>);
+
+impl<'a> Ros1<'a> {
+    /// A reader at the start of `buf`.
+    pub fn new(buf: &'a [u8]) -> Self {
+        Ros1(Cursor { buf, pos: 0 })
+    }
+
+    /// Current offset in bytes.
+    pub fn pos(&self) -> usize {
+        self.0.pos
+    }
+
     /// `time` (u32 seconds, u32 nanoseconds), as seconds.
     pub fn time(&mut self) -> WireResult<f64> {
         let sec = self.u32()?;
         let nsec = self.u32()?;
         Ok(sec as f64 + nsec as f64 * 1e-9)
     }
-    /// `string`: u32 length then bytes (not NUL-terminated).
-    pub fn string(&mut self) -> WireResult<String> {
-        let n = self.u32()? as usize;
-        let b = self.bytes(n)?;
-        Ok(String::from_utf8_lossy(b).into_owned())
-    }
-    /// Skips a `string`.
-    pub fn skip_string(&mut self) -> WireResult<()> {
-        let n = self.u32()? as usize;
-        self.bytes(n).map(|_| ())
-    }
     /// `uint8[]`: u32 length then bytes.
     pub fn byte_array(&mut self) -> WireResult<&'a [u8]> {
         let n = self.u32()? as usize;
         self.bytes(n)
     }
-    /// `std_msgs/Header` (seq, stamp, frame_id): returns (stamp seconds, frame_id).
-    pub fn header(&mut self) -> WireResult<(f64, String)> {
+}
+
+impl<'a> RosReader<'a> for Ros1<'a> {
+    /// Packed, little-endian.
+    fn primitive<const N: usize>(&mut self) -> WireResult<[u8; N]> {
+        self.0.array()
+    }
+
+    fn bytes(&mut self, n: usize) -> WireResult<&'a [u8]> {
+        self.0.bytes(n)
+    }
+
+    /// u32 length then bytes (not NUL-terminated).
+    fn string(&mut self) -> WireResult<String> {
+        let n = self.u32()? as usize;
+        let b = self.bytes(n)?;
+        Ok(String::from_utf8_lossy(b).into_owned())
+    }
+
+    /// (seq, stamp, frame_id).
+    fn header(&mut self) -> WireResult<(f64, String)> {
         let _seq = self.u32()?;
         let t = self.time()?;
         let frame = self.string()?;
         Ok((t, frame))
+    }
+
+    fn header_stamp(&mut self) -> WireResult<f64> {
+        let _seq = self.u32()?;
+        let t = self.time()?;
+        self.skip_string()?;
+        Ok(t)
     }
 }
 
 /// Reader of ROS 2 CDR (XCDR1) messages: a 4-byte encapsulation header, then
 /// primitives aligned to their size relative to the end of that header.
 pub struct Cdr<'a> {
-    buf: &'a [u8],
-    pos: usize,
+    cursor: Cursor<'a>,
     little: bool,
 }
 
 impl<'a> Cdr<'a> {
+    fn header_stamp_only(&mut self) -> WireResult<f64> {
+        let sec = self.i32()?;
+        let nsec = self.u32()?;
+        Ok(sec as f64 + nsec as f64 * 1e-9)
+    }
+
     /// Reads the encapsulation header (`00 01` little-endian, `00 00` big-endian).
     pub fn new(buf: &'a [u8]) -> WireResult<Self> {
         if buf.len() < 4 {
@@ -131,89 +195,53 @@ impl<'a> Cdr<'a> {
             }
         };
         Ok(Cdr {
-            buf: &buf[4..],
-            pos: 0,
+            cursor: Cursor {
+                buf: &buf[4..],
+                pos: 0,
+            },
             little,
         })
     }
+}
 
-    fn align(&mut self, n: usize) {
-        let r = self.pos % n;
+impl<'a> RosReader<'a> for Cdr<'a> {
+    /// Aligned to `N` from the end of the encapsulation header, swapped to
+    /// little-endian from a big-endian message.
+    fn primitive<const N: usize>(&mut self) -> WireResult<[u8; N]> {
+        let r = self.cursor.pos % N;
         if r != 0 {
-            self.pos += n - r;
+            self.cursor.pos += N - r;
         }
-    }
-
-    fn bytes(&mut self, n: usize) -> WireResult<&'a [u8]> {
-        let end = self.pos.checked_add(n).filter(|&e| e <= self.buf.len());
-        match end {
-            Some(end) => {
-                let s = &self.buf[self.pos..end];
-                self.pos = end;
-                Ok(s)
-            }
-            None => Err(WireError::Truncated {
-                offset: self.pos,
-                need: n,
-                len: self.buf.len(),
-            }),
-        }
-    }
-
-    fn array<const N: usize>(&mut self) -> WireResult<[u8; N]> {
-        self.align(N);
-        let b = self.bytes(N)?;
-        let mut a = [0u8; N];
-        a.copy_from_slice(b);
+        let mut a = self.cursor.array::<N>()?;
         if !self.little {
             a.reverse();
         }
         Ok(a)
     }
 
-    /// `uint8` / `int8` / `bool` (no alignment).
-    pub fn u8(&mut self) -> WireResult<u8> {
-        Ok(self.array::<1>()?[0])
+    fn bytes(&mut self, n: usize) -> WireResult<&'a [u8]> {
+        self.cursor.bytes(n)
     }
-    /// `uint16`.
-    pub fn u16(&mut self) -> WireResult<u16> {
-        Ok(u16::from_le_bytes(self.array()?))
-    }
-    /// `uint32`.
-    pub fn u32(&mut self) -> WireResult<u32> {
-        Ok(u32::from_le_bytes(self.array()?))
-    }
-    /// `int32`.
-    pub fn i32(&mut self) -> WireResult<i32> {
-        Ok(i32::from_le_bytes(self.array()?))
-    }
-    /// `float64`.
-    pub fn f64(&mut self) -> WireResult<f64> {
-        Ok(f64::from_le_bytes(self.array()?))
-    }
-    /// `string`: u32 length including the NUL, then bytes.
-    pub fn string(&mut self) -> WireResult<String> {
+
+    /// u32 length including the NUL, then bytes.
+    fn string(&mut self) -> WireResult<String> {
         let n = self.u32()? as usize;
         let b = self.bytes(n)?;
         let b = b.strip_suffix(&[0]).unwrap_or(b);
         Ok(String::from_utf8_lossy(b).into_owned())
     }
-    /// Skips a `string`.
-    pub fn skip_string(&mut self) -> WireResult<()> {
-        let n = self.u32()? as usize;
-        self.bytes(n).map(|_| ())
-    }
-    /// `sequence<T>` length.
-    pub fn seq_len(&mut self) -> WireResult<usize> {
-        Ok(self.u32()? as usize)
-    }
-    /// `std_msgs/Header` (stamp {int32 sec, uint32 nanosec}, frame_id):
-    /// returns (stamp seconds, frame_id).
-    pub fn header(&mut self) -> WireResult<(f64, String)> {
-        let sec = self.i32()?;
-        let nsec = self.u32()?;
+
+    /// (stamp {int32 sec, uint32 nanosec}, frame_id).
+    fn header(&mut self) -> WireResult<(f64, String)> {
+        let t = self.header_stamp_only()?;
         let frame = self.string()?;
-        Ok((sec as f64 + nsec as f64 * 1e-9, frame))
+        Ok((t, frame))
+    }
+
+    fn header_stamp(&mut self) -> WireResult<f64> {
+        let t = self.header_stamp_only()?;
+        self.skip_string()?;
+        Ok(t)
     }
 }
 

@@ -8,7 +8,7 @@
 //! - [`BagError`]: what can be wrong, the `reason` of [`crate::Error::Bag`].
 //!
 //! Both readers have the MCAP reader's `scan_map` (see
-//! [`crate::io::container::MessageSource`]): channels are
+//! [`crate::io::messages::MessageSource`]): channels are
 //! [`crate::io::messages::ChannelInfo`], messages [`crate::io::messages::RawMessage`]
 //! with `log_time` = `publish_time` = the record time in nanoseconds.
 

@@ -25,8 +25,11 @@ use rayon::prelude::*;
 
 use super::{sort_by_time, BagError};
 use crate::error::{Error, Result};
-use crate::io::container::{ChannelCount, Inventory, MessageSource, ROS1_MAGIC};
-use crate::io::messages::{ChannelInfo, MappedMessage, MappedScan, RawMessage, ReadMode};
+use crate::io::container::ROS1_MAGIC;
+use crate::io::messages::{
+    ChannelCount, ChannelInfo, Inventory, MappedMessage, MappedScan, MessageSource, RawMessage,
+    ReadMode,
+};
 
 /// Record op codes of the bag format 2.0.
 mod op {

@@ -28,11 +28,12 @@ use serde::Deserialize;
 
 use super::{sort_by_time, BagError};
 use crate::error::{Error, Result};
-use crate::io::container::{
-    classify, folder_of, ChannelCount, Container, Inventory, MessageSource,
-};
+use crate::io::container::{classify, folder_of, Container};
 use crate::io::mcap::reader::McapFile;
-use crate::io::messages::{ChannelInfo, MappedMessage, MappedScan, RawMessage, ReadMode};
+use crate::io::messages::{
+    ChannelCount, ChannelInfo, Inventory, MappedMessage, MappedScan, MessageSource, RawMessage,
+    ReadMode,
+};
 
 /// The largest decompressed message accepted in `MESSAGE` mode (1 GiB).
 pub const MAX_MESSAGE: u64 = 1 << 30;
