@@ -470,3 +470,206 @@ fn grid_channels_per_flavour() {
         .ends_with(&cells.iter().map(|&v| v as u8).collect::<Vec<_>>()));
     assert_eq!(ros[0].topic, fox[0].topic);
 }
+
+/// A small run of the paper's scene over the whole path (every cube seen):
+/// fewer frames, keyframes and pixels than the paper's.
+fn scene_run() -> slam2world::sim::Simulation {
+    let cfg = slam2world::sim::SimConfig {
+        n_frames: 700,
+        n_keyframes: 48,
+        width: 160,
+        height: 120,
+        converge_start: 110,
+        stable_start: 430,
+        ..slam2world::sim::SimConfig::default()
+    };
+    slam2world::sim::simulate(&cfg).unwrap()
+}
+
+/// Distance (metres) in x-y from `(x, y)` to the footprint of the cube with
+/// lower corner `c` and edge `e` (0 inside).
+fn footprint_distance(c: &nalgebra::Vector3<f64>, e: f64, x: f64, y: f64) -> f64 {
+    let dx = (c.x - x).max(x - (c.x + e)).max(0.0);
+    let dy = (c.y - y).max(y - (c.y + e)).max(0.0);
+    dx.hypot(dy)
+}
+
+#[test]
+fn convert_grid_marks_the_cubes_occupied_and_the_plane_between_them_free() {
+    use slam2world::io::mcap::{write_slam_log, SlamLogOptions};
+    use slam2world::map::GridParams;
+    use slam2world::pipeline::{convert_path, ConvertOptions};
+
+    let sim = scene_run();
+    let dir = tempfile::tempdir().unwrap();
+    let log = dir.path().join("run.mcap");
+    write_slam_log(
+        &log,
+        &sim.keyframes,
+        Some(&sim.reference),
+        None,
+        &[],
+        &SlamLogOptions::default(),
+    )
+    .unwrap();
+    let opts = ConvertOptions {
+        map: Some(MapParams::new(RES)),
+        grid: Some(GridParams::new(0.25, 0.75)),
+        ..ConvertOptions::default()
+    };
+    let c = convert_path(&log, &opts).unwrap();
+    let (g, params) = c.grid.as_ref().expect("a grid");
+    assert_eq!(params.z_min, 0.25);
+    assert!((g.resolution - RES).abs() < 1e-12);
+    let scene = &sim.truth.scene;
+    let states = g.states(0.5);
+    let (mut rim, mut rim_occupied) = (0usize, 0usize);
+    let (mut between, mut between_known, mut between_free) = (0usize, 0usize, 0usize);
+    let mut stray_occupied = Vec::new();
+    for row in 0..g.height {
+        for col in 0..g.width {
+            let [x, y] = g.cell_center(col, row);
+            let s = states[g.index(col, row).unwrap()];
+            let d = scene
+                .cube_min
+                .iter()
+                .map(|m| footprint_distance(m, scene.cube_size, x, y))
+                .fold(f64::INFINITY, f64::min);
+            let inside_plane =
+                x.abs() < scene.plane_half[0] - 0.2 && y.abs() < scene.plane_half[1] - 0.2;
+            // Cells on a cube's side faces: the voxels its points fall in.
+            let on_rim = scene.cube_min.iter().any(|m| {
+                let e = scene.cube_size;
+                let inside = x > m.x && x < m.x + e && y > m.y && y < m.y + e;
+                let edge = (x - m.x)
+                    .abs()
+                    .min((x - m.x - e).abs())
+                    .min((y - m.y).abs())
+                    .min((y - m.y - e).abs());
+                inside && edge < RES
+            });
+            if on_rim {
+                rim += 1;
+                rim_occupied += usize::from(s == slam2world::map::CellState::Occupied);
+            }
+            if d > 3.0 * RES && inside_plane {
+                between += 1;
+                if s != slam2world::map::CellState::Unknown {
+                    between_known += 1;
+                    between_free += usize::from(s == slam2world::map::CellState::Free);
+                }
+            }
+            if d > 3.0 * RES && s == slam2world::map::CellState::Occupied {
+                stray_occupied.push((x, y));
+            }
+        }
+    }
+    // Every cube is there: most cells along its faces are occupied.
+    for m in &scene.cube_min {
+        let e = scene.cube_size;
+        let centre = [m.x + 0.5 * e, m.y + 0.5 * e];
+        let near: Vec<CellStateAt> = (0..g.height)
+            .flat_map(|row| (0..g.width).map(move |col| (col, row)))
+            .filter_map(|(col, row)| {
+                let [x, y] = g.cell_center(col, row);
+                let inside = x > m.x && x < m.x + e && y > m.y && y < m.y + e;
+                inside.then(|| states[g.index(col, row).unwrap()])
+            })
+            .collect();
+        let occupied = near
+            .iter()
+            .filter(|s| **s == slam2world::map::CellState::Occupied)
+            .count();
+        // At least one and a half faces' worth of cells (a face is ten).
+        assert!(
+            occupied >= 15,
+            "cube at {centre:?}: {occupied} of {} footprint cells occupied",
+            near.len()
+        );
+    }
+    // Not every face is seen from the path: most are.
+    assert!(
+        rim_occupied * 2 >= rim,
+        "{rim_occupied} of {rim} cube-face cells occupied"
+    );
+    // The plane between the cubes: seen (known) and free.
+    assert!(
+        between_known * 10 >= between * 6,
+        "{between_known} of {between} cells known"
+    );
+    assert!(
+        between_free * 100 >= between_known * 99,
+        "{between_free} of {between_known} known cells between the cubes free"
+    );
+    assert!(
+        stray_occupied.is_empty(),
+        "{} occupied cells away from every cube, e.g. {:?}",
+        stray_occupied.len(),
+        stray_occupied.first()
+    );
+    // The report says the same.
+    let r = c.report.grid.as_ref().unwrap();
+    assert_eq!((r.width, r.height), (g.width, g.height));
+    assert_eq!(
+        r.cells_occupied + r.cells_free + r.cells_unknown,
+        g.width * g.height
+    );
+    assert_eq!(
+        r.cells_occupied,
+        states
+            .iter()
+            .filter(|s| **s == slam2world::map::CellState::Occupied)
+            .count()
+    );
+
+    // Written with the other outputs; the grid channel in world.mcap.
+    let out = dir.path().join("out");
+    c.write_all(&out, WorldFlavor::Foxglove).unwrap();
+    let pgm = std::fs::read(out.join("map.pgm")).unwrap();
+    assert!(pgm.starts_with(format!("P5\n{} {}\n255\n", g.width, g.height).as_bytes()));
+    let yaml = std::fs::read_to_string(out.join("map.yaml")).unwrap();
+    assert!(yaml.contains("mode: trinary\n"), "{yaml}");
+    assert!(out.join("map_height.npy").exists());
+    let world = slam2world::io::mcap::McapFile::open(out.join("world.mcap")).unwrap();
+    let topics: Vec<String> = world
+        .channels()
+        .unwrap()
+        .values()
+        .map(|c| c.topic.clone())
+        .collect();
+    assert!(
+        topics.iter().any(|t| t == grid_msgs::GRID_TOPIC),
+        "{topics:?}"
+    );
+    // A conversion without a grid removes the stale grid files.
+    let no_grid = ConvertOptions {
+        grid: None,
+        ..opts.clone()
+    };
+    convert_path(&log, &no_grid)
+        .unwrap()
+        .write_all(&out, WorldFlavor::Foxglove)
+        .unwrap();
+    assert!(!out.join("map.pgm").exists() && !out.join("map.yaml").exists());
+}
+
+type CellStateAt = slam2world::map::CellState;
+
+#[test]
+fn a_grid_needs_an_octree_and_a_sound_band() {
+    use slam2world::map::GridParams;
+    use slam2world::pipeline::ConvertOptions;
+    let no_map = ConvertOptions {
+        grid: Some(GridParams::new(0.0, 1.0)),
+        ..ConvertOptions::default()
+    };
+    assert!(matches!(no_map.check(), Err(Error::InvalidArgument { .. })));
+    for (lo, hi) in [(1.0, 0.0), (f64::NAN, 1.0)] {
+        let bad = ConvertOptions {
+            map: Some(MapParams::new(RES)),
+            grid: Some(GridParams::new(lo, hi)),
+            ..ConvertOptions::default()
+        };
+        assert!(bad.check().is_err(), "{lo} {hi}");
+    }
+}

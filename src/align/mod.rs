@@ -31,8 +31,9 @@ use rayon::prelude::*;
 use crate::error::{Error, Result};
 use crate::geometry::Sim3;
 
+pub(crate) use moments::Moments;
 pub use moments::Rows;
-use moments::{FlatRows, Moments, Prior};
+use moments::{FlatRows, Prior};
 
 /// Relative eigen-gap of Horn's `N` below which the rotation is refused as
 /// undetermined (collinear points, or an exact reflection ambiguity).
@@ -387,6 +388,26 @@ fn first_non_finite<A: Rows + ?Sized, B: Rows + ?Sized>(a: &A, b: &B) -> Error {
 
 fn first_bad_row<R: Rows + ?Sized>(r: &R) -> Option<usize> {
     (0..r.n_rows()).find(|&i| r.row(i).iter().any(|v| !v.is_finite()))
+}
+
+/// The fit of running moments ([`Moments::running`] / [`Moments::push`]): the
+/// transform and diagnostics [`align`] gives for the same pairs (up to the
+/// rounding of the sums), refusing degenerate geometry the same way.
+pub(crate) fn solve_running(m: &Moments, opts: &AlignOptions) -> Result<(Sim3, AlignDiagnostics)> {
+    if m.n < 3 {
+        return Err(Error::TooFew {
+            what: "point pairs".into(),
+            need: 3,
+            got: m.n,
+        });
+    }
+    if !m.is_finite() {
+        return Err(Error::NonFinite {
+            what: "point pairs (running moments)".into(),
+            index: m.n,
+        });
+    }
+    solve(m, opts)
 }
 
 /// From centred moments to the transform, refusing degenerate geometry.

@@ -215,6 +215,52 @@ impl Moments {
         }
     }
 
+    /// Empty running moments shifted to `(shift_a, shift_b)` (a first pair,
+    /// or any point near the data), without a prior: pairs are added one at a
+    /// time with [`Moments::push`], each in O(1).
+    pub fn running(shift_a: Vector3<f64>, shift_b: Vector3<f64>) -> Moments {
+        Moments {
+            n: 0,
+            weight_sum: 0.0,
+            shift_a,
+            shift_b,
+            m0: Matrix3::zeros(),
+            t0: Vector3::zeros(),
+            sums: Sums::default(),
+        }
+    }
+
+    /// Adds the pair `(a, b)` with weight 1 (the same terms [`Moments::accumulate`]
+    /// sums, relative to this accumulator's shifts and prior).
+    pub fn push(&mut self, a: &Vector3<f64>, b: &Vector3<f64>) {
+        self.add_weighted(a, b, 1.0);
+        self.n += 1;
+    }
+
+    /// Takes the pair `(a, b)` out again (one that [`Moments::push`] added).
+    pub fn pull(&mut self, a: &Vector3<f64>, b: &Vector3<f64>) {
+        self.add_weighted(a, b, -1.0);
+        self.n = self.n.saturating_sub(1);
+    }
+
+    fn add_weighted(&mut self, a: &Vector3<f64>, b: &Vector3<f64>, w: f64) {
+        let k = MomentKernel {
+            ca: self.shift_a.into(),
+            cb: self.shift_b.into(),
+            m: [
+                [self.m0[(0, 0)], self.m0[(0, 1)], self.m0[(0, 2)]],
+                [self.m0[(1, 0)], self.m0[(1, 1)], self.m0[(1, 2)]],
+                [self.m0[(2, 0)], self.m0[(2, 1)], self.m0[(2, 2)]],
+            ],
+            t: self.t0.into(),
+        };
+        let one = [*a];
+        let other = [*b];
+        let s = k.block(&one[..], &other[..], 0, 1, |_| w);
+        self.sums = self.sums.add(s);
+        self.weight_sum = self.sums.w;
+    }
+
     /// True when every sum is finite (no NaN/inf in the input, no overflow).
     pub fn is_finite(&self) -> bool {
         let s = &self.sums;

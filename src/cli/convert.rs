@@ -1,7 +1,9 @@
 //! `slam2world convert INPUT -o OUTDIR`: `world.mcap`, `cloud.ply`,
 //! `trajectory.txt`, `report.json`, `report.html`, with `--octree RES` the
 //! occupancy map `map.bt` (its occupied voxels also in `world.mcap` and the
-//! page), and for a COLMAP model the model in metres (`model/`).
+//! page), with `--grid Z_MIN Z_MAX` its 2-D projection (`map.pgm`,
+//! `map.yaml`, `map_height.npy`, a grid channel in `world.mcap`), and for a
+//! COLMAP model the model in metres (`model/`).
 //!
 //! INPUT is a log (MCAP, ROS 1 bag, rosbag2 folder or .db3) or a
 //! reconstruction (COLMAP / GLOMAP model folder, DROID-SLAM folder, TUM-order
@@ -23,7 +25,7 @@ use crate::io::droid::DepthFilter;
 use crate::io::log::ReadOptions;
 use crate::io::mcap::WorldFlavor;
 use crate::io::text::TimeUnit;
-use crate::map::MapParams;
+use crate::map::{GridParams, MapParams};
 use crate::pipeline::gnss::WithGnss;
 use crate::pipeline::native::ReferenceFormat;
 use crate::pipeline::outputs::output_set;
@@ -138,6 +140,18 @@ pub struct ConvertArgs {
     /// OctoMap's upper clamping threshold.
     #[arg(long, value_name = "P", requires = "octree", default_value_t = defaults::CLAMP_MAX)]
     pub clamp_max: f64,
+    /// Project the octree to a 2-D occupancy grid of the voxels whose centres
+    /// lie between Z_MIN and Z_MAX (metres, world z): writes nav2's `map.pgm`
+    /// + `map.yaml`, `map_height.npy` and a grid channel in `world.mcap`.
+    #[arg(long, num_args = 2, value_names = ["Z_MIN", "Z_MAX"], requires = "octree", allow_hyphen_values = true, value_parser = finite)]
+    pub grid: Option<Vec<f64>>,
+    /// Cell edge of the 2-D grid (metres; a whole multiple of the octree's
+    /// resolution; default the octree's).
+    #[arg(long, value_name = "R", requires = "grid", value_parser = positive)]
+    pub grid_resolution: Option<f64>,
+    /// Probability at or above which a grid cell is occupied in `map.pgm`.
+    #[arg(long, value_name = "P", requires = "grid", default_value_t = defaults::OCCUPANCY_THRESHOLD)]
+    pub grid_threshold: f64,
     /// Write ROS 2 PointCloud2 + TFMessage instead of Foxglove schemas.
     #[arg(long)]
     pub ros2: bool,
@@ -201,6 +215,12 @@ impl ConvertArgs {
                 clamp_min: self.clamp_min,
                 clamp_max: self.clamp_max,
                 max_range: self.octree_max_range,
+            }),
+            grid: self.grid.as_ref().map(|z| GridParams {
+                z_min: z[0],
+                z_max: z[1],
+                resolution: self.grid_resolution,
+                occupied_threshold: self.grid_threshold,
             }),
             compare_windowed: self
                 .compare_windowed
@@ -355,6 +375,19 @@ pub fn run(args: &ConvertArgs) -> Result<()> {
                 .as_ref()
                 .map_or(String::new(), |z| format!("UTM zone {z}")),
             if g.weighted { ", weighted by covariance" } else { "" }
+        );
+    }
+    if let Some(g) = &r.grid {
+        s += &format!(
+            "grid {} m, z {} .. {} m: {} x {} cells, {} occupied, {} free, {} unknown\n",
+            g.resolution,
+            g.z_band[0],
+            g.z_band[1],
+            g.width,
+            g.height,
+            g.cells_occupied,
+            g.cells_free,
+            g.cells_unknown
         );
     }
     s += &input_summary(r);

@@ -13,6 +13,7 @@ pub mod align;
 pub mod ape_plot;
 pub mod args;
 pub mod convert;
+pub mod follow;
 pub mod imu_init;
 pub mod inspect;
 pub mod schema;
@@ -37,6 +38,8 @@ enum Command {
     ImuInit(imu_init::ImuInitArgs),
     /// Convert a log (MCAP, ROS 1 bag, rosbag2) or a reconstruction (COLMAP, DROID-SLAM, DPVO, MASt3R-SLAM, DSO, ORB-SLAM3) into metric, gravity-aligned outputs.
     Convert(Box<convert::ConvertArgs>),
+    /// Follow a log while it is written: the metric world and the 2-D map updated after every keyframe.
+    Follow(Box<follow::FollowArgs>),
     /// List the topics of a log (MCAP, ROS 1 bag, rosbag2) and what slam2world can use.
     Inspect(inspect::InspectArgs),
     /// Simulate the paper's experiment and write the LSD-SLAM log (MCAP) and its truth.
@@ -71,6 +74,7 @@ fn run(cli: Cli) -> Result<()> {
         Command::Align(args) => align::run(*args),
         Command::ImuInit(args) => imu_init::run(args),
         Command::Convert(args) => convert::run(&args),
+        Command::Follow(args) => follow::run(&args),
         Command::Inspect(args) => inspect::run(&args),
         Command::Simulate(args) => sim::run_simulate(&args),
         Command::Evaluate(args) => sim::run_evaluate(&args),

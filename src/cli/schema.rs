@@ -13,7 +13,7 @@ use crate::pipeline::report::{schemas, to_json_bytes};
 /// Arguments of `schema`.
 #[derive(Args, Debug)]
 pub struct SchemaArgs {
-    /// Which document: report, align, imu-init, evaluate, demo or truth.
+    /// Which document: report, align, imu-init, evaluate, demo, truth or follow.
     #[arg(value_name = "NAME", required_unless_present = "output")]
     name: Option<String>,
     /// Write every schema into this folder instead.

@@ -24,7 +24,8 @@ use crate::error::{Error, Result};
 use crate::geometry::Sim3;
 use crate::io::atomic::write_bytes_atomic;
 use crate::io::atomic::OutputSet;
-use crate::io::mcap::{write_slam_log_into, SlamLogOptions, WorldFlavor};
+use crate::io::mcap::write::{write_slam_log_live_into, LiveLog};
+use crate::io::mcap::{SlamLogOptions, WorldFlavor};
 use crate::io::read_mcap;
 use crate::map::{MapParams, VoxelState};
 use crate::pipeline::outputs::HtmlOptions;
@@ -189,6 +190,12 @@ fn truth_report(sim: &Simulation, frames: bool) -> TruthReport {
     }
 }
 
+/// Topic of the simulated log's live frames (LSD-SLAM's).
+pub const LIVE_TOPIC: &str = "/lsd_slam/liveframes";
+
+/// Seconds between the simulated log's graph messages.
+pub const GRAPH_PERIOD: f64 = 5.0;
+
 fn truth_path_for(log: &Path) -> PathBuf {
     log.with_extension("truth.json")
 }
@@ -199,10 +206,20 @@ fn write_log(sim: &Simulation, log: &Path, truth: &Path, reference: bool) -> Res
     let truth_meta = serde_json::to_string(&truth_report(sim, false))
         .map_err(|e| Error::invalid("json", e.to_string()))?;
     let mut set = OutputSet::new();
-    write_slam_log_into(
+    let first_poses = sim.first_published_poses()?;
+    let live = LiveLog {
+        topic: LIVE_TOPIC,
+        frames: &sim.slam_frames,
+        camera: sim.camera,
+        first_poses: &first_poses,
+        republish: false,
+        graph_period: Some(GRAPH_PERIOD),
+    };
+    write_slam_log_live_into(
         &mut set,
         log,
         &sim.keyframes,
+        Some(&live),
         reference.then_some(&sim.reference),
         Some(&sim.imu),
         &[("truth".to_string(), truth_meta)],
@@ -380,7 +397,9 @@ pub fn run_demo(args: &DemoArgs) -> Result<()> {
 
     // For comparison: every tracked frame, start-up included (the paper's warning), and
     // the tracked frames of the stable stage only.
-    let all_frames = align_trajectories(&sim.slam_frames, &sim.reference, &opts.align)?;
+    // The tracked frames as the log has them (its live frames).
+    let tracked = log.live.as_ref().unwrap_or(&sim.slam_frames);
+    let all_frames = align_trajectories(tracked, &sim.reference, &opts.align)?;
     let k = cfg.stable_start;
     let stable_frames = Trajectory::try_new(
         sim.slam_frames.timestamps[k..].to_vec(),

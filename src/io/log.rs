@@ -104,6 +104,13 @@ pub struct Log {
     /// GNSS fixes in log order (their stamps are the messages' header times),
     /// those without a fix dropped and counted.
     pub gnss: Option<GnssFixes>,
+    /// LSD-SLAM's live frames (`keyframeMsg` with `isKeyframe = false` on a
+    /// `…liveframes` topic): the tracked `T_slam_cam` of every frame as it was
+    /// published, sorted by time (a repeated time keeps its first frame);
+    /// `None` when the log has none.
+    pub live: Option<Trajectory>,
+    /// Topic the live frames came from.
+    pub live_topic: Option<String>,
     /// Topic the keyframes came from.
     pub keyframe_topic: Option<String>,
     /// Topic the graph updates came from.
@@ -307,6 +314,8 @@ fn check_encoding(path: &Path, c: &ChannelInfo, kind: MessageKind) -> Result<()>
 /// The channels each role reads.
 struct Picks<'c> {
     keyframes: Option<&'c ChannelInfo>,
+    /// LSD-SLAM's live frames: a second keyframe-type topic named like them.
+    live: Option<&'c ChannelInfo>,
     graph: Option<&'c ChannelInfo>,
     est: Option<&'c ChannelInfo>,
     pose: Option<&'c ChannelInfo>,
@@ -321,6 +330,7 @@ impl<'c> Picks<'c> {
     fn all(&self) -> impl Iterator<Item = &'c ChannelInfo> {
         [
             self.keyframes,
+            self.live,
             self.graph,
             self.est,
             self.pose,
@@ -420,8 +430,16 @@ fn pick<'c>(
         counts,
         None,
     )?;
+    // The live frames of LSD-SLAM (pose only, at frame rate): a keyframe-type
+    // topic other than the keyframes', named like them.
+    let live = keyframes.and_then(|k| {
+        channels.values().find(|c| {
+            c.id != k.id && kind_of(c) == Some(K::Keyframe) && c.topic.contains("liveframe")
+        })
+    });
     let picks = Picks {
         keyframes,
+        live,
         graph,
         est,
         pose,
@@ -600,6 +618,7 @@ pub fn read_log_from<S: MessageSource>(
         path: path.to_path_buf(),
         container,
         keyframe_topic: picks.keyframes.map(|c| c.topic.clone()),
+        live_topic: picks.live.map(|c| c.topic.clone()),
         graph_topic: picks.graph.map(|c| c.topic.clone()),
         est_topic: picks.est.map(|c| c.topic.clone()),
         reference_topic: picks.pose.map(|c| c.topic.clone()),
@@ -612,6 +631,9 @@ pub fn read_log_from<S: MessageSource>(
     let mut messages = scan.messages;
     if let Some(kf) = picks.keyframes {
         read_keyframes(path, &mut messages, kf, picks.graph, &mut log)?;
+    }
+    if let Some(c) = picks.live {
+        log.live = read_live(path, &messages, c)?;
     }
     if let Some(c) = picks.est {
         log.frames = Some(read_poses(path, &messages, c, (&None, &None))?);
@@ -840,6 +862,49 @@ fn to_keyframe(path: &Path, topic: &str, e: &mut Entry) -> Result<Keyframe> {
     let (idepth, var, color) = std::mem::take(&mut e.arrays);
     Keyframe::try_new(m.id, m.time, pose, camera, idepth, Some(var), Some(color))
         .map_err(|err| what(err.to_string()))
+}
+
+/// The tracked poses of the live-frame channel `c` (see [`Log::live`]);
+/// `None` when it has no message.
+fn read_live(path: &Path, messages: &[Mapped], c: &ChannelInfo) -> Result<Option<Trajectory>> {
+    let mut rows: Vec<(f64, Vector3<f64>, UnitQuaternion<f64>)> = Vec::new();
+    for (i, m) in messages.iter().filter(|m| m.channel_id == c.id).enumerate() {
+        let fail = |e: WireError| at(path, &c.topic, i, m.log_time, e);
+        let msg = match &m.value {
+            Decoded::Keyframe(r) => match r.as_ref() {
+                Ok((msg, _)) => msg,
+                Err(e) => return Err(fail(e.clone())),
+            },
+            _ => return Err(fail(WireError::schema("not a keyframe message"))),
+        };
+        let pose = Sim3::from_lsd_slam(&msg.cam_to_world).map_err(|e| {
+            samples_err(
+                path,
+                &c.topic,
+                format!("frame {i}: camToWorld {:?}: {e}", msg.cam_to_world),
+            )
+        })?;
+        if !msg.time.is_finite() {
+            return Err(samples_err(
+                path,
+                &c.topic,
+                format!("frame {i}: time {} is not finite", msg.time),
+            ));
+        }
+        rows.push((msg.time, pose.translation, pose.rotation));
+    }
+    if rows.is_empty() {
+        return Ok(None);
+    }
+    rows.sort_by(|a, b| a.0.total_cmp(&b.0));
+    rows.dedup_by(|b, a| a.0 == b.0);
+    Trajectory::try_new(
+        rows.iter().map(|r| r.0).collect(),
+        rows.iter().map(|r| r.1).collect(),
+        Some(rows.iter().map(|r| r.2).collect()),
+    )
+    .map(Some)
+    .map_err(|e| samples_err(path, &c.topic, e.to_string()))
 }
 
 fn samples_err(path: &Path, topic: &str, what: String) -> Error {

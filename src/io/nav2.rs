@@ -28,7 +28,7 @@
 use std::path::{Path, PathBuf};
 
 use crate::error::{Error, Result};
-use crate::io::atomic::write_bytes_atomic;
+use crate::io::atomic::{write_bytes_atomic, OutputSet};
 use crate::map::Grid2d;
 
 /// `occupied_thresh` written into `map.yaml`.
@@ -222,6 +222,33 @@ fn check_grid(grid: &Grid2d) -> Result<()> {
 /// are occupied (the octree's rule is 0.5). An empty grid is refused.
 pub fn write_nav2(grid: &Grid2d, target: &Path, occupied_threshold: f64) -> Result<Nav2Files> {
     let files = Nav2Files::for_target(target);
+    for (path, bytes) in nav2_bytes(grid, &files, occupied_threshold)? {
+        write_bytes_atomic(&path, &bytes)?;
+    }
+    Ok(files)
+}
+
+/// The `map_server` files of `grid` as outputs of `set` (published with the
+/// set's other outputs by [`OutputSet::commit`]).
+pub fn write_nav2_into(
+    set: &mut OutputSet,
+    grid: &Grid2d,
+    files: &Nav2Files,
+    occupied_threshold: f64,
+) -> Result<()> {
+    for (path, bytes) in nav2_bytes(grid, files, occupied_threshold)? {
+        set.write_bytes(&path, &bytes)?;
+    }
+    Ok(())
+}
+
+/// The image, the height layer and the YAML of `grid` (in that order, the
+/// YAML last), with their paths.
+fn nav2_bytes(
+    grid: &Grid2d,
+    files: &Nav2Files,
+    occupied_threshold: f64,
+) -> Result<[(PathBuf, Vec<u8>); 3]> {
     let pgm = pgm_bytes(grid, occupied_threshold)?;
     let npy = height_npy_bytes(grid)?;
     let image_name = files
@@ -235,10 +262,14 @@ pub fn write_nav2(grid: &Grid2d, target: &Path, occupied_threshold: f64) -> Resu
             )
         })?
         .to_string();
-    write_bytes_atomic(&files.image, &pgm)?;
-    write_bytes_atomic(&files.height, &npy)?;
-    write_bytes_atomic(&files.yaml, yaml_text(grid, &image_name).as_bytes())?;
-    Ok(files)
+    Ok([
+        (files.image.clone(), pgm),
+        (files.height.clone(), npy),
+        (
+            files.yaml.clone(),
+            yaml_text(grid, &image_name).into_bytes(),
+        ),
+    ])
 }
 
 #[cfg(test)]

@@ -60,6 +60,67 @@ pub struct Grid2d {
     pub top_z: Vec<f32>,
 }
 
+/// What a 2-D grid is projected from and how its cells are read: the height
+/// band, the cell size and the occupancy threshold (`convert --grid`, the
+/// online session's `grid`).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct GridParams {
+    /// Lowest voxel centre height projected (metres, world z).
+    pub z_min: f64,
+    /// Highest voxel centre height projected (metres, world z).
+    pub z_max: f64,
+    /// Cell edge (metres), a whole multiple of the map's resolution; `None`:
+    /// the map's resolution.
+    pub resolution: Option<f64>,
+    /// Cells of probability at or above it are occupied in `map.pgm` and the
+    /// trinary messages (the octree's own rule is 0.5).
+    pub occupied_threshold: f64,
+}
+
+impl GridParams {
+    /// The band `[z_min, z_max]`, cells of the map's resolution, threshold 0.5.
+    pub fn new(z_min: f64, z_max: f64) -> Self {
+        GridParams {
+            z_min,
+            z_max,
+            resolution: None,
+            occupied_threshold: crate::defaults::OCCUPANCY_THRESHOLD,
+        }
+    }
+
+    /// Checks what does not depend on the map: finite heights with
+    /// `z_min <= z_max`, a positive finite cell size, a threshold in `(0, 1]`.
+    pub fn check(&self) -> Result<()> {
+        for (what, z) in [("z_min", self.z_min), ("z_max", self.z_max)] {
+            if !z.is_finite() {
+                return Err(Error::invalid(what, format!("{z} is not a finite height")));
+            }
+        }
+        if self.z_min > self.z_max {
+            return Err(Error::invalid(
+                "z_min",
+                format!("{} is above z_max {}", self.z_min, self.z_max),
+            ));
+        }
+        if let Some(r) = self.resolution {
+            if !(r.is_finite() && r > 0.0) {
+                return Err(Error::invalid(
+                    "grid_resolution",
+                    format!("{r} is not a positive length"),
+                ));
+            }
+        }
+        let t = self.occupied_threshold;
+        if !(t > 0.0 && t <= 1.0) {
+            return Err(Error::invalid(
+                "occupied_threshold",
+                format!("{t} is not a probability in (0, 1]"),
+            ));
+        }
+        Ok(())
+    }
+}
+
 /// State of a grid cell under an occupancy threshold.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
 #[repr(i8)]
@@ -253,6 +314,12 @@ impl OccupancyMap {
     /// most [`MAX_GRID_CELLS`] cells.
     pub fn grid(&self, z_min: f64, z_max: f64, resolution: Option<f64>) -> Result<Grid2d> {
         self.grid_bounded(z_min, z_max, resolution, MAX_GRID_CELLS)
+    }
+
+    /// [`Self::grid`] of `params`' band and cell size.
+    pub fn grid_of(&self, params: &GridParams) -> Result<Grid2d> {
+        params.check()?;
+        self.grid(params.z_min, params.z_max, params.resolution)
     }
 
     /// [`Self::grid`] with another bound on the number of cells.

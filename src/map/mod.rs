@@ -21,7 +21,7 @@ mod tree;
 use crate::error::{Error, Result};
 use tree::{LogOdds, Tree};
 
-pub use grid::{CellState, Grid2d, MAX_GRID_CELLS};
+pub use grid::{CellState, Grid2d, GridParams, MAX_GRID_CELLS};
 pub use query::VoxelState;
 
 /// Parameters of the sensor model (probabilities in `(0, 1)`).

@@ -36,7 +36,9 @@ pub mod outputs;
 pub mod poses;
 pub mod reconstruction;
 pub mod report;
+pub mod session;
 pub mod source;
+pub mod startup;
 
 use std::collections::BTreeMap;
 use std::path::Path;
@@ -47,7 +49,7 @@ use crate::error::{Error, Result};
 use crate::geometry::Sim3;
 use crate::imu::ImuAlignment;
 use crate::keyframe::Keyframe;
-use crate::map::{MapParams, OccupancyMap, VoxelState};
+use crate::map::{Grid2d, GridParams, MapParams, OccupancyMap, VoxelState};
 use crate::trajectory::Trajectory;
 
 pub use native::NativeModel;
@@ -60,8 +62,8 @@ pub use report::Report;
 pub use source::{Recording, Source, SourceInfo};
 
 use report::{
-    ApeReport, FitReport, OctreeReport, PairReport, ReconstructionReport, ReferenceReport, Timing,
-    TransformReport,
+    ApeReport, FitReport, GridReport, OctreeReport, PairReport, ReconstructionReport,
+    ReferenceReport, Timing, TransformReport,
 };
 
 /// Where `T_world_slam` came from.
@@ -117,6 +119,9 @@ pub struct Conversion {
     pub enu: Option<crate::geo::EnuFrame>,
     /// The georeferenced clouds to write beside the others.
     pub geo_outputs: gnss::GeoOutputs,
+    /// The 2-D occupancy grid projected from the octree, when asked for
+    /// ([`ConvertOptions::grid`]), with its parameters.
+    pub grid: Option<(Grid2d, GridParams)>,
 }
 
 impl Conversion {
@@ -203,6 +208,25 @@ fn build_octree(
         time_s,
     };
     Ok((map, report))
+}
+
+/// The 2-D grid of `map` in `params`' band, with its report; an error when
+/// the band holds no known voxel (nothing to plan on).
+pub fn project_grid(map: &OccupancyMap, params: &GridParams) -> Result<(Grid2d, GridReport)> {
+    let t = Instant::now();
+    let grid = map.grid_of(params)?;
+    if grid.is_empty() {
+        return Err(Error::invalid(
+            "grid",
+            format!(
+                "no known voxel has its centre in the band z {} .. {} m: nothing to project \
+                 (the map spans the heights of its points and the rays to them)",
+                params.z_min, params.z_max
+            ),
+        ));
+    }
+    let report = GridReport::of(&grid, params.occupied_threshold, secs(t));
+    Ok((grid, report))
 }
 
 /// Aligns the recording's SLAM poses with its reference (or initialises from
@@ -329,6 +353,13 @@ pub fn convert(rec: &Recording, opts: &ConvertOptions) -> Result<Conversion> {
         }
         None => (None, None),
     };
+    let (grid, grid_report) = match (&opts.grid, &octree) {
+        (Some(g), Some(map)) => {
+            let (grid, report) = project_grid(map, g)?;
+            (Some((grid, *g)), Some(report))
+        }
+        _ => (None, None),
+    };
 
     let world_slam = Trajectory::try_new(
         slam.timestamps.clone(),
@@ -431,6 +462,18 @@ pub fn convert(rec: &Recording, opts: &ConvertOptions) -> Result<Conversion> {
         },
         imu: imu_report,
         octree: octree_report,
+        grid: grid_report,
+        startup: world
+            .poses()
+            .and_then(|p| p.startup.as_ref())
+            .map(|c| report::StartupReport {
+                topic: rec.source.live_topic.clone(),
+                live_frames: rec.live.as_ref().map_or(0, Trajectory::len),
+                pairs: c.pairs,
+                converging_time: c.converging_time,
+                stable_time: c.stable_time,
+                stages: report::StagesReport::from(&c.stages),
+            }),
         reconstruction: rec
             .source
             .reconstruction
@@ -460,6 +503,7 @@ pub fn convert(rec: &Recording, opts: &ConvertOptions) -> Result<Conversion> {
         native: rec.native.as_ref().map(|m| m.transformed(&t)),
         enu: gnss_ref.map(|g| g.frame),
         geo_outputs: opts.geo_outputs,
+        grid,
     })
 }
 

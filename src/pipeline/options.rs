@@ -7,7 +7,7 @@ use crate::defaults;
 use crate::error::{Error, Result};
 use crate::imu::ImuInitOptions;
 use crate::io::log::ReadOptions;
-use crate::map::MapParams;
+use crate::map::{GridParams, MapParams};
 
 use super::gnss::{GeoOutputs, GnssOptions};
 
@@ -36,6 +36,10 @@ pub struct ConvertOptions {
     /// The occupancy octree built from the world cloud (every OctoMap
     /// parameter); `None` builds none.
     pub map: Option<MapParams>,
+    /// The 2-D occupancy grid projected from the octree (`map.pgm`,
+    /// `map.yaml`, `map_height.npy`, a grid channel in `world.mcap`); needs
+    /// `map`. `None` projects none.
+    pub grid: Option<GridParams>,
     /// Confidence level of the report's intervals.
     pub confidence: f64,
     /// How GNSS fixes become the reference (used when the recording has fixes).
@@ -54,6 +58,7 @@ impl Default for ConvertOptions {
             windowed_cloud: false,
             imu: ImuInitOptions::default(),
             map: None,
+            grid: None,
             confidence: defaults::CONFIDENCE,
             gnss: GnssOptions::default(),
             geo_outputs: GeoOutputs::default(),
@@ -72,6 +77,15 @@ impl ConvertOptions {
         self.imu.validate()?;
         if let Some(map) = &self.map {
             map.check()?;
+        }
+        if let Some(grid) = &self.grid {
+            grid.check()?;
+            if self.map.is_none() {
+                return Err(Error::invalid(
+                    "grid",
+                    "the 2-D grid is projected from the octree: give an octree resolution too",
+                ));
+            }
         }
         if !(self.confidence > 0.0 && self.confidence < 1.0) {
             return Err(Error::invalid(

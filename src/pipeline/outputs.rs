@@ -14,7 +14,10 @@ use crate::error::{Error, Result};
 use crate::geo::GeoCrs;
 use crate::io::atomic::{Committed, OutputSet};
 use crate::io::las::{las_bytes, LasInfo};
-use crate::io::mcap::{write_world_mcap_into, WorldFlavor, WorldScene};
+use crate::io::mcap::grid_msgs::grid_channels;
+use crate::io::mcap::write::{write_world_mcap_extra_into, ExtraChannel};
+use crate::io::mcap::{WorldFlavor, WorldScene};
+use crate::io::nav2::{write_nav2_into, Nav2Files};
 use crate::io::pcd::write_pcd_into;
 use crate::map::{OccupancyMap, VoxelState};
 
@@ -41,6 +44,13 @@ pub const CLOUD_LAS: &str = "cloud.las";
 pub const CLOUD_LAZ: &str = "cloud.laz";
 /// The world cloud as binary PCD (PCL), when asked for.
 pub const CLOUD_PCD: &str = "cloud.pcd";
+/// The 2-D occupancy grid as nav2 `map_server` reads it (trinary PGM),
+/// written with a grid.
+pub const MAP_PGM: &str = "map.pgm";
+/// The `map_server` metadata of [`MAP_PGM`].
+pub const MAP_YAML: &str = "map.yaml";
+/// The height of the highest occupied voxel per cell of [`MAP_PGM`] (NumPy).
+pub const MAP_HEIGHT_NPY: &str = "map_height.npy";
 
 /// What `report.html` adds to the conversion: the demo's comparison with the
 /// truth, and the limits of what it embeds.
@@ -71,6 +81,9 @@ pub const OUTPUT_NAMES: &[&str] = &[
     CLOUD_LAS,
     CLOUD_LAZ,
     CLOUD_PCD,
+    MAP_PGM,
+    MAP_YAML,
+    MAP_HEIGHT_NPY,
     "model/cameras.bin",
     "model/rigs.bin",
     "model/frames.bin",
@@ -154,7 +167,20 @@ impl Conversion {
             slam_frame: "slam",
         };
         let leaves = octree.map(|m| m.leaves(VoxelState::Occupied));
-        write_world_mcap_into(set, path, &scene, leaves.as_deref(), flavor)
+        let channels = match &self.grid {
+            Some((g, _)) => grid_channels(g, scene.stamp, scene.world_frame, flavor)?,
+            None => Vec::new(),
+        };
+        let extra: Vec<ExtraChannel<'_>> = channels
+            .iter()
+            .map(|c| ExtraChannel {
+                topic: c.topic,
+                schema: c.schema,
+                message_encoding: c.message_encoding,
+                data: &c.data,
+            })
+            .collect();
+        write_world_mcap_extra_into(set, path, &scene, leaves.as_deref(), &extra, flavor)
     }
 
     /// Writes `world.mcap` with the conversion's own octree.
@@ -317,6 +343,14 @@ impl Conversion {
         set.write_bytes(&tum, &crate::io::text::tum_bytes(&self.slam_trajectory)?)?;
         if octree.is_some() {
             write_bt_into(set, octree, &bt)?;
+        }
+        if let Some((grid, params)) = &self.grid {
+            let files = Nav2Files {
+                image: set.path(MAP_PGM),
+                yaml: set.path(MAP_YAML),
+                height: set.path(MAP_HEIGHT_NPY),
+            };
+            write_nav2_into(set, grid, &files, params.occupied_threshold)?;
         }
         if let Some(NativeModel::Colmap(m)) = &self.native {
             let dir = set.path(COLMAP_MODEL);

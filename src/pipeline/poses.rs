@@ -1,7 +1,9 @@
 //! The pose-reference path of `convert`: `T_world_slam` fitted to a metric
 //! reference trajectory (and, when asked, a windowed fit beside it).
 
-use crate::align::trajectories::{align_trajectories_weighted, TrajectoryAlignment};
+use crate::align::trajectories::{
+    align_trajectories_weighted, SkipInit, TrajectoryAlignOptions, TrajectoryAlignment,
+};
 use crate::align::windowed::{align_windowed, WindowedAlignment, WindowedOptions};
 use crate::error::{Error, Result};
 use crate::trajectory::Trajectory;
@@ -9,6 +11,7 @@ use crate::trajectory::Trajectory;
 use super::options::ConvertOptions;
 use super::report::WindowedReport;
 use super::source::Recording;
+use super::startup::{live_cut, pairs_before, LiveCut};
 
 /// `T_world_slam` from reference poses.
 #[derive(Clone, Debug)]
@@ -17,6 +20,10 @@ pub struct PoseFit {
     pub alignment: TrajectoryAlignment,
     /// The windowed fit, with `compare_windowed`.
     pub windowed: Option<WindowedAlignment>,
+    /// The start-up cut found in the live frames, with `skip_init auto` on a
+    /// log that has them ([`super::startup`]); the fit then drops the
+    /// keyframe pairs stamped before the stable stage.
+    pub startup: Option<LiveCut>,
 }
 
 /// Fits the recording's SLAM poses (`slam`, sorted by time) to `reference`
@@ -30,8 +37,21 @@ pub fn fit(
     weights: Option<&[f64]>,
     opts: &ConvertOptions,
 ) -> Result<PoseFit> {
-    let alignment = align_trajectories_weighted(slam, reference, weights, &opts.align).map_err(
-        |e| match e {
+    // With live frames, `auto` cuts where their scale factors settle.
+    let (align, startup) = match (&rec.live, opts.align.skip_init) {
+        (Some(live), SkipInit::Auto) => {
+            let cut = live_cut(live, reference, &opts.align)?;
+            let k = pairs_before(slam, reference, &opts.align, cut.stable_time)?;
+            let align = TrajectoryAlignOptions {
+                skip_init: SkipInit::First(k),
+                ..opts.align.clone()
+            };
+            (align, Some(cut))
+        }
+        _ => (opts.align.clone(), None),
+    };
+    let mut alignment =
+        align_trajectories_weighted(slam, reference, weights, &align).map_err(|e| match e {
             // A reconstruction keeps the variant, its spans naming the files.
             Error::Unmatched {
                 matched,
@@ -75,8 +95,15 @@ pub fn fit(
                 ),
             },
             e => e,
-        },
-    )?;
+        })?;
+    if let Some(cut) = &startup {
+        alignment.skip_reason = format!(
+            "the first {} matched pairs (stamped before {:.3} s) dropped: {}",
+            alignment.fit_start,
+            cut.stable_time,
+            cut.describe()
+        );
+    }
     let windowed = match opts.compare_windowed {
         Some(window) => Some(align_windowed(
             slam,
@@ -96,6 +123,7 @@ pub fn fit(
     Ok(PoseFit {
         alignment,
         windowed,
+        startup,
     })
 }
 

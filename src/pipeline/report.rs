@@ -423,6 +423,149 @@ pub struct OctreeReport {
     pub time_s: f64,
 }
 
+/// The start-up cut found in the live frames (`skip_init auto` on a log
+/// that has them).
+#[derive(Clone, Debug, PartialEq, Serialize, JsonSchema)]
+pub struct StartupReport {
+    /// Topic of the live frames.
+    pub topic: Option<String>,
+    /// Live frames in the log.
+    pub live_frames: usize,
+    /// Live frames matched with a reference pose (the scale factors are
+    /// those of consecutive matched frames).
+    pub pairs: usize,
+    /// SLAM stamp where the converging stretch starts, seconds.
+    pub converging_time: f64,
+    /// SLAM stamp where the stable stage starts, seconds: keyframes stamped
+    /// before it are not fitted.
+    pub stable_time: f64,
+    /// The stages, indices into the live frames' scale factors.
+    pub stages: StagesReport,
+}
+
+/// What `follow` writes as `report.json` after every keyframe: the online
+/// session's state and the latest update's timing.
+#[derive(Clone, Debug, PartialEq, Serialize, JsonSchema)]
+pub struct FollowReport {
+    /// The log followed.
+    pub input: PathBuf,
+    /// Start-up stage: `waiting`, `start`, `converging` or `stable`.
+    pub stage: String,
+    /// Why (one line).
+    pub reason: String,
+    /// Latest SLAM stamp seen, seconds.
+    pub time: f64,
+    /// Id of the keyframe this report follows (-1: written at the end).
+    pub last_keyframe: i32,
+    /// Keyframes (latest version per id).
+    pub keyframes: usize,
+    /// Live (tracked) frames.
+    pub frames: usize,
+    /// Points in the map.
+    pub points: usize,
+    /// Times the map was rebuilt because inserted keyframes moved.
+    pub rebuilds: usize,
+    /// Where the stable stage starts (SLAM stamp), as detected so far.
+    pub stable_time: Option<f64>,
+    /// SLAM stamp at which the stable stage was first reported.
+    pub stable_reported_at: Option<f64>,
+    /// `T_world_slam`, once stable.
+    pub t_world_slam: Option<TransformReport>,
+    /// rms residual of the fitted keyframe pairs, metres.
+    pub fit_rmse: Option<f64>,
+    /// Keyframe pairs fitted.
+    pub pairs_fitted: usize,
+    /// Decoding the keyframe message, seconds.
+    pub decode_s: f64,
+    /// Stage detection and fit, seconds.
+    pub fit_s: f64,
+    /// Backprojection, seconds.
+    pub backproject_s: f64,
+    /// Octree insertion (or rebuild), seconds.
+    pub insert_s: f64,
+    /// From the keyframe message read to the map updated, seconds.
+    pub latency_s: f64,
+    /// True in the report written at the end (the map then exact).
+    pub finished: bool,
+    /// Why it ended: `end of log`, `idle timeout` (empty while running).
+    pub end: String,
+}
+
+impl FollowReport {
+    /// The report before anything was read.
+    pub fn new(input: &std::path::Path) -> Self {
+        FollowReport {
+            input: input.to_path_buf(),
+            stage: "waiting".into(),
+            reason: String::new(),
+            time: 0.0,
+            last_keyframe: -1,
+            keyframes: 0,
+            frames: 0,
+            points: 0,
+            rebuilds: 0,
+            stable_time: None,
+            stable_reported_at: None,
+            t_world_slam: None,
+            fit_rmse: None,
+            pairs_fitted: 0,
+            decode_s: 0.0,
+            fit_s: 0.0,
+            backproject_s: 0.0,
+            insert_s: 0.0,
+            latency_s: 0.0,
+            finished: false,
+            end: String::new(),
+        }
+    }
+}
+
+/// What the report says of the 2-D occupancy grid (`map.pgm` / `map.yaml`).
+#[derive(Clone, Debug, PartialEq, Serialize, JsonSchema)]
+pub struct GridReport {
+    /// The band of voxel centre heights projected, `[z_min, z_max]`, metres.
+    pub z_band: [f64; 2],
+    /// Cell edge, metres.
+    pub resolution: f64,
+    /// `(x, y)` of the lower-left corner of cell `(0, 0)`, world frame, metres.
+    pub origin: [f64; 2],
+    /// Columns (cells along x).
+    pub width: usize,
+    /// Rows (cells along y).
+    pub height: usize,
+    /// Probability at or above which a cell is occupied in `map.pgm`.
+    pub occupied_threshold: f64,
+    /// Occupied cells.
+    pub cells_occupied: usize,
+    /// Free cells (known, below the threshold).
+    pub cells_free: usize,
+    /// Unknown cells.
+    pub cells_unknown: usize,
+    /// Wall time of the projection, seconds.
+    pub time_s: f64,
+}
+
+impl GridReport {
+    /// The report of `grid` read with `occupied_threshold`, projected in `time_s`.
+    pub fn of(grid: &crate::map::Grid2d, occupied_threshold: f64, time_s: f64) -> Self {
+        use crate::map::CellState;
+        let states = grid.states(occupied_threshold);
+        let count = |c: CellState| states.iter().filter(|s| **s == c).count();
+        GridReport {
+            z_band: grid.z_band,
+            resolution: grid.resolution,
+            origin: grid.origin,
+            width: grid.width,
+            height: grid.height,
+            occupied_threshold,
+            cells_occupied: count(CellState::Occupied),
+            cells_free: count(CellState::Free),
+            cells_unknown: count(CellState::Unknown),
+            time_s,
+        }
+    }
+}
+
 /// Wall time of each stage, seconds.
 #[derive(Clone, Debug, Default, PartialEq, Serialize, JsonSchema)]
 pub struct Timing {
@@ -490,6 +633,13 @@ pub struct Report {
     /// The occupancy octree, when one was built.
     #[serde(skip_serializing_if = "Option::is_none")]
     pub octree: Option<OctreeReport>,
+    /// The start-up cut found in the live frames, when the log has them and
+    /// the cut is `auto`.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub startup: Option<StartupReport>,
+    /// The 2-D occupancy grid, when one was projected.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub grid: Option<GridReport>,
     /// How a reconstruction input was read (absent for logs).
     #[serde(skip_serializing_if = "Option::is_none")]
     pub reconstruction: Option<ReconstructionReport>,
@@ -1007,6 +1157,7 @@ pub fn schemas() -> Vec<(&'static str, schemars::Schema)> {
         ("evaluate", schemars::schema_for!(EvaluateReport)),
         ("demo", schemars::schema_for!(DemoReport)),
         ("truth", schemars::schema_for!(TruthReport)),
+        ("follow", schemars::schema_for!(FollowReport)),
     ]
 }
 

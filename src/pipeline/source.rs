@@ -87,6 +87,8 @@ pub struct SourceInfo {
     pub graph_updates: usize,
     /// True when a log was read through its index (false: a linear scan).
     pub indexed: bool,
+    /// Topic of the live frames, when the log has them.
+    pub live_topic: Option<String>,
     /// How a reconstruction input was read (`None` for logs).
     pub reconstruction: Option<ReconstructionInfo>,
     /// The reference file given beside the input, when there is one.
@@ -121,6 +123,10 @@ pub struct Recording {
     pub cloud_origins: Option<BTreeMap<i32, Vector3<f64>>>,
     /// The input's own model, written back in its format by the conversion.
     pub native: Option<NativeModel>,
+    /// The tracked `T_slam_cam` of every frame as the SLAM published it live
+    /// (LSD-SLAM's live frames), sorted by time: where the start-up stages are
+    /// found when the log has them.
+    pub live: Option<Trajectory>,
 }
 
 impl From<Log> for Recording {
@@ -142,8 +148,10 @@ impl From<Log> for Recording {
                 graph_messages: log.graph_messages,
                 graph_updates: log.graph_updates,
                 indexed: log.indexed,
+                live_topic: log.live_topic,
                 ..SourceInfo::default()
             },
+            live: log.live,
             keyframes: log.keyframes,
             frames: log.frames,
             cloud: None,

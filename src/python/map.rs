@@ -488,7 +488,7 @@ fn grid_layer(py: Python<'_>, data: Vec<f32>, width: usize) -> PyResult<Py<PyArr
 }
 
 impl PyGrid {
-    fn from_core(py: Python<'_>, g: Grid2d) -> PyResult<Self> {
+    pub(crate) fn from_core(py: Python<'_>, g: Grid2d) -> PyResult<Self> {
         Ok(PyGrid {
             resolution: g.resolution,
             origin: g.origin,

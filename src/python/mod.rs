@@ -20,6 +20,7 @@ mod io;
 mod map;
 mod pipeline;
 mod reconstruction;
+mod session;
 mod sim;
 mod text;
 mod trajectory;
@@ -44,5 +45,6 @@ fn _slam2world(m: &Bound<'_, PyModule>) -> PyResult<()> {
     text::register(m)?;
     reconstruction::register(m)?;
     geo::register(m)?;
+    session::register(m)?;
     Ok(())
 }

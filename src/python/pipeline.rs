@@ -11,7 +11,7 @@ use super::colmap::PyColmapModel;
 use super::geometry::PySim3;
 use super::imu::PyImuAlignment;
 use super::io::PyLog;
-use super::map::PyOccupancyMap;
+use super::map::{PyGrid, PyOccupancyMap};
 use super::reconstruction::{reading_options, reference_spec, PyReconstruction};
 use super::trajectory::PyTrajectory;
 use crate::io::gnss::GnssFormat;
@@ -164,6 +164,16 @@ impl PyConversion {
         let inner = &self.inner;
         Ok(interruptible(py, || inner.write_pcd(&path))?)
     }
+    /// The 2-D occupancy grid projected from the octree (`convert(...,
+    /// grid=(z_min, z_max))`), or None.
+    #[getter]
+    fn grid(&self, py: Python<'_>) -> PyResult<Option<PyGrid>> {
+        self.inner
+            .grid
+            .as_ref()
+            .map(|(g, _)| PyGrid::from_core(py, g.clone()))
+            .transpose()
+    }
     /// Writes `world.mcap` (Foxglove schemas, or ROS 2 with `ros2=True`).
     #[pyo3(signature = (path, *, ros2=false))]
     fn write_world_mcap(&self, py: Python<'_>, path: PathBuf, ros2: bool) -> PyResult<()> {
@@ -270,9 +280,14 @@ impl PyConversion {
 /// `level` is the confidence level of the report's intervals. `dof`,
 /// `anchor`, `association`, `max_tilt_deg`, `reference_noise` and
 /// `fit_checks` are `align_trajectories`'s (degrees of freedom, pinned first
-/// pair, pairing rule, gravity check, fit-quality refusals).
+/// pair, pairing rule, gravity check, fit-quality refusals). `grid=(z_min,
+/// z_max)` (metres, world z; needs `octree_resolution`) projects the octree to
+/// a 2-D occupancy grid (`Conversion.grid`; `write_all` adds nav2's
+/// `map.pgm` + `map.yaml`, `map_height.npy` and a grid channel in
+/// `world.mcap`), cells of `grid_resolution` (a whole multiple of the
+/// octree's; default the octree's), occupied from `grid_threshold`.
 #[pyfunction(name = "convert")]
-#[pyo3(signature = (log_or_path, *, keyframe_topic=None, graph_topic=None, pose_topic=None, est_topic=None, tf_parent=None, tf_child=None, max_diff=0.01, offset=0.0, n_to_align=None, scale=true, method="horn", filter=None, octree_resolution=None, octree_max_range=None, prob_hit=0.7, prob_miss=0.4, clamp_min=0.1192, clamp_max=0.971, skip_init=None, robust=None, inlier_threshold=None, loss="huber", use_orientations=false, estimate_offset=false, max_offset=0.5, body_from_cam=None, compare_windowed=None, windowed_cloud=false, imu_topic=None, imu_from_cam=None, gravity=9.81, level=0.95, dof="sim3", anchor=None, association="evo", max_tilt_deg=Some(crate::defaults::MAX_TILT_DEG), reference_noise=None, fit_checks=true, reference=None, reference_format=None, reference_time_unit=None, time_unit=None, cloud=None, colmap_format=None, depth_filter=true, depth_threshold=0.005, depth_min_count=2, min_disparity_ratio=0.5, gnss=None, gnss_format=None, geoid_offset=0.0, gnss_topic=None, origin=OriginArg::Name(crate::defaults::ORIGIN.into()), lever_arm=None, gnss_weights=true, gnss_max_gap=crate::defaults::GNSS_MAX_GAP, las=None, laz=false, pcd=false, crs=crate::defaults::CRS),
+#[pyo3(signature = (log_or_path, *, keyframe_topic=None, graph_topic=None, pose_topic=None, est_topic=None, tf_parent=None, tf_child=None, max_diff=0.01, offset=0.0, n_to_align=None, scale=true, method="horn", filter=None, octree_resolution=None, octree_max_range=None, prob_hit=0.7, prob_miss=0.4, clamp_min=0.1192, clamp_max=0.971, skip_init=None, robust=None, inlier_threshold=None, loss="huber", use_orientations=false, estimate_offset=false, max_offset=0.5, body_from_cam=None, compare_windowed=None, windowed_cloud=false, imu_topic=None, imu_from_cam=None, gravity=9.81, level=0.95, dof="sim3", anchor=None, association="evo", max_tilt_deg=Some(crate::defaults::MAX_TILT_DEG), reference_noise=None, fit_checks=true, reference=None, reference_format=None, reference_time_unit=None, time_unit=None, cloud=None, colmap_format=None, depth_filter=true, depth_threshold=0.005, depth_min_count=2, min_disparity_ratio=0.5, gnss=None, gnss_format=None, geoid_offset=0.0, gnss_topic=None, origin=OriginArg::Name(crate::defaults::ORIGIN.into()), lever_arm=None, gnss_weights=true, gnss_max_gap=crate::defaults::GNSS_MAX_GAP, las=None, laz=false, pcd=false, crs=crate::defaults::CRS, grid=None, grid_resolution=None, grid_threshold=0.5),
        text_signature = "(log_or_path, *, keyframe_topic=None, graph_topic=None, pose_topic=None, \
                          est_topic=None, tf_parent=None, tf_child=None, max_diff=0.01, offset=0.0, n_to_align=None, \
                          scale=True, method='horn', filter=None, octree_resolution=None, \
@@ -287,7 +302,8 @@ impl PyConversion {
                          depth_filter=True, depth_threshold=0.005, depth_min_count=2, \
                          min_disparity_ratio=0.5, gnss=None, gnss_format=None, geoid_offset=0.0, \
                          gnss_topic=None, origin='first', lever_arm=None, gnss_weights=True, \
-                         gnss_max_gap=0.5, las=None, laz=False, pcd=False, crs='utm')")]
+                         gnss_max_gap=0.5, las=None, laz=False, pcd=False, crs='utm', grid=None, \
+                         grid_resolution=None, grid_threshold=0.5)")]
 #[allow(clippy::too_many_arguments)]
 fn convert_py(
     py: Python<'_>,
@@ -352,6 +368,9 @@ fn convert_py(
     laz: bool,
     pcd: bool,
     crs: &str,
+    grid: Option<(f64, f64)>,
+    grid_resolution: Option<f64>,
+    grid_threshold: f64,
 ) -> PyResult<PyConversion> {
     let gnss_file = match gnss {
         Some(path) => Some(GnssFile {
@@ -443,6 +462,12 @@ fn convert_py(
             clamp_min,
             clamp_max,
             max_range: octree_max_range,
+        }),
+        grid: grid.map(|(z_min, z_max)| crate::map::GridParams {
+            z_min,
+            z_max,
+            resolution: grid_resolution,
+            occupied_threshold: grid_threshold,
         }),
         confidence: level,
         gnss: gnss_options,

@@ -531,6 +531,21 @@ pub fn simulate(cfg: &SimConfig) -> Result<Simulation> {
 }
 
 impl Simulation {
+    /// Each keyframe's pose as LSD-SLAM first publishes it: the tracked pose
+    /// of its frame (with the start-up scale error of the tracking) and the
+    /// keyframe's depth scale; the keyframes' own poses are the refined ones.
+    pub fn first_published_poses(&self) -> Result<Vec<Sim3>> {
+        let f = &self.slam_frames;
+        self.keyframes
+            .iter()
+            .zip(&self.truth.keyframe_frames)
+            .map(|(kf, &k)| {
+                let q = f.orientations.as_ref().map_or(kf.pose.rotation, |o| o[k]);
+                Sim3::try_new(q, f.positions[k], kf.pose.scale)
+            })
+            .collect()
+    }
+
     /// Keyframe positions as a trajectory (`T_slam_cam` translations and rotations).
     pub fn keyframe_trajectory(&self) -> Result<Trajectory> {
         Trajectory::try_new(

@@ -456,6 +456,32 @@ pub fn write_world_mcap_into(
     octomap: Option<&[([f64; 3], f64)]>,
     flavor: WorldFlavor,
 ) -> Result<()> {
+    write_world_mcap_extra_into(set, path, scene, octomap, &[], flavor)
+}
+
+/// One more channel of `world.mcap` with its one message, stamped with the
+/// scene's stamp (the 2-D grid: `grid_msgs::grid_channels`).
+#[derive(Clone, Copy, Debug)]
+pub struct ExtraChannel<'a> {
+    /// Topic.
+    pub topic: &'a str,
+    /// Schema record: `(name, encoding, data)`.
+    pub schema: (&'a str, &'a str, &'a [u8]),
+    /// Message encoding of the channel (`protobuf`, `cdr`).
+    pub message_encoding: &'a str,
+    /// The encoded message.
+    pub data: &'a [u8],
+}
+
+/// [`write_world_mcap_into`] with `extra` channels after the scene's own.
+pub fn write_world_mcap_extra_into(
+    set: &mut OutputSet,
+    path: &Path,
+    scene: &WorldScene<'_>,
+    octomap: Option<&[([f64; 3], f64)]>,
+    extra: &[ExtraChannel<'_>],
+    flavor: WorldFlavor,
+) -> Result<()> {
     if let Some(leaves) = octomap {
         if let Some(i) = leaves
             .iter()
@@ -467,7 +493,7 @@ pub fn write_world_mcap_into(
             ));
         }
     }
-    write_world_impl(set, path, scene, octomap, flavor)
+    write_world_impl(set, path, scene, octomap, extra, flavor)
 }
 
 /// Writes the world output: the cloud, the trajectories and `world → slam`.
@@ -477,7 +503,7 @@ pub fn write_world_mcap(
     flavor: WorldFlavor,
 ) -> Result<()> {
     let mut set = OutputSet::new();
-    write_world_impl(&mut set, path.as_ref(), scene, None, flavor)?;
+    write_world_impl(&mut set, path.as_ref(), scene, None, &[], flavor)?;
     set.commit().map(|_| ())
 }
 
@@ -486,6 +512,7 @@ fn write_world_impl(
     path: &Path,
     scene: &WorldScene<'_>,
     octomap: Option<&[([f64; 3], f64)]>,
+    extra: &[ExtraChannel<'_>],
     flavor: WorldFlavor,
 ) -> Result<()> {
     if scene.points.len() % 3 != 0 {
@@ -608,6 +635,10 @@ fn write_world_impl(
                 }
             }
         }
+        for x in extra {
+            let mut ch = add_channel(w, path, x.topic, x.schema, x.message_encoding)?;
+            put(w, path, &mut ch, t, x.data)?;
+        }
         Ok(())
     })
 }
@@ -648,12 +679,42 @@ impl Default for SlamLogOptions {
 
 /// The ROS 1 `keyframeMsg` of a keyframe (colour 4th byte 255; variance 0 when absent).
 pub fn keyframe_msg_ros1(kf: &Keyframe) -> Vec<u8> {
+    keyframe_msg_ros1_at(kf, &kf.pose)
+}
+
+/// The ROS 1 `keyframeMsg` of a live frame as LSD-SLAM publishes it:
+/// `isKeyframe = false`, the tracked `camToWorld`, the camera, no point cloud.
+pub fn live_frame_msg_ros1(
+    id: i32,
+    time: f64,
+    pose: &Sim3,
+    camera: &crate::geometry::PinholeCamera,
+) -> Vec<u8> {
+    let mut m = Vec::with_capacity(69);
+    m.extend_from_slice(&id.to_le_bytes());
+    m.extend_from_slice(&time.to_le_bytes());
+    m.push(0);
+    for v in pose.to_lsd_slam() {
+        m.extend_from_slice(&(v as f32).to_le_bytes());
+    }
+    for v in [camera.fx, camera.fy, camera.cx, camera.cy] {
+        m.extend_from_slice(&(v as f32).to_le_bytes());
+    }
+    m.extend_from_slice(&camera.height.to_le_bytes());
+    m.extend_from_slice(&camera.width.to_le_bytes());
+    m.extend_from_slice(&0u32.to_le_bytes());
+    m
+}
+
+/// [`keyframe_msg_ros1`] with `pose` in place of the keyframe's own (a
+/// keyframe as first published, before the map refined it).
+pub fn keyframe_msg_ros1_at(kf: &Keyframe, pose: &Sim3) -> Vec<u8> {
     let n = kf.len();
     let mut m = Vec::with_capacity(69 + 12 * n);
     m.extend_from_slice(&kf.id.to_le_bytes());
     m.extend_from_slice(&kf.timestamp.to_le_bytes());
     m.push(1);
-    for v in kf.pose.to_lsd_slam() {
+    for v in pose.to_lsd_slam() {
         m.extend_from_slice(&(v as f32).to_le_bytes());
     }
     let c = &kf.camera;
@@ -677,15 +738,21 @@ pub fn keyframe_msg_ros1(kf: &Keyframe) -> Vec<u8> {
 
 /// The ROS 1 `keyframeGraphMsg` listing `(id, camToWorld)` of each keyframe (no constraints).
 pub fn graph_msg_ros1(keyframes: &[Keyframe]) -> Vec<u8> {
-    let mut frames = Vec::with_capacity(32 * keyframes.len());
-    for kf in keyframes {
-        frames.extend_from_slice(&kf.id.to_le_bytes());
-        for v in kf.pose.to_lsd_slam() {
+    let poses: Vec<(i32, Sim3)> = keyframes.iter().map(|k| (k.id, k.pose)).collect();
+    graph_msg_ros1_poses(&poses)
+}
+
+/// The ROS 1 `keyframeGraphMsg` listing `(id, camToWorld)` pairs (no constraints).
+pub fn graph_msg_ros1_poses(poses: &[(i32, Sim3)]) -> Vec<u8> {
+    let mut frames = Vec::with_capacity(32 * poses.len());
+    for (id, pose) in poses {
+        frames.extend_from_slice(&id.to_le_bytes());
+        for v in pose.to_lsd_slam() {
             frames.extend_from_slice(&(v as f32).to_le_bytes());
         }
     }
     let mut m = Vec::with_capacity(16 + frames.len());
-    m.extend_from_slice(&(keyframes.len() as u32).to_le_bytes());
+    m.extend_from_slice(&(poses.len() as u32).to_le_bytes());
     m.extend_from_slice(&(frames.len() as u32).to_le_bytes());
     m.extend_from_slice(&frames);
     m.extend_from_slice(&0u32.to_le_bytes());
@@ -756,6 +823,30 @@ pub fn write_slam_log(
     set.commit().map(|_| ())
 }
 
+/// What LSD-SLAM publishes while it runs, beside the keyframes' final
+/// state: the live frames, each keyframe as first published, re-published
+/// keyframes and periodic graph messages ([`write_slam_log_live_into`]).
+#[derive(Clone, Debug)]
+pub struct LiveLog<'a> {
+    /// Topic of the live frames (`keyframeMsg`, `isKeyframe = false`).
+    pub topic: &'a str,
+    /// Tracked `T_slam_cam` of every frame, written as live frames (id = row).
+    pub frames: &'a Trajectory,
+    /// Camera of the live frames.
+    pub camera: crate::geometry::PinholeCamera,
+    /// Each keyframe's pose when it was first published (one per keyframe, in
+    /// order); the keyframe's own pose is its refined, final one.
+    pub first_poses: &'a [Sim3],
+    /// Also re-publish each keyframe, with its final pose and depth, when the
+    /// next one is published (as LSD-SLAM does once a keyframe is finished);
+    /// doubles the keyframe bytes.
+    pub republish: bool,
+    /// Seconds between graph messages (each with the keyframes published so
+    /// far, at their final poses); the last graph message follows the last
+    /// keyframe as without live data. `None`: that one only.
+    pub graph_period: Option<f64>,
+}
+
 /// [`write_slam_log`] as one output of `set` (published when the set is committed).
 pub fn write_slam_log_into(
     set: &mut OutputSet,
@@ -766,11 +857,92 @@ pub fn write_slam_log_into(
     metadata: &[(String, String)],
     options: &SlamLogOptions,
 ) -> Result<()> {
+    write_slam_log_live_into(
+        set, path, keyframes, None, reference, imu, metadata, options,
+    )
+}
+
+/// [`write_slam_log_into`] with what the SLAM published live (`live`): the
+/// keyframe messages carry the first-published poses, the refined poses
+/// follow in graph messages (and re-published keyframes), and the live frames
+/// are on their own topic.
+#[allow(clippy::too_many_arguments)]
+pub fn write_slam_log_live_into(
+    set: &mut OutputSet,
+    path: &Path,
+    keyframes: &[Keyframe],
+    live: Option<&LiveLog<'_>>,
+    reference: Option<&Trajectory>,
+    imu: Option<&ImuSamples>,
+    metadata: &[(String, String)],
+    options: &SlamLogOptions,
+) -> Result<()> {
     // (log time, order within the same time, channel slot, payload)
     let mut msgs: Vec<(u64, usize, usize, Vec<u8>)> = Vec::new();
+    if let Some(l) = live {
+        if l.first_poses.len() != keyframes.len() {
+            return Err(Error::ShapeMismatch {
+                what: "first_poses".into(),
+                expected: format!("{}, one per keyframe", keyframes.len()),
+                got: format!("{}", l.first_poses.len()),
+            });
+        }
+    }
     for (i, kf) in keyframes.iter().enumerate() {
         let t = nanos(path, &format!("keyframe {}", kf.id), kf.timestamp)?;
-        msgs.push((t, i, 0, keyframe_msg_ros1(kf)));
+        let msg = match live {
+            Some(l) => keyframe_msg_ros1_at(kf, &l.first_poses[i]),
+            None => keyframe_msg_ros1(kf),
+        };
+        msgs.push((t, i, 0, msg));
+        if let (Some(l), Some(next)) = (live, keyframes.get(i + 1)) {
+            if l.republish {
+                let t = nanos(path, &format!("keyframe {}", next.id), next.timestamp)?;
+                msgs.push((t, i, 0, keyframe_msg_ros1(kf)));
+            }
+        }
+    }
+    if let Some(l) = live {
+        let f = l.frames;
+        for i in 0..f.len() {
+            let t = nanos(path, "live frame", f.timestamps[i])?;
+            let q = f
+                .orientations
+                .as_ref()
+                .map_or_else(nalgebra::UnitQuaternion::identity, |o| o[i]);
+            let pose = Sim3::try_new(q, f.positions[i], 1.0)?;
+            msgs.push((
+                t,
+                i,
+                4,
+                live_frame_msg_ros1(i as i32, f.timestamps[i], &pose, &l.camera),
+            ));
+        }
+        if let (Some(period), Some(_), Some(first), Some(last)) = (
+            l.graph_period,
+            &options.graph_topic,
+            keyframes.first().map(|k| k.timestamp),
+            keyframes.iter().map(|k| k.timestamp).reduce(f64::max),
+        ) {
+            if !(period.is_finite() && period > 0.0) {
+                return Err(Error::invalid(
+                    "graph_period",
+                    format!("{period} is not a positive number of seconds"),
+                ));
+            }
+            let mut k = 1usize;
+            while first + k as f64 * period < last {
+                let at = first + k as f64 * period;
+                let seen: Vec<(i32, Sim3)> = keyframes
+                    .iter()
+                    .filter(|kf| kf.timestamp <= at)
+                    .map(|kf| (kf.id, kf.pose))
+                    .collect();
+                let t = nanos(path, "graph", at)?;
+                msgs.push((t, k, 1, graph_msg_ros1_poses(&seen)));
+                k += 1;
+            }
+        }
     }
     if let (Some(_), Some(last)) = (
         &options.graph_topic,
@@ -859,6 +1031,16 @@ pub fn write_slam_log_into(
                     path,
                     &options.imu_topic,
                     schemas::ROS1_IMU,
+                    "ros1",
+                )?),
+                None => None,
+            },
+            match live {
+                Some(l) => Some(add_channel(
+                    w,
+                    path,
+                    l.topic,
+                    schemas::ROS1_KEYFRAME,
                     "ros1",
                 )?),
                 None => None,

@@ -1,0 +1,406 @@
+//! `slam2world follow LOG.mcap -o OUT/`: the online conversion of a log that
+//! is still being written.
+//!
+//! The file is read as it grows (MCAP needs no summary to be read: the
+//! `mcap` crate's sans-io `LinearReader` is fed the new bytes at every poll,
+//! chunks decompressed as they complete); every message goes into a
+//! [`Session`] in log order. After every keyframe the outputs in `OUT/` are
+//! replaced as one set of atomic renames — `report.json` (stage, transform,
+//! timing), and once the transform is known `map.bt`, `world.mcap` (the
+//! transform, the occupied voxels and the 2-D grid: a rolling file, the
+//! latest state) and with `--grid` nav2's `map.pgm` + `map.yaml` +
+//! `map_height.npy` — so that a reader never sees a half-written file. One
+//! status line per keyframe goes to stdout (stage, scale, rmse, points,
+//! latency). It stops at the end of the log (the MCAP footer), after
+//! `--idle-timeout` seconds without growth, or on Ctrl-C (exit 130, the last
+//! complete outputs left as they were); at the end of the log the map is made
+//! exact ([`Session::finish`]) and written once more.
+
+use std::fs::File;
+use std::io::{Read, Seek, SeekFrom};
+use std::path::{Path, PathBuf};
+use std::time::{Duration, Instant};
+
+use clap::Args;
+
+use super::args::{finite, non_negative, positive, print};
+use crate::defaults;
+use crate::error::{Error, Result};
+use crate::io::atomic::OutputSet;
+use crate::io::mcap::grid_msgs::grid_channels;
+use crate::io::mcap::write::{write_world_mcap_extra_into, ExtraChannel};
+use crate::io::mcap::{WorldFlavor, WorldScene};
+use crate::io::messages::decode::MessageKind;
+use crate::io::nav2::{write_nav2_into, Nav2Files};
+use crate::map::{GridParams, MapParams, VoxelState};
+use crate::pipeline::outputs::{
+    MAP_BT, MAP_HEIGHT_NPY, MAP_PGM, MAP_YAML, REPORT_JSON, WORLD_MCAP,
+};
+use crate::pipeline::report::{to_json_bytes, FollowReport, TransformReport};
+use crate::pipeline::session::{LogFeed, Pushed, Session, SessionOptions};
+
+/// Arguments of `follow`.
+#[derive(Args, Debug)]
+pub struct FollowArgs {
+    /// The MCAP log being written (LSD-SLAM keyframes, live frames, graph,
+    /// reference poses).
+    pub log: PathBuf,
+    /// Output folder (created when missing).
+    #[arg(short, long)]
+    pub output: PathBuf,
+    /// Seconds between polls of the file for new bytes.
+    #[arg(long, value_name = "S", default_value_t = 0.05, value_parser = positive)]
+    pub poll: f64,
+    /// Stop after this many seconds without the file growing (the writer
+    /// gone without closing the log).
+    #[arg(long, value_name = "S", default_value_t = 10.0, value_parser = positive)]
+    pub idle_timeout: f64,
+    /// Octree voxel edge, metres.
+    #[arg(long, value_name = "RES", default_value_t = defaults::DEMO_OCTREE_RESOLUTION, value_parser = positive)]
+    pub octree: f64,
+    /// Octree rays longer than this (metres) only clear space.
+    #[arg(long, value_name = "M", default_value_t = 10.0, value_parser = positive)]
+    pub octree_max_range: f64,
+    /// Also write the 2-D grid of the voxels between Z_MIN and Z_MAX (metres).
+    #[arg(long, num_args = 2, value_names = ["Z_MIN", "Z_MAX"], allow_hyphen_values = true, value_parser = finite)]
+    pub grid: Option<Vec<f64>>,
+    /// Association window, seconds.
+    #[arg(long, default_value_t = defaults::MAX_DIFF, value_parser = non_negative)]
+    pub max_diff: f64,
+    /// Seconds of stable stage seen before the transform is given.
+    #[arg(long, value_name = "S", default_value_t = crate::pipeline::session::STABLE_HOLD_S, value_parser = non_negative)]
+    pub stable_hold: f64,
+    /// Write ROS 2 messages into world.mcap instead of Foxglove schemas.
+    #[arg(long)]
+    pub ros2: bool,
+    /// No status lines.
+    #[arg(short, long)]
+    pub quiet: bool,
+}
+
+/// The names `follow` writes (a stale one of an earlier run is removed).
+const NAMES: &[&str] = &[
+    REPORT_JSON,
+    MAP_BT,
+    WORLD_MCAP,
+    MAP_PGM,
+    MAP_YAML,
+    MAP_HEIGHT_NPY,
+];
+
+/// A channel as the follower knows it.
+struct Chan {
+    topic: String,
+    encoding: String,
+    kind: Option<MessageKind>,
+}
+
+/// The growing file and the reader fed from it.
+struct Tail {
+    file: File,
+    offset: u64,
+    reader: mcap::sans_io::LinearReader,
+}
+
+impl Tail {
+    fn open(path: &Path) -> Result<Tail> {
+        let file = File::open(path).map_err(|e| Error::io(path, e))?;
+        Ok(Tail {
+            file,
+            offset: 0,
+            reader: mcap::sans_io::LinearReader::new(),
+        })
+    }
+
+    /// Reads up to `want` new bytes into the reader; the number read (0: the
+    /// file has not grown).
+    fn feed(&mut self, path: &Path, want: usize) -> Result<usize> {
+        let len = self.file.metadata().map_err(|e| Error::io(path, e))?.len();
+        if len < self.offset {
+            return Err(Error::Mcap {
+                path: path.to_path_buf(),
+                reason: format!("the file shrank to {len} bytes while it was followed"),
+            });
+        }
+        let n = ((len - self.offset) as usize).min(want.max(1 << 16));
+        if n == 0 {
+            return Ok(0);
+        }
+        self.file
+            .seek(SeekFrom::Start(self.offset))
+            .map_err(|e| Error::io(path, e))?;
+        let buf = self.reader.insert(n);
+        let got = self.file.read(buf).map_err(|e| Error::io(path, e))?;
+        self.reader.notify_read(got);
+        self.offset += got as u64;
+        Ok(got)
+    }
+}
+
+/// Runs `follow`.
+pub fn run(args: &FollowArgs) -> Result<()> {
+    let opts = SessionOptions {
+        align: crate::align::trajectories::TrajectoryAlignOptions {
+            max_diff: args.max_diff,
+            ..Default::default()
+        },
+        map: MapParams {
+            max_range: Some(args.octree_max_range),
+            ..MapParams::new(args.octree)
+        },
+        stable_hold: args.stable_hold,
+        rebuild_tolerance: 0.5 * args.octree,
+        ..SessionOptions::default()
+    };
+    let grid = args.grid.as_ref().map(|z| GridParams::new(z[0], z[1]));
+    if let Some(g) = &grid {
+        g.check()?;
+    }
+    let mut feed = LogFeed::new(opts)?;
+    // Refuse a bad output folder (a file, the log's own folder entry) first.
+    OutputSet::folder(&args.output, NAMES)?
+        .with_inputs([&args.log])
+        .check_output(&args.output.join(REPORT_JSON))?;
+    // Wait for the file to appear (the writer may start after us).
+    let t_start = Instant::now();
+    while !args.log.exists() {
+        crate::interrupt::check()?;
+        if t_start.elapsed().as_secs_f64() > args.idle_timeout {
+            return Err(Error::io(
+                &args.log,
+                std::io::Error::new(std::io::ErrorKind::NotFound, "no such file"),
+            ));
+        }
+        std::thread::sleep(Duration::from_secs_f64(args.poll));
+    }
+    let mut tail = Tail::open(&args.log)?;
+    let mut schemas: std::collections::HashMap<u16, String> = Default::default();
+    let mut chans: std::collections::HashMap<u16, Chan> = Default::default();
+    let mut last_growth = Instant::now();
+    let mut keyframes = 0usize;
+    let mut ended = false;
+    let mut report = FollowReport::new(&args.log);
+    'outer: loop {
+        crate::interrupt::check()?;
+        let event = match tail.reader.next_event() {
+            None => break,
+            Some(e) => e.map_err(|e| Error::Mcap {
+                path: args.log.clone(),
+                reason: e.to_string(),
+            })?,
+        };
+        let (opcode, data) = match event {
+            mcap::sans_io::LinearReadEvent::ReadRequest(n) => {
+                loop {
+                    if tail.feed(&args.log, n)? > 0 {
+                        last_growth = Instant::now();
+                        break;
+                    }
+                    crate::interrupt::check()?;
+                    if last_growth.elapsed().as_secs_f64() > args.idle_timeout {
+                        break 'outer;
+                    }
+                    std::thread::sleep(Duration::from_secs_f64(args.poll));
+                }
+                continue;
+            }
+            mcap::sans_io::LinearReadEvent::Record { opcode, data } => (opcode, data.to_vec()),
+        };
+        let record = mcap::parse_record(opcode, &data).map_err(|e| Error::Mcap {
+            path: args.log.clone(),
+            reason: e.to_string(),
+        })?;
+        use mcap::records::Record;
+        match record {
+            Record::Schema { header, .. } => {
+                schemas.insert(header.id, header.name);
+            }
+            Record::Channel(c) => {
+                let name = schemas.get(&c.schema_id).cloned().unwrap_or_default();
+                chans.insert(
+                    c.id,
+                    Chan {
+                        topic: c.topic,
+                        encoding: c.message_encoding,
+                        kind: MessageKind::from_schema(&name),
+                    },
+                );
+            }
+            Record::Message { header, data } => {
+                let Some(ch) = chans.get(&header.channel_id) else {
+                    continue;
+                };
+                let pushed = feed
+                    .push(&ch.topic, ch.kind, &ch.encoding, &data)
+                    .map_err(|e| Error::Mcap {
+                        path: args.log.clone(),
+                        reason: e.to_string(),
+                    })?;
+                if let Pushed::Keyframe {
+                    id,
+                    decode_s,
+                    timing,
+                } = pushed
+                {
+                    let latency = decode_s + timing.fit_s + timing.backproject_s + timing.insert_s;
+                    keyframes += 1;
+                    report.update(&feed.session, id, decode_s, &timing, latency);
+                    write_outputs(args, &feed.session, &report, grid.as_ref())?;
+                    if !args.quiet {
+                        status_line(&feed.session, id, latency)?;
+                    }
+                }
+            }
+            Record::Footer(_) | Record::DataEnd(_) => {
+                ended = true;
+                break;
+            }
+            _ => {}
+        }
+    }
+    let session = &mut feed.session;
+    let timing = session.finish()?;
+    report.update(session, -1, 0.0, &timing, 0.0);
+    report.finished = true;
+    report.end = if ended { "end of log" } else { "idle timeout" }.into();
+    write_outputs(args, session, &report, grid.as_ref())?;
+    if !args.quiet {
+        let s = session.state();
+        print(&format!(
+            "follow: {} keyframes, {} live frames, stage {} ({}); {}\n",
+            keyframes,
+            s.frames,
+            s.stage.name(),
+            report.end,
+            match session.transform() {
+                Ok(t) => format!(
+                    "T_world_slam scale {:.6}, rmse {:.4} m over {} pairs",
+                    t.transform.scale, t.rmse, t.pairs
+                ),
+                Err(e) => format!("no transform: {e}"),
+            }
+        ))?;
+    }
+    Ok(())
+}
+
+fn status_line(session: &Session, id: i32, latency: f64) -> Result<()> {
+    let s = session.state();
+    let (scale, rmse) = match session.transform() {
+        Ok(t) => (
+            format!("{:.6}", t.transform.scale),
+            format!("{:.4}", t.rmse),
+        ),
+        Err(_) => ("-".into(), "-".into()),
+    };
+    print(&format!(
+        "keyframe {id} t {:.3} s stage {} scale {scale} rmse {rmse} m points {} latency {:.1} ms\n",
+        s.time,
+        s.stage.name(),
+        s.points,
+        1e3 * latency
+    ))
+}
+
+/// Replaces the outputs as one set.
+fn write_outputs(
+    args: &FollowArgs,
+    session: &Session,
+    report: &FollowReport,
+    grid: Option<&GridParams>,
+) -> Result<()> {
+    let mut set = OutputSet::folder(&args.output, NAMES)?.with_inputs([&args.log]);
+    if let (Some(map), Ok(t)) = (session.map(), session.transform()) {
+        set.write_bytes(&set.path(MAP_BT), &map.to_bt_bytes())?;
+        let g = match grid {
+            Some(p) => {
+                let g = map.grid_of(p)?;
+                (!g.is_empty()).then_some((g, p.occupied_threshold))
+            }
+            None => None,
+        };
+        let flavor = if args.ros2 {
+            WorldFlavor::Ros2
+        } else {
+            WorldFlavor::Foxglove
+        };
+        let stamp = session.state().time.max(0.0);
+        let channels = match &g {
+            Some((g, _)) => grid_channels(g, stamp, "world", flavor)?,
+            None => Vec::new(),
+        };
+        let extra: Vec<ExtraChannel<'_>> = channels
+            .iter()
+            .map(|c| ExtraChannel {
+                topic: c.topic,
+                schema: c.schema,
+                message_encoding: c.message_encoding,
+                data: &c.data,
+            })
+            .collect();
+        let scene = WorldScene {
+            points: &[],
+            colors: None,
+            t_world_slam: t.transform,
+            slam_trajectory: None,
+            reference: None,
+            stamp,
+            world_frame: "world",
+            slam_frame: "slam",
+        };
+        let leaves = map.leaves(VoxelState::Occupied);
+        let world = set.path(WORLD_MCAP);
+        write_world_mcap_extra_into(&mut set, &world, &scene, Some(&leaves), &extra, flavor)?;
+        if let Some((g, threshold)) = &g {
+            let files = Nav2Files {
+                image: set.path(MAP_PGM),
+                yaml: set.path(MAP_YAML),
+                height: set.path(MAP_HEIGHT_NPY),
+            };
+            write_nav2_into(&mut set, g, &files, *threshold)?;
+        }
+    }
+    set.write_bytes(&set.path(REPORT_JSON), &to_json_bytes(report)?)?;
+    set.commit().map(|_| ())
+}
+
+impl FollowReport {
+    /// The report of `session` after keyframe `id` (-1: the end).
+    fn update(
+        &mut self,
+        session: &Session,
+        id: i32,
+        decode_s: f64,
+        t: &crate::pipeline::session::UpdateTiming,
+        latency: f64,
+    ) {
+        let s = session.state();
+        self.stage = s.stage.name().into();
+        self.reason = s.reason.clone();
+        self.time = s.time;
+        self.last_keyframe = id;
+        self.keyframes = s.keyframes;
+        self.frames = s.frames;
+        self.points = s.points;
+        self.rebuilds = s.rebuilds;
+        self.stable_time = s.stable_time;
+        self.stable_reported_at = s.stable_reported_at;
+        match session.transform() {
+            Ok(tr) => {
+                self.t_world_slam = Some(TransformReport::from(&tr.transform));
+                self.fit_rmse = Some(tr.rmse);
+                self.pairs_fitted = tr.pairs;
+            }
+            Err(_) => {
+                self.t_world_slam = None;
+                self.fit_rmse = None;
+                self.pairs_fitted = 0;
+            }
+        }
+        self.decode_s = decode_s;
+        self.fit_s = t.fit_s;
+        self.backproject_s = t.backproject_s;
+        self.insert_s = t.insert_s;
+        self.latency_s = latency;
+    }
+}

@@ -1,0 +1,1193 @@
+//! The online conversion: a [`Session`] fed what a SLAM log holds, message by
+//! message, in the order it arrives (tracked frames, keyframes, graph
+//! updates, reference poses, IMU samples), keeping `T_world_slam` and the
+//! occupancy map up to date while the SLAM runs.
+//!
+//! - Pairing: each tracked frame and keyframe is paired with the nearest
+//!   reference pose within `max_diff` (after `offset`), the rule of the
+//!   batch fit's `evo` association, decided as soon as a reference pose later
+//!   than `t + max_diff` has arrived (no later pose can be nearer).
+//! - Stages ([`Session::state`]), decided on the matched tracked frames seen
+//!   so far only: the stable stage is reported once the medians of `ln p_k`
+//!   over the last three spans of [`SessionOptions::stable_hold`] seconds
+//!   agree within [`SETTLED_Z`] standard errors (a level that no longer
+//!   wanders, jumps or ramps) after at least [`MIN_CONVERGING_HOLDS`] spans
+//!   of converging were seen (or, without a convergence, after
+//!   [`LONG_SETTLED_HOLDS`] spans of steadiness); before, a steady move over
+//!   the spans is the converging stretch, anything else the start. Where the stable stage
+//!   starts (the fit's cut) is then found by the batch rule on the data so
+//!   far ([`super::startup`]). Before that, [`Session::transform`] says why
+//!   there is none.
+//! - Fit: once stable, the keyframe pairs stamped from the stable start on are
+//!   fitted from running moments (one O(1) update per pair, a pair moved by a
+//!   graph update taken out and put back); the closed form is that of the
+//!   batch fit ([`crate::align`]), so a session fed a whole log ends on the
+//!   transform of `convert --skip-init auto` of the same log (up to the
+//!   rounding of the sums). When the cut moves (more data), the moments are
+//!   summed again over the new range.
+//! - Map: once the transform is known every keyframe is backprojected with the
+//!   viewer's filter and inserted as one scan from its camera centre, in
+//!   ascending id order (the batch order); keyframes from before that moment
+//!   are inserted then. OctoMap cannot take a scan out again, so when the
+//!   transform or a keyframe pose has moved an inserted keyframe by more than
+//!   [`SessionOptions::rebuild_tolerance`] the map is rebuilt from the
+//!   keyframes in order; [`Session::finish`] rebuilds when anything moved at
+//!   all, so that the final map equals the batch octree node for node.
+//! - Not yet online: GNSS fixes ([`Session::push_fix`] refuses them with a
+//!   clear error) and the IMU-only path (IMU samples are kept, not used).
+
+use std::collections::BTreeMap;
+use std::time::Instant;
+
+use nalgebra::{UnitQuaternion, Vector3};
+
+use crate::align::covariance::{covariance, Covariance};
+use crate::align::trajectories::TrajectoryAlignOptions;
+use crate::align::{solve_running, AlignOptions, Moments};
+use crate::cloud::{backproject_counted, PointFilter};
+use crate::error::{Error, Result};
+use crate::geometry::Sim3;
+use crate::keyframe::Keyframe;
+use crate::map::{Grid2d, MapParams, OccupancyMap};
+use crate::trajectory::Association;
+
+use super::startup::{cut_of_pairs, LiveCut};
+
+/// Seconds of stable stage the detection must see before it is reported.
+pub const STABLE_HOLD_S: f64 = 5.0;
+
+/// Standard errors within which the medians of `ln p_k` over the last three
+/// spans must agree for the level to count as settled.
+pub const SETTLED_Z: f64 = 2.0;
+
+/// [`SessionOptions::stable_hold`] spans of converging (a steady move of the
+/// level) that must have been seen before a steady level counts as the
+/// stable stage (20 s with the default hold).
+pub const MIN_CONVERGING_HOLDS: f64 = 4.0;
+
+/// Without a convergence seen, a steady level counts as stable after this
+/// many [`SessionOptions::stable_hold`] spans of steadiness (a run without a
+/// start-up).
+pub const LONG_SETTLED_HOLDS: f64 = 6.0;
+
+/// Fewest factors in each span of the settling test.
+pub const SETTLED_MIN_FACTORS: usize = 30;
+
+/// Seconds of tracked frames between two stage detections (each one runs
+/// over every matched frame so far).
+pub const DETECT_EVERY_S: f64 = 1.0;
+
+/// What a session is told.
+#[derive(Clone, Debug, PartialEq)]
+pub struct SessionOptions {
+    /// Association (`max_diff`, `offset`, `association`) and fit (`scale`,
+    /// `method`) options; the start-up cut is always the live one
+    /// ([`super::startup`]); robust fits, a time-offset search, orientations,
+    /// a pair budget and fits other than Sim(3) / SE(3) are refused.
+    pub align: TrajectoryAlignOptions,
+    /// Which pixels become points.
+    pub filter: PointFilter,
+    /// The occupancy octree.
+    pub map: MapParams,
+    /// Seconds of stable stage seen before the stable stage is reported.
+    pub stable_hold: f64,
+    /// Metres an inserted keyframe's camera (or a point at the map's max range,
+    /// 10 m without one) may move before the map is rebuilt.
+    pub rebuild_tolerance: f64,
+}
+
+impl Default for SessionOptions {
+    fn default() -> Self {
+        let map = MapParams {
+            max_range: Some(10.0),
+            ..MapParams::new(crate::defaults::DEMO_OCTREE_RESOLUTION)
+        };
+        SessionOptions {
+            align: TrajectoryAlignOptions::default(),
+            filter: PointFilter::default(),
+            rebuild_tolerance: 0.5 * map.resolution,
+            map,
+            stable_hold: STABLE_HOLD_S,
+        }
+    }
+}
+
+impl SessionOptions {
+    /// Checks the options (see the field docs for what is refused online).
+    pub fn check(&self) -> Result<()> {
+        self.align.check()?;
+        self.filter.validate()?;
+        self.map.check()?;
+        let a = &self.align;
+        let refuse = |what: &str| {
+            Err(Error::invalid(
+                what,
+                "not supported by the online session (it fits a plain Sim(3) / SE(3) by Horn \
+                 from running moments); use the batch convert",
+            ))
+        };
+        if a.robust.is_some() {
+            return refuse("robust");
+        }
+        if a.estimate_offset.is_some() {
+            return refuse("estimate_offset");
+        }
+        if a.use_orientations || a.body_from_cam.is_some() {
+            return refuse("use_orientations");
+        }
+        if a.n_to_align.is_some() {
+            return refuse("n_to_align");
+        }
+        if a.dof != crate::align::dof::Dof::default() || a.anchor != Default::default() {
+            return refuse("dof");
+        }
+        if a.association != Association::Evo {
+            return refuse("association");
+        }
+        for (what, v) in [
+            ("stable_hold", self.stable_hold),
+            ("rebuild_tolerance", self.rebuild_tolerance),
+        ] {
+            if !(v.is_finite() && v >= 0.0) {
+                return Err(Error::invalid(what, format!("{v} is not a number >= 0")));
+            }
+        }
+        Ok(())
+    }
+}
+
+/// The start-up stage of the SLAM as seen so far.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
+pub enum Stage {
+    /// Too few tracked frames matched with the reference to tell.
+    Waiting,
+    /// The unsynchronised start: the scale wanders and jumps.
+    Start,
+    /// The scale moves towards its final level.
+    Converging,
+    /// The scale has settled: `T_world_slam` is fitted.
+    Stable,
+}
+
+impl Stage {
+    /// The stage's name (`waiting`, `start`, `converging`, `stable`).
+    pub fn name(self) -> &'static str {
+        match self {
+            Stage::Waiting => "waiting",
+            Stage::Start => "start",
+            Stage::Converging => "converging",
+            Stage::Stable => "stable",
+        }
+    }
+}
+
+/// What [`Session::state`] says.
+#[derive(Clone, Debug, PartialEq)]
+pub struct SessionState {
+    /// The stage.
+    pub stage: Stage,
+    /// Why (one line).
+    pub reason: String,
+    /// Latest SLAM stamp seen (tracked frame or keyframe), seconds.
+    pub time: f64,
+    /// Log time (latest SLAM stamp) at which the stable stage was first
+    /// reported.
+    pub stable_reported_at: Option<f64>,
+    /// Where the current detection puts the stable stage's start (SLAM stamp).
+    pub stable_time: Option<f64>,
+    /// Where the current detection puts the converging stretch's start.
+    pub converging_time: Option<f64>,
+    /// Tracked frames pushed, and those matched with a reference pose.
+    pub frames: usize,
+    /// Tracked frames matched with a reference pose.
+    pub frames_matched: usize,
+    /// Keyframes (latest version per id).
+    pub keyframes: usize,
+    /// Keyframes matched with a reference pose.
+    pub keyframes_matched: usize,
+    /// Keyframe pairs in the fit.
+    pub pairs_fitted: usize,
+    /// Keyframes inserted into the map.
+    pub keyframes_inserted: usize,
+    /// Points inserted into the map.
+    pub points: usize,
+    /// Times the map was rebuilt because inserted keyframes moved.
+    pub rebuilds: usize,
+}
+
+/// `T_world_slam` as the session has it.
+#[derive(Clone, Debug)]
+pub struct SessionTransform {
+    /// `T_world_slam`.
+    pub transform: Sim3,
+    /// Its covariance from the fitted pairs (`None` with too few pairs for a
+    /// degree of freedom).
+    pub covariance: Option<Covariance>,
+    /// rms residual of the fitted pairs, metres.
+    pub rmse: f64,
+    /// Keyframe pairs fitted.
+    pub pairs: usize,
+    /// SLAM stamp of the first fitted pair's stage start (the live cut).
+    pub stable_time: f64,
+}
+
+/// Why [`Session::transform`] has no transform yet.
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub struct NotReady {
+    /// One line.
+    pub reason: String,
+}
+
+impl std::fmt::Display for NotReady {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.write_str(&self.reason)
+    }
+}
+
+/// How long the last map update took, by part (seconds).
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct UpdateTiming {
+    /// Stage detection and fit.
+    pub fit_s: f64,
+    /// Backprojection of the keyframes inserted.
+    pub backproject_s: f64,
+    /// Octree insertion (or rebuild).
+    pub insert_s: f64,
+    /// Keyframes inserted by the update (all of them on a rebuild).
+    pub inserted: usize,
+    /// Whether the update rebuilt the map.
+    pub rebuilt: bool,
+}
+
+/// A tracked frame waiting for its reference pose: time, SLAM position.
+type Pending = (f64, Vector3<f64>);
+
+/// A keyframe as the session keeps it.
+#[derive(Clone, Debug)]
+struct Kf {
+    keyframe: Keyframe,
+    /// Order of first arrival (the batch's keyframe order, which the
+    /// viewer's `cutFirstNKf` counts in).
+    arrival: usize,
+    /// The reference position it is paired with.
+    reference: Option<Vector3<f64>>,
+    /// The SLAM position that is in the moments (when it is fitted).
+    in_fit: Option<Vector3<f64>>,
+}
+
+/// An inserted keyframe: the `T_world_cam` it was inserted with.
+#[derive(Clone, Copy, Debug)]
+struct Inserted {
+    t_world_cam: Sim3,
+}
+
+/// The online conversion (see the module doc).
+pub struct Session {
+    opts: SessionOptions,
+    ref_times: Vec<f64>,
+    ref_pos: Vec<Vector3<f64>>,
+    ref_rot: Vec<Option<UnitQuaternion<f64>>>,
+    imu: usize,
+    // Tracked frames: matched pairs in time order.
+    frames: usize,
+    pending_frames: Vec<Pending>,
+    live_times: Vec<f64>,
+    live_slam: Vec<Vector3<f64>>,
+    live_ref: Vec<Vector3<f64>>,
+    last_detect: f64,
+    // Keyframes by id, and those waiting for a reference pose.
+    kfs: BTreeMap<i32, Kf>,
+    pending_kfs: Vec<i32>,
+    latest: f64,
+    cut: Option<LiveCut>,
+    stable_reported_at: Option<f64>,
+    stage: Stage,
+    reason: String,
+    converging_s: f64,
+    settled_s: f64,
+    finished: bool,
+    // The fit: moments over the fitted keyframes (by id), from `fit_from`.
+    moments: Option<Moments>,
+    fit_from: f64,
+    transform: Option<Sim3>,
+    // The map.
+    map: Option<OccupancyMap>,
+    inserted: BTreeMap<i32, Inserted>,
+    points: usize,
+    rebuilds: usize,
+    last_update: UpdateTiming,
+}
+
+fn finite3(what: &str, v: &Vector3<f64>) -> Result<()> {
+    if v.iter().all(|x| x.is_finite()) {
+        Ok(())
+    } else {
+        Err(Error::NonFinite {
+            what: what.into(),
+            index: 0,
+        })
+    }
+}
+
+impl Session {
+    /// A new session; the options are checked.
+    pub fn new(opts: SessionOptions) -> Result<Session> {
+        opts.check()?;
+        Ok(Session {
+            opts,
+            ref_times: Vec::new(),
+            ref_pos: Vec::new(),
+            ref_rot: Vec::new(),
+            imu: 0,
+            frames: 0,
+            pending_frames: Vec::new(),
+            live_times: Vec::new(),
+            live_slam: Vec::new(),
+            live_ref: Vec::new(),
+            last_detect: f64::NEG_INFINITY,
+            kfs: BTreeMap::new(),
+            pending_kfs: Vec::new(),
+            latest: f64::NEG_INFINITY,
+            cut: None,
+            stable_reported_at: None,
+            stage: Stage::Waiting,
+            converging_s: 0.0,
+            settled_s: 0.0,
+            finished: false,
+            reason: "no tracked frame matched with a reference pose yet".into(),
+            moments: None,
+            fit_from: f64::INFINITY,
+            transform: None,
+            map: None,
+            inserted: BTreeMap::new(),
+            points: 0,
+            rebuilds: 0,
+            last_update: UpdateTiming::default(),
+        })
+    }
+
+    /// The options.
+    pub fn options(&self) -> &SessionOptions {
+        &self.opts
+    }
+
+    /// A reference pose `T_world_body` at `time` (seconds; positions in
+    /// metres). Poses must come in increasing time.
+    pub fn push_reference(
+        &mut self,
+        time: f64,
+        position: Vector3<f64>,
+        orientation: Option<UnitQuaternion<f64>>,
+    ) -> Result<()> {
+        finite3("reference position", &position)?;
+        if !time.is_finite() {
+            return Err(Error::invalid("time", format!("{time} is not finite")));
+        }
+        if let Some(&last) = self.ref_times.last() {
+            if time <= last {
+                return Err(Error::invalid(
+                    "time",
+                    format!(
+                        "reference pose at {time} s is not after the previous one ({last} s): \
+                         the session takes reference poses in time order"
+                    ),
+                ));
+            }
+        }
+        self.ref_times.push(time);
+        self.ref_pos.push(position);
+        self.ref_rot.push(orientation);
+        self.match_pending(false);
+        Ok(())
+    }
+
+    /// An IMU sample (kept, not used online yet: the session's world frame
+    /// comes from the reference poses).
+    pub fn push_imu(&mut self, time: f64, gyro: Vector3<f64>, accel: Vector3<f64>) -> Result<()> {
+        finite3("gyro", &gyro)?;
+        finite3("accel", &accel)?;
+        if !time.is_finite() {
+            return Err(Error::invalid("time", format!("{time} is not finite")));
+        }
+        self.imu += 1;
+        Ok(())
+    }
+
+    /// A GNSS fix: refused, GNSS fixes are not part of the online session yet.
+    pub fn push_fix(&mut self, _time: f64, _lat_lon_alt: [f64; 3]) -> Result<()> {
+        Err(Error::invalid(
+            "push_fix",
+            "GNSS fixes are not supported by the online session yet (the batch convert's GNSS \
+             path is not wired into it); give reference poses with push_reference",
+        ))
+    }
+
+    /// A tracked frame: the SLAM's `T_slam_cam` at `time` as published live
+    /// (LSD-SLAM's live frames), the start-up stages' evidence.
+    pub fn push_frame(&mut self, time: f64, pose: &Sim3) -> Result<()> {
+        finite3("frame position", &pose.translation)?;
+        if !time.is_finite() {
+            return Err(Error::invalid("time", format!("{time} is not finite")));
+        }
+        self.frames += 1;
+        self.pending_frames.push((time, pose.translation));
+        self.latest = self.latest.max(time);
+        self.match_pending(false);
+        if time - self.last_detect >= DETECT_EVERY_S {
+            // The stage only: the fit and the map move with keyframes.
+            self.detect(false);
+        }
+        Ok(())
+    }
+
+    /// A keyframe (its pose `T_slam_cam` as published now); a keyframe of an id
+    /// already seen replaces it (a re-published, refined keyframe). Updates the
+    /// stages, the fit and the map.
+    pub fn push_keyframe(&mut self, keyframe: Keyframe) -> Result<UpdateTiming> {
+        finite3("keyframe position", &keyframe.pose.translation)?;
+        let id = keyframe.id;
+        self.latest = self.latest.max(keyframe.timestamp);
+        match self.kfs.get_mut(&id) {
+            Some(k) => {
+                let (old_time, reference) = (k.keyframe.timestamp, k.reference);
+                k.keyframe = keyframe;
+                if k.keyframe.timestamp != old_time || reference.is_none() {
+                    // Paired anew at its (new) time.
+                    self.unfit(id);
+                    if let Some(k) = self.kfs.get_mut(&id) {
+                        k.reference = None;
+                    }
+                    if !self.pending_kfs.contains(&id) {
+                        self.pending_kfs.push(id);
+                    }
+                } else {
+                    self.refit_moved(id);
+                }
+            }
+            None => {
+                let arrival = self.kfs.len();
+                self.kfs.insert(
+                    id,
+                    Kf {
+                        keyframe,
+                        arrival,
+                        reference: None,
+                        in_fit: None,
+                    },
+                );
+                self.pending_kfs.push(id);
+            }
+        }
+        self.match_pending(false);
+        self.update()?;
+        Ok(self.last_update)
+    }
+
+    /// A graph update: new poses `T_slam_cam` of keyframes by id (ids not seen
+    /// yet are ignored, as the batch reader does). Moved keyframes are taken
+    /// out of the fit and put back, and re-inserted into the map when they
+    /// moved beyond the tolerance.
+    pub fn push_graph_update(&mut self, poses: &[(i32, Sim3)]) -> Result<UpdateTiming> {
+        for (id, pose) in poses {
+            finite3("graph pose", &pose.translation)?;
+            if let Some(k) = self.kfs.get_mut(id) {
+                k.keyframe.pose = *pose;
+                self.refit_moved(*id);
+            }
+        }
+        self.update()?;
+        Ok(self.last_update)
+    }
+
+    /// Everything has been pushed: pairs every item still waiting (no later
+    /// reference pose will come), cuts by the batch rule on all the data (the
+    /// stable stage then holds even where it was not reported online:
+    /// `stable_reported_at` stays `None`), fits, and rebuilds
+    /// the map when anything inserted moved at all, so that it equals the
+    /// batch conversion's octree of the same data.
+    pub fn finish(&mut self) -> Result<UpdateTiming> {
+        self.finished = true;
+        self.match_pending(true);
+        self.update()?;
+        if self.transform.is_some() && self.map_moved(0.0) {
+            let t = Instant::now();
+            self.rebuild()?;
+            self.last_update.insert_s += t.elapsed().as_secs_f64();
+            self.last_update.rebuilt = true;
+        }
+        Ok(self.last_update)
+    }
+
+    /// The stage and what the session holds.
+    pub fn state(&self) -> SessionState {
+        SessionState {
+            stage: self.stage,
+            reason: self.reason.clone(),
+            time: self.latest,
+            stable_reported_at: self.stable_reported_at,
+            stable_time: self.cut.as_ref().map(|c| c.stable_time),
+            converging_time: self.cut.as_ref().map(|c| c.converging_time),
+            frames: self.frames,
+            frames_matched: self.live_times.len(),
+            keyframes: self.kfs.len(),
+            keyframes_matched: self.kfs.values().filter(|k| k.reference.is_some()).count(),
+            pairs_fitted: self.moments.as_ref().map_or(0, |m| m.n),
+            keyframes_inserted: self.inserted.len(),
+            points: self.points,
+            rebuilds: self.rebuilds,
+        }
+    }
+
+    /// `T_world_slam` with its covariance once the stable stage is reached;
+    /// before, why not.
+    pub fn transform(&self) -> std::result::Result<SessionTransform, NotReady> {
+        let Some(t) = self.transform else {
+            return Err(NotReady {
+                reason: self.reason.clone(),
+            });
+        };
+        let (src, dst) = self.fitted_pairs();
+        let rmse = (src
+            .iter()
+            .zip(&dst)
+            .map(|(a, b)| (b - t.transform_point(a)).norm_squared())
+            .sum::<f64>()
+            / src.len().max(1) as f64)
+            .sqrt();
+        Ok(SessionTransform {
+            transform: t,
+            covariance: covariance(&t, &src, &dst, None, self.opts.align.scale).ok(),
+            rmse,
+            pairs: src.len(),
+            stable_time: self.fit_from,
+        })
+    }
+
+    /// The occupancy map (world frame), once the transform is known.
+    pub fn map(&self) -> Option<&OccupancyMap> {
+        self.map.as_ref()
+    }
+
+    /// The 2-D grid of the map ([`OccupancyMap::grid`]); an error before there
+    /// is a map.
+    pub fn grid(&self, z_min: f64, z_max: f64, resolution: Option<f64>) -> Result<Grid2d> {
+        match &self.map {
+            Some(m) => m.grid(z_min, z_max, resolution),
+            None => Err(Error::invalid(
+                "grid",
+                format!("no map yet: {}", self.reason),
+            )),
+        }
+    }
+
+    /// The keyframes (latest version per id, ascending id), poses as last
+    /// pushed.
+    pub fn keyframes(&self) -> impl Iterator<Item = &Keyframe> {
+        self.kfs.values().map(|k| &k.keyframe)
+    }
+
+    /// The timing of the last update.
+    pub fn last_update(&self) -> UpdateTiming {
+        self.last_update
+    }
+
+    /// IMU samples pushed.
+    pub fn imu_samples(&self) -> usize {
+        self.imu
+    }
+
+    // ------------------------------------------------------------ pairing
+
+    /// The reference position nearest `t` (after the offset) within
+    /// `max_diff`, by the `evo` rule ([`crate::trajectory::associate`]); `None`
+    /// when it cannot be decided yet (unless `all`) or there is none.
+    fn nearest(&self, t: f64, all: bool) -> Option<Option<usize>> {
+        let (max_diff, offset) = (self.opts.align.max_diff, self.opts.align.offset);
+        let r = &self.ref_times;
+        let t = t + offset;
+        let last = *r.last()?;
+        if !all && last <= t + max_diff {
+            return None;
+        }
+        if t < r[0] - max_diff || t > last + max_diff {
+            return Some(None);
+        }
+        let k = r.partition_point(|&x| x <= t).min(r.len() - 1);
+        let diff_ub = r[k] - t;
+        let diff_lb = if k > 0 { t - r[k - 1] } else { f64::INFINITY };
+        Some(if diff_ub <= max_diff && diff_ub < diff_lb {
+            Some(k)
+        } else if diff_lb <= max_diff && diff_lb <= diff_ub {
+            Some(k - 1)
+        } else {
+            None
+        })
+    }
+
+    fn match_pending(&mut self, all: bool) {
+        if self.ref_times.is_empty() {
+            return;
+        }
+        // Tracked frames.
+        let mut keep = Vec::new();
+        let mut matched = Vec::new();
+        for (time, slam) in std::mem::take(&mut self.pending_frames) {
+            match self.nearest(time, all) {
+                None => keep.push((time, slam)),
+                Some(Some(r)) => matched.push((time, slam, self.ref_pos[r])),
+                Some(None) => {}
+            }
+        }
+        self.pending_frames = keep;
+        for (time, slam, refp) in matched {
+            // In time order (frames may arrive out of order only within the wait).
+            let at = self.live_times.partition_point(|&x| x <= time);
+            self.live_times.insert(at, time);
+            self.live_slam.insert(at, slam);
+            self.live_ref.insert(at, refp);
+        }
+        // Keyframes.
+        let mut keep = Vec::new();
+        for id in std::mem::take(&mut self.pending_kfs) {
+            let Some(t) = self.kfs.get(&id).map(|k| k.keyframe.timestamp) else {
+                continue;
+            };
+            match self.nearest(t, all) {
+                None => keep.push(id),
+                Some(r) => {
+                    if let Some(k) = self.kfs.get_mut(&id) {
+                        k.reference = r.map(|r| self.ref_pos[r]);
+                    }
+                    self.fit_in(id);
+                }
+            }
+        }
+        self.pending_kfs = keep;
+    }
+
+    // ------------------------------------------------------------ fit
+
+    fn fitted_pairs(&self) -> (Vec<Vector3<f64>>, Vec<Vector3<f64>>) {
+        self.kfs
+            .values()
+            .filter_map(|k| Some((k.in_fit?, k.reference?)))
+            .unzip()
+    }
+
+    /// Puts keyframe `id` into the moments when it belongs to the fit.
+    fn fit_in(&mut self, id: i32) {
+        let Some(m) = self.moments.as_mut() else {
+            return;
+        };
+        let Some(k) = self.kfs.get_mut(&id) else {
+            return;
+        };
+        if k.in_fit.is_some() || k.keyframe.timestamp < self.fit_from {
+            return;
+        }
+        if let Some(r) = k.reference {
+            m.push(&k.keyframe.pose.translation, &r);
+            k.in_fit = Some(k.keyframe.pose.translation);
+        }
+    }
+
+    /// Takes keyframe `id` out of the moments.
+    fn unfit(&mut self, id: i32) {
+        let (Some(m), Some(k)) = (self.moments.as_mut(), self.kfs.get_mut(&id)) else {
+            return;
+        };
+        if let (Some(a), Some(b)) = (k.in_fit.take(), k.reference) {
+            m.pull(&a, &b);
+        }
+    }
+
+    /// A fitted keyframe whose pose changed: out with the old, in with the new.
+    fn refit_moved(&mut self, id: i32) {
+        let moved = self
+            .kfs
+            .get(&id)
+            .is_some_and(|k| k.in_fit.is_some_and(|a| a != k.keyframe.pose.translation));
+        if moved {
+            self.unfit(id);
+            self.fit_in(id);
+        }
+    }
+
+    /// Moves the start of the fit to `from`: the keyframe pairs between the
+    /// old and the new start are taken out of or put into the moments (the
+    /// first time, the moments start at the first pair).
+    fn move_cut(&mut self, from: f64) {
+        let old = self.fit_from;
+        self.fit_from = from;
+        if self.moments.is_none() {
+            let first = self
+                .kfs
+                .values()
+                .filter(|k| k.reference.is_some() && k.keyframe.timestamp >= from)
+                .min_by(|a, b| a.keyframe.timestamp.total_cmp(&b.keyframe.timestamp));
+            let Some(k) = first else {
+                return;
+            };
+            self.moments = Some(Moments::running(
+                k.keyframe.pose.translation,
+                k.reference.unwrap_or_default(),
+            ));
+        }
+        let (lo, hi) = if from < old { (from, old) } else { (old, from) };
+        let ids: Vec<i32> = self
+            .kfs
+            .values()
+            .filter(|k| k.keyframe.timestamp >= lo && k.keyframe.timestamp < hi)
+            .map(|k| k.keyframe.id)
+            .collect();
+        for id in ids {
+            if from < old {
+                self.fit_in(id);
+            } else {
+                self.unfit(id);
+            }
+        }
+    }
+
+    /// Stage detection on the matched frames so far; the fit; the map.
+    fn update(&mut self) -> Result<()> {
+        let t0 = Instant::now();
+        self.last_update = UpdateTiming::default();
+        self.detect(true);
+        if self.stage == Stage::Stable {
+            let from = self.cut.as_ref().map_or(f64::INFINITY, |c| c.stable_time);
+            if self.moments.is_none() || from != self.fit_from {
+                self.move_cut(from);
+            }
+            let opts = AlignOptions {
+                scale: self.opts.align.scale,
+                method: self.opts.align.method,
+                ..AlignOptions::default()
+            };
+            self.transform = match &self.moments {
+                Some(m) => match solve_running(m, &opts) {
+                    Ok((t, _)) => Some(t),
+                    Err(e) => {
+                        self.reason = format!("stable, but no fit yet: {e}");
+                        None
+                    }
+                },
+                None => {
+                    self.reason =
+                        "stable, but no keyframe paired with a reference pose since its start yet"
+                            .into();
+                    None
+                }
+            };
+        }
+        self.last_update.fit_s = t0.elapsed().as_secs_f64();
+        if self.transform.is_some() {
+            self.update_map()?;
+        }
+        Ok(())
+    }
+
+    /// The stage on the data so far; once stable and with `cut`, where the
+    /// stable stage starts (the batch rule over every matched frame so far).
+    fn detect(&mut self, cut: bool) {
+        let dt = if self.last_detect.is_finite() {
+            (self.latest - self.last_detect).max(0.0)
+        } else {
+            0.0
+        };
+        self.last_detect = self.latest;
+        let n = self.live_times.len();
+        if n < crate::align::stages::MIN_FACTORS + 1 {
+            self.reason = format!(
+                "{n} tracked frames matched with a reference pose: too few to tell the stage"
+            );
+            return;
+        }
+        if self.finished && self.stage != Stage::Stable {
+            // The whole log is in: the batch rule decides (not reported online).
+            self.stage = Stage::Stable;
+        }
+        if self.stage != Stage::Stable {
+            match self.settled() {
+                Ok(()) => {
+                    self.settled_s += dt;
+                    // The paper's order: a level that settles after converging;
+                    // without a convergence seen, a level steady for long.
+                    let after_converging =
+                        self.converging_s >= MIN_CONVERGING_HOLDS * self.opts.stable_hold;
+                    let long = self.settled_s >= LONG_SETTLED_HOLDS * self.opts.stable_hold;
+                    if !(after_converging || long) {
+                        self.stage = Stage::Start;
+                        self.reason = format!(
+                            "start: the level is steady, but no convergence was seen yet \
+                             ({:.1} s converging of {:.1} s; steady {:.1} s of {:.1} s)",
+                            self.converging_s,
+                            MIN_CONVERGING_HOLDS * self.opts.stable_hold,
+                            self.settled_s,
+                            LONG_SETTLED_HOLDS * self.opts.stable_hold
+                        );
+                        return;
+                    }
+                    self.stage = Stage::Stable;
+                    self.stable_reported_at = Some(self.latest);
+                }
+                Err((stage, why)) => {
+                    self.settled_s = 0.0;
+                    if stage == Stage::Converging {
+                        self.converging_s += dt;
+                    }
+                    self.stage = stage;
+                    self.reason = format!("{}: {why}", stage.name());
+                    return;
+                }
+            }
+        }
+        if !cut {
+            return;
+        }
+        // Stable: where the stage starts, by the batch rule on the data so far.
+        match cut_of_pairs(&self.live_times, &self.live_slam, &self.live_ref) {
+            Ok(cut) => {
+                self.reason = format!(
+                    "stable (reported at {:.3} s): {}",
+                    self.stable_reported_at.unwrap_or(self.latest),
+                    cut.describe()
+                );
+                self.cut = Some(cut);
+            }
+            Err(e) => self.reason = format!("stable, but the stage start is not found: {e}"),
+        }
+    }
+
+    /// Whether `ln p_k` of the matched frames has settled: its medians over
+    /// the last three spans of [`SessionOptions::stable_hold`] seconds agree
+    /// within [`SETTLED_Z`] standard errors (the spread from the pooled MAD).
+    /// Otherwise the stage it is in (a level far from the last span's: the
+    /// start; a steady trend: converging) and why.
+    fn settled(&self) -> std::result::Result<(), (Stage, String)> {
+        self.settled_with(self.opts.stable_hold)
+    }
+
+    /// The settling test's medians and standard error with spans of `hold`
+    /// seconds, for tracing (one line).
+    #[doc(hidden)]
+    pub fn debug_levels(&self, hold: f64) -> String {
+        if self.live_times.len() < 30 {
+            return String::new();
+        }
+        match self.settled_with(hold) {
+            Ok(()) => "settled".into(),
+            Err((s, why)) => format!("{} {why}", s.name()),
+        }
+    }
+
+    fn settled_with(&self, hold: f64) -> std::result::Result<(), (Stage, String)> {
+        let hold = hold.max(1e-9);
+        let n = self.live_times.len();
+        let now = self.live_times[n - 1];
+        let x: Vec<f64> = (1..n)
+            .map(|k| {
+                let ds = (self.live_slam[k] - self.live_slam[k - 1]).norm_squared();
+                let dr = (self.live_ref[k] - self.live_ref[k - 1]).norm_squared();
+                (dr / ds).ln()
+            })
+            .collect();
+        // Factor k belongs to the time of pair k + 1.
+        let span = |lo: f64, hi: f64| -> Vec<f64> {
+            let a = self.live_times.partition_point(|&t| t <= lo).max(1);
+            let b = self.live_times.partition_point(|&t| t <= hi);
+            x[a - 1..b.saturating_sub(1).max(a - 1)]
+                .iter()
+                .copied()
+                .filter(|v| v.is_finite())
+                .collect()
+        };
+        let spans = [
+            span(now - 3.0 * hold, now - 2.0 * hold),
+            span(now - 2.0 * hold, now - hold),
+            span(now - hold, now),
+        ];
+        let few = spans.iter().map(Vec::len).min().unwrap_or(0);
+        if now - self.live_times[0] < 3.0 * hold || few < SETTLED_MIN_FACTORS {
+            return Err((
+                Stage::Start,
+                format!(
+                    "{:.1} s of matched tracked frames: the level is judged over 3 × {hold} s",
+                    now - self.live_times[0]
+                ),
+            ));
+        }
+        let med = |v: &[f64]| {
+            let mut v = v.to_vec();
+            v.sort_by(f64::total_cmp);
+            let m = v.len() / 2;
+            if v.len() % 2 == 1 {
+                v[m]
+            } else {
+                0.5 * (v[m - 1] + v[m])
+            }
+        };
+        let m: Vec<f64> = spans.iter().map(|v| med(v)).collect();
+        let dev: Vec<f64> = spans
+            .iter()
+            .zip(&m)
+            .flat_map(|(v, c)| v.iter().map(move |x| (x - c).abs()))
+            .collect();
+        let sigma = 1.4826 * med(&dev);
+        let se: Vec<f64> = spans
+            .iter()
+            .map(|v| 1.2533 * sigma / (v.len() as f64).sqrt())
+            .collect();
+        let z = |i: usize, j: usize| (m[i] - m[j]).abs() / (se[i] * se[i] + se[j] * se[j]).sqrt();
+        let (z01, z12, z02) = (z(0, 1), z(1, 2), z(0, 2));
+        if z01 <= SETTLED_Z && z12 <= SETTLED_Z && z02 <= SETTLED_Z {
+            return Ok(());
+        }
+        // A steady move in one direction over the three spans: converging.
+        let monotone = (m[0] < m[1] && m[1] < m[2]) || (m[0] > m[1] && m[1] > m[2]);
+        let stage = if monotone && z12 <= 4.0 * SETTLED_Z {
+            Stage::Converging
+        } else {
+            Stage::Start
+        };
+        Err((
+            stage,
+            format!(
+                "median ln p over the last 3 × {hold} s: {:.3}, {:.3}, {:.3} (standard errors \
+                 {:.3}); not within {SETTLED_Z} standard errors of each other",
+                m[0], m[1], m[2], se[2]
+            ),
+        ))
+    }
+
+    // ------------------------------------------------------------ map
+
+    fn t_world_cam(&self, kf: &Keyframe) -> Option<Sim3> {
+        self.transform.map(|t| t * kf.pose)
+    }
+
+    /// Whether some inserted keyframe's `T_world_cam` moved by more than `tol`
+    /// (metres at its camera and at the map's max range, 10 m without one);
+    /// `tol = 0`: moved at all.
+    fn map_moved(&self, tol: f64) -> bool {
+        let range = self.opts.map.max_range.unwrap_or(10.0);
+        self.inserted.iter().any(|(id, ins)| {
+            let Some(now) = self.kfs.get(id).and_then(|k| self.t_world_cam(&k.keyframe)) else {
+                return true;
+            };
+            if tol == 0.0 {
+                return now != ins.t_world_cam;
+            }
+            // A point `range` metres in front of the camera.
+            let far = Vector3::new(0.0, 0.0, range / now.scale);
+            let d_centre = (now.translation - ins.t_world_cam.translation).norm();
+            let d_far = (now.transform_point(&far) - ins.t_world_cam.transform_point(&far)).norm();
+            !(d_centre <= tol && d_far <= tol)
+        })
+    }
+
+    fn insert_one(&mut self, id: i32) -> Result<()> {
+        let Some((kf, arrival)) = self.kfs.get(&id).map(|k| (&k.keyframe, k.arrival)) else {
+            return Ok(());
+        };
+        let Some(t) = self.transform else {
+            return Ok(());
+        };
+        let tb = Instant::now();
+        // The viewer's cut counts keyframes in arrival order, not in this slice of one.
+        let filter = PointFilter {
+            cut_first_keyframes: None,
+            ..self.opts.filter
+        };
+        let (cloud, _) = if self.opts.filter.cuts(arrival) {
+            Default::default()
+        } else {
+            backproject_counted(std::slice::from_ref(kf), &filter, Some(&t))?
+        };
+        self.last_update.backproject_s += tb.elapsed().as_secs_f64();
+        let ti = Instant::now();
+        let c = t.transform_point(&kf.pose.translation);
+        let origin = [c.x as f32, c.y as f32, c.z as f32];
+        let t_world_cam = t * kf.pose;
+        if !cloud.points.is_empty() {
+            let map = self
+                .map
+                .get_or_insert(OccupancyMap::try_new(self.opts.map)?);
+            map.insert_scan(&cloud.points, origin)?;
+            self.points += cloud.len();
+        }
+        self.inserted.insert(id, Inserted { t_world_cam });
+        self.last_update.insert_s += ti.elapsed().as_secs_f64();
+        self.last_update.inserted += 1;
+        Ok(())
+    }
+
+    fn rebuild(&mut self) -> Result<()> {
+        self.map = Some(OccupancyMap::try_new(self.opts.map)?);
+        self.inserted.clear();
+        self.points = 0;
+        self.rebuilds += 1;
+        let ids: Vec<i32> = self.kfs.keys().copied().collect();
+        for id in ids {
+            crate::interrupt::check()?;
+            self.insert_one(id)?;
+        }
+        Ok(())
+    }
+
+    fn update_map(&mut self) -> Result<()> {
+        let max_inserted = self.inserted.keys().next_back().copied();
+        let new: Vec<i32> = self
+            .kfs
+            .keys()
+            .copied()
+            .filter(|id| !self.inserted.contains_key(id))
+            .collect();
+        // A keyframe below an inserted id would change the batch order.
+        let out_of_order = matches!((new.first(), max_inserted), (Some(a), Some(b)) if *a < b);
+        if self.map.is_none() || out_of_order || self.map_moved(self.opts.rebuild_tolerance) {
+            self.last_update.rebuilt = true;
+            return self.rebuild();
+        }
+        for id in new {
+            self.insert_one(id)?;
+        }
+        Ok(())
+    }
+}
+
+impl std::fmt::Debug for Session {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("Session")
+            .field("stage", &self.stage)
+            .field("keyframes", &self.kfs.len())
+            .field("frames", &self.frames)
+            .field("reference", &self.ref_times.len())
+            .finish_non_exhaustive()
+    }
+}
+
+/// What [`LogFeed::push`] did with a message.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum Pushed {
+    /// A keyframe went in: its id, the decode time (seconds) and the update.
+    Keyframe {
+        /// Keyframe id.
+        id: i32,
+        /// Decoding the message into a keyframe, seconds.
+        decode_s: f64,
+        /// The update it caused.
+        timing: UpdateTiming,
+    },
+    /// A tracked frame, a graph update, a reference pose or an IMU sample.
+    Other,
+    /// A message the session does not use (another type, a second pose topic,
+    /// a reference pose of a repeated stamp).
+    Ignored,
+}
+
+/// A [`Session`] fed raw log messages (topic, type, encoding, bytes) in log
+/// order, as `follow` reads them: LSD-SLAM keyframes and live frames
+/// (`keyframeMsg`, told apart by `isKeyframe`), graph messages, the first
+/// pose topic seen as the reference (a repeated stamp keeps its first pose,
+/// as the batch reader does), IMU samples.
+#[derive(Debug)]
+pub struct LogFeed {
+    /// The session.
+    pub session: Session,
+    reference_topic: Option<String>,
+    last_reference: f64,
+}
+
+impl LogFeed {
+    /// A feed into a new session.
+    pub fn new(opts: SessionOptions) -> Result<LogFeed> {
+        Ok(LogFeed {
+            session: Session::new(opts)?,
+            reference_topic: None,
+            last_reference: f64::NEG_INFINITY,
+        })
+    }
+
+    /// The reference topic in use, once one was seen.
+    pub fn reference_topic(&self) -> Option<&str> {
+        self.reference_topic.as_deref()
+    }
+
+    /// Decodes one message and pushes it. Errors name the topic.
+    pub fn push(
+        &mut self,
+        topic: &str,
+        kind: Option<crate::io::messages::decode::MessageKind>,
+        encoding: &str,
+        data: &[u8],
+    ) -> Result<Pushed> {
+        use crate::io::messages::decode::{self, MessageKind};
+        let fail = |what: String| Error::invalid("message", format!("topic {topic}: {what}"));
+        match kind {
+            Some(MessageKind::Keyframe) => {
+                let t0 = Instant::now();
+                let m = decode::keyframe_ros1(data).map_err(|e| fail(e.to_string()))?;
+                let pose = Sim3::from_lsd_slam(&m.cam_to_world)
+                    .map_err(|e| fail(format!("camToWorld: {e}")))?;
+                if !m.is_keyframe {
+                    self.session.push_frame(m.time, &pose)?;
+                    return Ok(Pushed::Other);
+                }
+                let (idepth, var, color) = decode::split_pointcloud(m.pointcloud);
+                let camera = crate::geometry::PinholeCamera::try_new(
+                    m.fx, m.fy, m.cx, m.cy, m.width, m.height,
+                )
+                .map_err(|e| fail(format!("camera: {e}")))?;
+                let kf =
+                    Keyframe::try_new(m.id, m.time, pose, camera, idepth, Some(var), Some(color))
+                        .map_err(|e| fail(format!("keyframe {}: {e}", m.id)))?;
+                let decode_s = t0.elapsed().as_secs_f64();
+                let timing = self.session.push_keyframe(kf)?;
+                Ok(Pushed::Keyframe {
+                    id: m.id,
+                    decode_s,
+                    timing,
+                })
+            }
+            Some(MessageKind::KeyframeGraph) => {
+                let frames = decode::graph_ros1(data).map_err(|e| fail(e.to_string()))?;
+                let poses = frames
+                    .iter()
+                    .map(|(id, c2w)| {
+                        Sim3::from_lsd_slam(c2w)
+                            .map(|p| (*id, p))
+                            .map_err(|e| fail(format!("keyframe {id}: camToWorld: {e}")))
+                    })
+                    .collect::<Result<Vec<_>>>()?;
+                self.session.push_graph_update(&poses)?;
+                Ok(Pushed::Other)
+            }
+            Some(MessageKind::Imu) => {
+                let s = decode::imu(encoding, data).map_err(|e| fail(e.to_string()))?;
+                self.session
+                    .push_imu(s.time, Vector3::from(s.gyro), Vector3::from(s.accel))?;
+                Ok(Pushed::Other)
+            }
+            Some(k) if k.is_pose() && k != MessageKind::Tf => {
+                if self
+                    .reference_topic
+                    .get_or_insert_with(|| topic.to_string())
+                    != topic
+                {
+                    return Ok(Pushed::Ignored);
+                }
+                let (t, p, [x, y, z, w]) =
+                    decode::pose_sample(k, encoding, data).map_err(|e| fail(e.to_string()))?;
+                if t <= self.last_reference {
+                    return Ok(Pushed::Ignored);
+                }
+                self.last_reference = t;
+                let q = UnitQuaternion::from_quaternion(nalgebra::Quaternion::new(w, x, y, z));
+                self.session.push_reference(t, Vector3::from(p), Some(q))?;
+                Ok(Pushed::Other)
+            }
+            _ => Ok(Pushed::Ignored),
+        }
+    }
+}

@@ -1,0 +1,244 @@
+//! `Session`: the online conversion (wraps `pipeline/session.rs`).
+
+use nalgebra::{Quaternion, UnitQuaternion, Vector3};
+use pyo3::prelude::*;
+use pyo3::types::PyDict;
+
+use super::cloud::{PyKeyframe, PyPointFilter};
+use super::geometry::PySim3;
+use super::map::{PyGrid, PyOccupancyMap};
+use crate::align::trajectories::TrajectoryAlignOptions;
+use crate::map::MapParams;
+use crate::pipeline::session::{Session, SessionOptions, UpdateTiming};
+
+fn vec3(what: &str, v: [f64; 3]) -> PyResult<Vector3<f64>> {
+    let v = Vector3::from(v);
+    if v.iter().all(|x| x.is_finite()) {
+        Ok(v)
+    } else {
+        Err(crate::Error::NonFinite {
+            what: what.into(),
+            index: 0,
+        }
+        .into())
+    }
+}
+
+fn timing_dict<'py>(py: Python<'py>, t: &UpdateTiming) -> PyResult<Bound<'py, PyDict>> {
+    let d = PyDict::new(py);
+    d.set_item("fit_s", t.fit_s)?;
+    d.set_item("backproject_s", t.backproject_s)?;
+    d.set_item("insert_s", t.insert_s)?;
+    d.set_item("inserted", t.inserted)?;
+    d.set_item("rebuilt", t.rebuilt)?;
+    Ok(d)
+}
+
+/// The online conversion: push what a SLAM log holds as it arrives (tracked
+/// frames, keyframes, graph updates, reference poses, IMU samples);
+/// `state()` says the start-up stage decided on the data so far,
+/// `transform()` gives `T_world_slam` once the stable stage is reached (None
+/// before; `state()["reason"]` says why), `map()` and `grid()` the occupancy
+/// map kept up to date. `finish()` after the last push makes the map equal
+/// the batch `convert(..., skip_init="auto")` octree of the same data.
+#[pyclass(name = "Session", module = "slam2world._slam2world")]
+pub struct PySession {
+    inner: Session,
+}
+
+#[pymethods]
+impl PySession {
+    #[new]
+    #[pyo3(signature = (*, max_diff=0.01, offset=0.0, scale=true, filter=None, octree_resolution=0.1, octree_max_range=Some(10.0), prob_hit=0.7, prob_miss=0.4, clamp_min=0.1192, clamp_max=0.971, stable_hold=5.0, rebuild_tolerance=None),
+           text_signature = "(*, max_diff=0.01, offset=0.0, scale=True, filter=None, octree_resolution=0.1, \
+                             octree_max_range=10.0, prob_hit=0.7, prob_miss=0.4, clamp_min=0.1192, \
+                             clamp_max=0.971, stable_hold=5.0, rebuild_tolerance=None)")]
+    #[allow(clippy::too_many_arguments)]
+    fn new(
+        max_diff: f64,
+        offset: f64,
+        scale: bool,
+        filter: Option<PyRef<'_, PyPointFilter>>,
+        octree_resolution: f64,
+        octree_max_range: Option<f64>,
+        prob_hit: f64,
+        prob_miss: f64,
+        clamp_min: f64,
+        clamp_max: f64,
+        stable_hold: f64,
+        rebuild_tolerance: Option<f64>,
+    ) -> PyResult<Self> {
+        let opts = SessionOptions {
+            align: TrajectoryAlignOptions {
+                max_diff,
+                offset,
+                scale,
+                ..TrajectoryAlignOptions::default()
+            },
+            filter: filter.map(|f| f.inner).unwrap_or_default(),
+            map: MapParams {
+                resolution: octree_resolution,
+                prob_hit,
+                prob_miss,
+                clamp_min,
+                clamp_max,
+                max_range: octree_max_range,
+            },
+            stable_hold,
+            rebuild_tolerance: rebuild_tolerance.unwrap_or(0.5 * octree_resolution),
+        };
+        Ok(PySession {
+            inner: Session::new(opts)?,
+        })
+    }
+
+    /// A reference pose `T_world_body`: time (s), position (m), orientation
+    /// `(x, y, z, w)` or None. In increasing time.
+    #[pyo3(signature = (time, position, orientation_xyzw=None))]
+    fn push_reference(
+        &mut self,
+        time: f64,
+        position: [f64; 3],
+        orientation_xyzw: Option<[f64; 4]>,
+    ) -> PyResult<()> {
+        let p = vec3("position", position)?;
+        let q = orientation_xyzw
+            .map(|[x, y, z, w]| UnitQuaternion::from_quaternion(Quaternion::new(w, x, y, z)));
+        Ok(self.inner.push_reference(time, p, q)?)
+    }
+
+    /// A tracked frame: the SLAM's `T_slam_cam` at `time` as published live.
+    fn push_frame(&mut self, time: f64, pose: PyRef<'_, PySim3>) -> PyResult<()> {
+        Ok(self.inner.push_frame(time, &pose.inner)?)
+    }
+
+    /// A keyframe (replaces one of the same id); returns the update's timing
+    /// (`fit_s`, `backproject_s`, `insert_s`, `inserted`, `rebuilt`).
+    fn push_keyframe<'py>(
+        &mut self,
+        py: Python<'py>,
+        keyframe: PyRef<'_, PyKeyframe>,
+    ) -> PyResult<Bound<'py, PyDict>> {
+        let kf = keyframe.inner.clone();
+        let t = self.inner.push_keyframe(kf)?;
+        timing_dict(py, &t)
+    }
+
+    /// A graph update: `(id, T_slam_cam)` pairs; returns the update's timing.
+    fn push_graph_update<'py>(
+        &mut self,
+        py: Python<'py>,
+        poses: Vec<(i32, PyRef<'_, PySim3>)>,
+    ) -> PyResult<Bound<'py, PyDict>> {
+        let poses: Vec<(i32, crate::geometry::Sim3)> =
+            poses.iter().map(|(id, p)| (*id, p.inner)).collect();
+        let t = self.inner.push_graph_update(&poses)?;
+        timing_dict(py, &t)
+    }
+
+    /// An IMU sample (kept; not used online yet).
+    fn push_imu(&mut self, time: f64, gyro: [f64; 3], accel: [f64; 3]) -> PyResult<()> {
+        Ok(self
+            .inner
+            .push_imu(time, vec3("gyro", gyro)?, vec3("accel", accel)?)?)
+    }
+
+    /// A GNSS fix: raises (GNSS is not part of the online session yet).
+    fn push_fix(
+        &mut self,
+        time: f64,
+        latitude: f64,
+        longitude: f64,
+        altitude: f64,
+    ) -> PyResult<()> {
+        Ok(self.inner.push_fix(time, [latitude, longitude, altitude])?)
+    }
+
+    /// After the last push: pairs what still waits, updates the fit and makes
+    /// the map exact; returns the update's timing.
+    fn finish<'py>(&mut self, py: Python<'py>) -> PyResult<Bound<'py, PyDict>> {
+        let t = self.inner.finish()?;
+        timing_dict(py, &t)
+    }
+
+    /// The stage (`waiting`, `start`, `converging`, `stable`), why, and what
+    /// the session holds.
+    fn state<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyDict>> {
+        let s = self.inner.state();
+        let d = PyDict::new(py);
+        d.set_item("stage", s.stage.name())?;
+        d.set_item("reason", s.reason)?;
+        d.set_item("time", s.time)?;
+        d.set_item("stable_reported_at", s.stable_reported_at)?;
+        d.set_item("stable_time", s.stable_time)?;
+        d.set_item("converging_time", s.converging_time)?;
+        d.set_item("frames", s.frames)?;
+        d.set_item("frames_matched", s.frames_matched)?;
+        d.set_item("keyframes", s.keyframes)?;
+        d.set_item("keyframes_matched", s.keyframes_matched)?;
+        d.set_item("pairs_fitted", s.pairs_fitted)?;
+        d.set_item("keyframes_inserted", s.keyframes_inserted)?;
+        d.set_item("points", s.points)?;
+        d.set_item("rebuilds", s.rebuilds)?;
+        Ok(d)
+    }
+
+    /// `T_world_slam` once stable, else None (`state()["reason"]` says why).
+    fn transform(&self) -> Option<PySim3> {
+        self.inner
+            .transform()
+            .ok()
+            .map(|t| PySim3::from(t.transform))
+    }
+
+    /// The 7×7 covariance of `T_world_slam` over `(δθ ×3, δt ×3, ln s)`, or None.
+    fn transform_covariance<'py>(
+        &self,
+        py: Python<'py>,
+    ) -> PyResult<Option<Bound<'py, numpy::PyArray2<f64>>>> {
+        let Some(c) = self.inner.transform().ok().and_then(|t| t.covariance) else {
+            return Ok(None);
+        };
+        let rows: Vec<Vec<f64>> = (0..7)
+            .map(|i| (0..7).map(|j| c.matrix[(i, j)]).collect())
+            .collect();
+        Ok(Some(numpy::PyArray2::from_vec2(py, &rows).map_err(
+            |e| PyErr::from(crate::Error::invalid("covariance", e.to_string())),
+        )?))
+    }
+
+    /// A copy of the occupancy map (world frame), or None before the transform.
+    fn map(&self) -> Option<PyOccupancyMap> {
+        self.inner.map().cloned().map(PyOccupancyMap::from_core)
+    }
+
+    /// The 2-D occupancy grid of the map (see `OccupancyMap.grid`).
+    #[pyo3(signature = (z_min, z_max, resolution=None))]
+    fn grid(
+        &self,
+        py: Python<'_>,
+        z_min: f64,
+        z_max: f64,
+        resolution: Option<f64>,
+    ) -> PyResult<PyGrid> {
+        let g = self.inner.grid(z_min, z_max, resolution)?;
+        PyGrid::from_core(py, g)
+    }
+
+    fn __repr__(&self) -> String {
+        let s = self.inner.state();
+        format!(
+            "Session(stage={:?}, keyframes={}, frames={}, points={})",
+            s.stage.name(),
+            s.keyframes,
+            s.frames,
+            s.points
+        )
+    }
+}
+
+/// Adds `Session` to the module.
+pub fn register(m: &Bound<'_, PyModule>) -> PyResult<()> {
+    m.add_class::<PySession>()?;
+    Ok(())
+}
