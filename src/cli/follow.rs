@@ -27,7 +27,7 @@ use super::args::{finite, non_negative, positive, print};
 use crate::defaults;
 use crate::error::{Error, Result};
 use crate::io::atomic::OutputSet;
-use crate::io::mcap::grid_msgs::grid_channels;
+use crate::io::mcap::grid_msgs::{grid_channels, GridChannel};
 use crate::io::mcap::write::{write_world_mcap_extra_into, ExtraChannel};
 use crate::io::mcap::{WorldFlavor, WorldScene};
 use crate::io::messages::decode::MessageKind;
@@ -329,15 +329,7 @@ fn write_outputs(
             Some((g, _)) => grid_channels(g, stamp, "world", flavor)?,
             None => Vec::new(),
         };
-        let extra: Vec<ExtraChannel<'_>> = channels
-            .iter()
-            .map(|c| ExtraChannel {
-                topic: c.topic,
-                schema: c.schema,
-                message_encoding: c.message_encoding,
-                data: &c.data,
-            })
-            .collect();
+        let extra: Vec<ExtraChannel<'_>> = channels.iter().map(GridChannel::as_extra).collect();
         let scene = WorldScene {
             points: &[],
             colors: None,

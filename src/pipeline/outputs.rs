@@ -14,7 +14,7 @@ use crate::error::{Error, Result};
 use crate::geo::GeoCrs;
 use crate::io::atomic::{Committed, OutputSet};
 use crate::io::las::{las_bytes, LasInfo};
-use crate::io::mcap::grid_msgs::grid_channels;
+use crate::io::mcap::grid_msgs::{grid_channels, GridChannel};
 use crate::io::mcap::write::{write_world_mcap_extra_into, ExtraChannel};
 use crate::io::mcap::{WorldFlavor, WorldScene};
 use crate::io::nav2::{write_nav2_into, Nav2Files};
@@ -171,15 +171,7 @@ impl Conversion {
             Some((g, _)) => grid_channels(g, scene.stamp, scene.world_frame, flavor)?,
             None => Vec::new(),
         };
-        let extra: Vec<ExtraChannel<'_>> = channels
-            .iter()
-            .map(|c| ExtraChannel {
-                topic: c.topic,
-                schema: c.schema,
-                message_encoding: c.message_encoding,
-                data: &c.data,
-            })
-            .collect();
+        let extra: Vec<ExtraChannel<'_>> = channels.iter().map(GridChannel::as_extra).collect();
         write_world_mcap_extra_into(set, path, &scene, leaves.as_deref(), &extra, flavor)
     }
 

@@ -13,7 +13,7 @@
 //! All in the world frame named by `frame`, metres; stamps in seconds.
 
 use super::wire::PbWriter;
-use super::write::WorldFlavor;
+use super::write::{ExtraChannel, WorldFlavor};
 use crate::error::{Error, Result};
 use crate::map::Grid2d;
 
@@ -329,6 +329,18 @@ pub struct GridChannel {
     pub message_encoding: &'static str,
     /// The encoded message.
     pub data: Vec<u8>,
+}
+
+impl GridChannel {
+    /// The channel as `write_world_mcap_extra_into` takes it (the message borrowed).
+    pub fn as_extra(&self) -> ExtraChannel<'_> {
+        ExtraChannel {
+            topic: self.topic,
+            schema: self.schema,
+            message_encoding: self.message_encoding,
+            data: &self.data,
+        }
+    }
 }
 
 /// The grid channels `write_world_mcap` adds for `flavor`: Foxglove, one

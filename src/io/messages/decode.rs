@@ -36,9 +36,9 @@ pub enum MessageKind {
     Tf,
     /// `sensor_msgs/Imu`.
     Imu,
-    /// `sensor_msgs/NavSatFix` (decoded by `io::mcap::gnss_decode`).
+    /// `sensor_msgs/NavSatFix` (decoded by `io::messages::gnss`).
     NavSatFix,
-    /// `foxglove.LocationFix` (decoded by `io::mcap::gnss_decode`).
+    /// `foxglove.LocationFix` (decoded by `io::messages::gnss`).
     LocationFix,
 }
 
@@ -424,7 +424,8 @@ fn pb_pose(buf: &[u8]) -> WireResult<([f64; 3], [f64; 4])> {
     Ok((p, q))
 }
 
-fn pb_time(buf: &[u8]) -> WireResult<f64> {
+/// A `google.protobuf.Timestamp` (seconds 1, nanos 2), as seconds.
+pub(crate) fn pb_time(buf: &[u8]) -> WireResult<f64> {
     let mut sec = 0i64;
     let mut nsec = 0i64;
     for f in pb_fields(buf) {

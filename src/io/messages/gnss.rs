@@ -12,7 +12,7 @@
 use nalgebra::Matrix3;
 use serde::Deserialize;
 
-use super::decode::MessageKind;
+use super::decode::{pb_time, MessageKind};
 use super::wire::{pb_fields, Cdr, PbValue, Ros1, RosReader, WireError, WireResult};
 use crate::geo::{FixStatus, GnssFix};
 
@@ -96,70 +96,37 @@ impl LocationFixMsg {
 /// Decodes `sensor_msgs/NavSatFix` in `ros1` or `cdr`.
 pub fn navsatfix(encoding: &str, data: &[u8]) -> WireResult<NavSatFixMsg> {
     match encoding {
-        "ros1" => {
-            let mut r = Ros1::new(data);
-            let (time, frame_id) = r.header()?;
-            let status = r.u8()? as i8;
-            let s = r.bytes(2)?;
-            let service = u16::from_le_bytes([s[0], s[1]]);
-            let (latitude, longitude, altitude) = (r.f64()?, r.f64()?, r.f64()?);
-            let mut position_covariance = [0.0; 9];
-            for v in &mut position_covariance {
-                *v = r.f64()?;
-            }
-            let covariance_type = r.u8()?;
-            Ok(NavSatFixMsg {
-                time,
-                frame_id,
-                status,
-                service,
-                latitude,
-                longitude,
-                altitude,
-                position_covariance,
-                covariance_type,
-            })
-        }
-        "cdr" => {
-            let mut r = Cdr::new(data)?;
-            let (time, frame_id) = r.header()?;
-            let status = r.u8()? as i8;
-            let service = r.u16()?;
-            let (latitude, longitude, altitude) = (r.f64()?, r.f64()?, r.f64()?);
-            let mut position_covariance = [0.0; 9];
-            for v in &mut position_covariance {
-                *v = r.f64()?;
-            }
-            let covariance_type = r.u8()?;
-            Ok(NavSatFixMsg {
-                time,
-                frame_id,
-                status,
-                service,
-                latitude,
-                longitude,
-                altitude,
-                position_covariance,
-                covariance_type,
-            })
-        }
+        "ros1" => navsatfix_fields(&mut Ros1::new(data)),
+        "cdr" => navsatfix_fields(&mut Cdr::new(data)?),
         other => Err(WireError::schema(format!(
             "sensor_msgs/NavSatFix in encoding {other:?} is not supported (ros1 or cdr)"
         ))),
     }
 }
 
-fn pb_timestamp(buf: &[u8]) -> WireResult<f64> {
-    let mut sec = 0i64;
-    let mut nsec = 0i64;
-    for f in pb_fields(buf) {
-        match f? {
-            (1, v) => sec = v.as_u64()? as i64,
-            (2, v) => nsec = v.as_u64()? as i32 as i64,
-            _ => {}
-        }
+/// The fields of a NavSatFix, in either ROS encoding (the reader aligns and
+/// orders the bytes).
+fn navsatfix_fields<'a>(r: &mut impl RosReader<'a>) -> WireResult<NavSatFixMsg> {
+    let (time, frame_id) = r.header()?;
+    let status = r.u8()? as i8;
+    let service = r.u16()?;
+    let (latitude, longitude, altitude) = (r.f64()?, r.f64()?, r.f64()?);
+    let mut position_covariance = [0.0; 9];
+    for v in &mut position_covariance {
+        *v = r.f64()?;
     }
-    Ok(sec as f64 + nsec as f64 * 1e-9)
+    let covariance_type = r.u8()?;
+    Ok(NavSatFixMsg {
+        time,
+        frame_id,
+        status,
+        service,
+        latitude,
+        longitude,
+        altitude,
+        position_covariance,
+        covariance_type,
+    })
 }
 
 /// `foxglove.LocationFix` in protobuf: latitude 1, longitude 2, altitude 3
@@ -206,7 +173,7 @@ fn location_fix_protobuf(data: &[u8]) -> WireResult<LocationFixMsg> {
                     WireError::value(format!("position_covariance_type {t}: expected 0 to 3"))
                 })?;
             }
-            (6, v) => m.time = pb_timestamp(v.as_bytes()?)?,
+            (6, v) => m.time = pb_time(v.as_bytes()?)?,
             (7, v) => m.frame_id = String::from_utf8_lossy(v.as_bytes()?).into_owned(),
             _ => {}
         }
