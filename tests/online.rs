@@ -1,8 +1,9 @@
 //! The online conversion: a [`Session`] fed the simulated paper run message
 //! by message (the log `slam2world simulate` writes, in log order) reports
 //! the stable stage within 10 s of log time after the true start and never
-//! before it, on five seeds; fed the whole log, it ends on the transform of
+//! before it, on five seeds; fed each whole log, it ends on the transform of
 //! the batch `convert --skip-init auto` and on its octree, node for node.
+//! The five logs are simulated and fed once, in parallel, for both tests.
 
 use slam2world::align::trajectories::SkipInit;
 use slam2world::io::mcap::McapFile;
@@ -54,16 +55,60 @@ fn feed(log: &std::path::Path, opts: SessionOptions) -> (LogFeed, Vec<(f64, Stag
 }
 
 const TRUE_STABLE_S: f64 = 4300.0 / 60.0;
+const SEEDS: std::ops::Range<u64> = 0..5;
+
+/// What one seed's session gave: the stage after every keyframe push, the
+/// state when the log ended (before `finish`), and after `finish` the final
+/// transform and the octree's bytes; the log stays in [`runs`]' folder.
+struct Run {
+    seed: u64,
+    log: std::path::PathBuf,
+    stages: Vec<(f64, Stage)>,
+    stable_reported_at: Option<f64>,
+    stable_time: Option<f64>,
+    online: slam2world::pipeline::session::SessionTransform,
+    nodes: usize,
+    ot: Vec<u8>,
+}
+
+/// The five seeds simulated and fed once, in parallel, shared by the tests.
+fn runs() -> &'static [Run] {
+    use rayon::prelude::*;
+    static RUNS: std::sync::OnceLock<(tempfile::TempDir, Vec<Run>)> = std::sync::OnceLock::new();
+    let (_, runs) = RUNS.get_or_init(|| {
+        let dir = tempfile::tempdir().unwrap();
+        let runs = SEEDS
+            .into_par_iter()
+            .map(|seed| {
+                let log = simulate(dir.path(), seed, "32x24");
+                let (mut f, stages) = feed(&log, SessionOptions::default());
+                let stable_reported_at = f.session.state().stable_reported_at;
+                f.session.finish().unwrap();
+                let online = f.session.transform().expect("a transform");
+                let map = f.session.map().unwrap();
+                Run {
+                    seed,
+                    log,
+                    stages,
+                    stable_reported_at,
+                    stable_time: f.session.state().stable_time,
+                    online,
+                    nodes: map.num_nodes(),
+                    ot: map.to_ot_bytes(),
+                }
+            })
+            .collect();
+        (dir, runs)
+    });
+    runs
+}
 
 #[test]
 fn stable_is_reported_within_ten_seconds_of_the_true_start_never_before() {
-    let dir = tempfile::tempdir().unwrap();
-    for seed in 0..5 {
-        let log = simulate(dir.path(), seed, "32x24");
-        let (f, stages) = feed(&log, SessionOptions::default());
-        let first = stages.iter().find(|s| s.1 == Stage::Stable).map(|s| s.0);
-        let st = f.session.state();
-        let at = st.stable_reported_at.expect("stable reported");
+    for r in runs() {
+        let seed = r.seed;
+        let first = r.stages.iter().find(|s| s.1 == Stage::Stable).map(|s| s.0);
+        let at = r.stable_reported_at.expect("stable reported");
         // The first keyframe after the report is the first one that says stable.
         assert!(
             first.is_some_and(|t| t >= at),
@@ -82,55 +127,55 @@ fn stable_is_reported_within_ten_seconds_of_the_true_start_never_before() {
 
 #[test]
 fn a_whole_log_ends_on_the_batch_transform_and_octree() {
-    let dir = tempfile::tempdir().unwrap();
-    let log = simulate(dir.path(), 7, "64x48");
-    let opts = SessionOptions::default();
-    let (mut f, _) = feed(&log, opts.clone());
-    // Before finish: the map is kept within the tolerance, maybe not exact.
-    f.session.finish().unwrap();
-    let online = f.session.transform().expect("a transform");
-    let batch = convert_path(
-        &log,
-        &ConvertOptions {
-            align: slam2world::align::trajectories::TrajectoryAlignOptions {
-                skip_init: SkipInit::Auto,
-                ..Default::default()
+    use rayon::prelude::*;
+    runs().par_iter().for_each(|r| {
+        let seed = r.seed;
+        let batch = convert_path(
+            &r.log,
+            &ConvertOptions {
+                align: slam2world::align::trajectories::TrajectoryAlignOptions {
+                    skip_init: SkipInit::Auto,
+                    ..Default::default()
+                },
+                map: Some(MapParams {
+                    max_range: Some(10.0),
+                    ..MapParams::new(0.1)
+                }),
+                ..ConvertOptions::default()
             },
-            map: Some(MapParams {
-                max_range: Some(10.0),
-                ..MapParams::new(0.1)
-            }),
-            ..ConvertOptions::default()
-        },
-    )
-    .unwrap();
-    let (a, b) = (online.transform, batch.transform());
-    assert!(
-        (a.scale - b.scale).abs() <= 1e-9 * b.scale,
-        "{} {}",
-        a.scale,
-        b.scale
-    );
-    assert!(
-        (a.translation - b.translation).norm() <= 1e-9,
-        "{a:?} {b:?}"
-    );
-    assert!(a.rotation.angle_to(&b.rotation) <= 1e-9, "{a:?} {b:?}");
-    assert_eq!(online.pairs, batch.report.pairs_fitted);
-    // The cut is the batch's (the report says it came from the live frames).
-    let startup = batch.report.startup.as_ref().expect("a live cut");
-    assert_eq!(Some(startup.stable_time), f.session.state().stable_time);
-    // Node for node, log-odds included (OctoMap's .ot holds every node's value).
-    let (m_online, m_batch) = (f.session.map().unwrap(), batch.octree.as_ref().unwrap());
-    eprintln!("{:?}", f.session.state());
-    assert_eq!(m_online.num_nodes(), m_batch.num_nodes());
-    assert!(
-        m_online.to_ot_bytes() == m_batch.to_ot_bytes(),
-        "octrees differ"
-    );
-    // The covariance is there and small next to the scale.
-    let cov = online.covariance.expect("a covariance");
-    assert!(cov.matrix[(6, 6)].sqrt() < 0.01, "{}", cov.matrix[(6, 6)]);
+        )
+        .unwrap();
+        let (a, b) = (r.online.transform, batch.transform());
+        assert!(
+            (a.scale - b.scale).abs() <= 1e-9 * b.scale,
+            "seed {seed}: {} {}",
+            a.scale,
+            b.scale
+        );
+        assert!(
+            (a.translation - b.translation).norm() <= 1e-9,
+            "seed {seed}: {a:?} {b:?}"
+        );
+        assert!(
+            a.rotation.angle_to(&b.rotation) <= 1e-9,
+            "seed {seed}: {a:?} {b:?}"
+        );
+        assert_eq!(r.online.pairs, batch.report.pairs_fitted, "seed {seed}");
+        // The cut is the batch's (the report says it came from the live frames).
+        let startup = batch.report.startup.as_ref().expect("a live cut");
+        assert_eq!(Some(startup.stable_time), r.stable_time, "seed {seed}");
+        // Node for node, log-odds included (OctoMap's .ot holds every node's value).
+        let m_batch = batch.octree.as_ref().unwrap();
+        assert_eq!(r.nodes, m_batch.num_nodes(), "seed {seed}");
+        assert!(r.ot == m_batch.to_ot_bytes(), "seed {seed}: octrees differ");
+        // The covariance is there and small next to the scale.
+        let cov = r.online.covariance.as_ref().expect("a covariance");
+        assert!(
+            cov.matrix[(6, 6)].sqrt() < 0.01,
+            "seed {seed}: {}",
+            cov.matrix[(6, 6)]
+        );
+    });
 }
 
 #[test]
