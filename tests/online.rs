@@ -13,19 +13,18 @@ use slam2world::pipeline::session::{LogFeed, Pushed, SessionOptions, Stage};
 use slam2world::pipeline::{convert_path, ConvertOptions};
 
 /// `slam2world simulate` of the paper run (all 7000 frames and 123
-/// keyframes; small images, the stages live in the tracking) into `dir`.
-fn simulate(dir: &std::path::Path, seed: u64, size: &str) -> std::path::PathBuf {
+/// keyframes; 32×24 images, the stages live in the tracking) into `dir`.
+fn simulate(dir: &std::path::Path, seed: u64) -> std::path::PathBuf {
     let log = dir.join(format!("run{seed}.mcap"));
-    let (w, h) = size.split_once('x').unwrap();
     let code = slam2world::cli::main_with_args([
         "slam2world".to_string(),
         "simulate".into(),
         "--seed".into(),
         seed.to_string(),
         "--set".into(),
-        format!("width={w}"),
+        "width=32".into(),
         "--set".into(),
-        format!("height={h}"),
+        "height=24".into(),
         "-o".into(),
         log.display().to_string(),
     ]);
@@ -80,7 +79,7 @@ fn runs() -> &'static [Run] {
         let runs = SEEDS
             .into_par_iter()
             .map(|seed| {
-                let log = simulate(dir.path(), seed, "32x24");
+                let log = simulate(dir.path(), seed);
                 let (mut f, stages) = feed(&log, SessionOptions::default());
                 let stable_reported_at = f.session.state().stable_reported_at;
                 f.session.finish().unwrap();
