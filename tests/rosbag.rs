@@ -12,6 +12,7 @@ use rand_chacha::ChaCha8Rng;
 use serde::Deserialize;
 
 use slam2world::io::container::{detect, Container, ContainerError};
+use slam2world::io::log::{read_log, ReadOptions};
 use slam2world::io::mcap::decode::{pose_sample, MessageKind};
 use slam2world::io::messages::{ChannelInfo, Inventory, MappedScan, MessageSource, ReadMode};
 use slam2world::io::rosbag::{BagError, Ros1Bag, Ros2Bag, Ros2Compression, Ros2Storage};
@@ -347,6 +348,24 @@ fn ros2_bags_hold_what_rosbags_wrote() {
             inv.from_index,
             storage == Ros2Storage::Sqlite3 && compression != Ros2Compression::File
         );
+        // One pass that counts every topic and maps only the wanted ones (the
+        // `.db3` path of read_log) gives the two separate passes' answers.
+        let (counted, inv2) = bag
+            .scan_counted(
+                |c| c.topic == "/odom",
+                |_, m| pose_sample(MessageKind::Odometry, "cdr", m.data).unwrap(),
+            )
+            .unwrap();
+        assert_eq!(inv2, inv, "{name}");
+        assert_eq!(counted.channels, scan.channels, "{name}");
+        assert_eq!(counted.mode, poses.mode, "{name}");
+        let key = |s: &MappedScan<_>| {
+            s.messages
+                .iter()
+                .map(|m| (m.channel_id, m.log_time, m.value))
+                .collect::<Vec<_>>()
+        };
+        assert_eq!(key(&counted), key(&poses), "{name}");
     }
 }
 
@@ -683,6 +702,16 @@ fn damaged_ros2_bags_are_refused() {
         ),
         "{e}"
     );
+    let e = bag.scan_counted(|_| true, |_, _| ()).unwrap_err();
+    assert!(
+        matches!(reason(&e), BagError::UnknownTopic { row: 3, .. }),
+        "{e}"
+    );
+    let e = read_log(&f, &ReadOptions::default()).unwrap_err();
+    assert!(
+        matches!(reason(&e), BagError::UnknownTopic { row: 3, .. }),
+        "{e}"
+    );
     // scan_map queries the rows of the wanted topics only: the others still read.
     let scan = bag.scan_map(|_| true, |_, _| ()).unwrap();
     assert_eq!(
@@ -937,4 +966,140 @@ fn evo_tf_example_is_the_same_as_ros1_and_ros2() {
     let lo = *t1.first().unwrap() as f64 * 1e-9;
     let hi = *t1.last().unwrap() as f64 * 1e-9;
     assert!((lo - 1714741164.112).abs() < 0.01 && (hi - 1714741215.797).abs() < 0.01);
+}
+
+/// A `.db3` of `n` rows on two topics, written through SQL: rowid gaps, stamps
+/// out of rowid order, each row's data its row number (8 bytes, zstd when
+/// `zstd`). Returns `(row number, topic, stamp)` of the rows written.
+fn big_db3(path: &Path, n: i64, zstd: bool) -> Vec<(i64, i64, i64)> {
+    let c = rusqlite::Connection::open(path).unwrap();
+    c.execute_batch(
+        "CREATE TABLE topics(id INTEGER PRIMARY KEY, name TEXT NOT NULL, type TEXT NOT NULL, \
+         serialization_format TEXT NOT NULL, offered_qos_profiles TEXT NOT NULL);
+         CREATE TABLE messages(id INTEGER PRIMARY KEY, topic_id INTEGER NOT NULL, \
+         timestamp INTEGER NOT NULL, data BLOB NOT NULL);
+         INSERT INTO topics VALUES (1, '/a', 'std_msgs/msg/UInt64', 'cdr', '');
+         INSERT INTO topics VALUES (2, '/b', 'std_msgs/msg/UInt64', 'cdr', '');
+         BEGIN;",
+    )
+    .unwrap();
+    let mut rows = Vec::new();
+    {
+        let mut ins = c
+            .prepare("INSERT INTO messages VALUES (?1, ?2, ?3, ?4)")
+            .unwrap();
+        for k in 0..n {
+            // Every 7th rowid skipped; runs of 3 rows per topic; every 1000th
+            // stamp earlier than the rows before it.
+            let id = k + k / 7 + 1;
+            let topic = 1 + (k / 3) % 2;
+            let stamp = if k % 1000 == 999 { k - 500 } else { k } * 1000;
+            let data = if zstd {
+                zstd::bulk::compress(&(k as u64).to_le_bytes(), 1).unwrap()
+            } else {
+                (k as u64).to_le_bytes().to_vec()
+            };
+            ins.execute(rusqlite::params![id, topic, stamp, data])
+                .unwrap();
+            rows.push((k, topic, stamp));
+        }
+    }
+    c.execute_batch("COMMIT;").unwrap();
+    rows
+}
+
+#[test]
+fn db3_scans_split_into_ranges_keep_order_counts_and_error_places() {
+    let dir = tempfile::tempdir().unwrap();
+    // Two ranges or more on a machine of two threads or more.
+    let n = 100_000;
+    let path = dir.path().join("big.db3");
+    let rows = big_db3(&path, n, false);
+    let bag = Ros2Bag::open(&path).unwrap();
+    let row_of = |_: &ChannelInfo, m: &slam2world::io::messages::RawMessage<'_>| {
+        u64::from_le_bytes(m.data.try_into().unwrap())
+    };
+    // The wanted topic's rows by stamp, ties in row order (a stable sort).
+    let mut want: Vec<(u64, u64)> = rows
+        .iter()
+        .filter(|r| r.1 == 1)
+        .map(|&(k, _, t)| (t as u64, k as u64))
+        .collect();
+    want.sort_by_key(|r| r.0);
+    let got = |s: &MappedScan<u64>| {
+        s.messages
+            .iter()
+            .map(|m| (m.log_time, m.value))
+            .collect::<Vec<_>>()
+    };
+    let scan = bag.scan_map(|c| c.topic == "/a", row_of).unwrap();
+    assert_eq!(got(&scan), want);
+    let (counted, inv) = bag.scan_counted(|c| c.topic == "/a", row_of).unwrap();
+    assert_eq!(got(&counted), want);
+    assert_eq!(inv, bag.inventory().unwrap());
+    for (topic, id) in [("/a", 1), ("/b", 2)] {
+        let c = inv
+            .channels
+            .iter()
+            .find(|c| c.channel.topic == topic)
+            .unwrap();
+        let mine: Vec<u64> = rows
+            .iter()
+            .filter(|r| r.1 == id)
+            .map(|r| r.2 as u64)
+            .collect();
+        assert_eq!(c.count, mine.len() as u64, "{topic}");
+        let lo = *mine.iter().min().unwrap();
+        let hi = *mine.iter().max().unwrap();
+        assert_eq!(c.time_range, Some((lo, hi)), "{topic}");
+    }
+    // A row of an unlisted topic late in the file is found, with its rowid.
+    let late = n + n / 7 - 10;
+    {
+        let c = rusqlite::Connection::open(&path).unwrap();
+        c.execute("UPDATE messages SET topic_id = 9 WHERE id = ?1", [late])
+            .unwrap();
+    }
+    let e = bag.scan_counted(|_| true, row_of).unwrap_err();
+    assert!(
+        matches!(reason(&e), BagError::UnknownTopic { topic_id: 9, row } if *row == late),
+        "{e}"
+    );
+    // Per-message zstd: a message that is no zstd frame in the file's second
+    // half is named by its index among the wanted messages of the whole file.
+    let folder = dir.path().join("message");
+    std::fs::create_dir_all(&folder).unwrap();
+    let rows = big_db3(&folder.join("message.db3"), n, true);
+    let yaml = std::fs::read_to_string(fixture("ros2_sqlite3_message").join("metadata.yaml"))
+        .unwrap()
+        .replace("ros2_sqlite3_message.db3", "message.db3");
+    std::fs::write(folder.join("metadata.yaml"), yaml).unwrap();
+    let bag = Ros2Bag::open(&folder).unwrap();
+    assert_eq!(bag.compression(), Ros2Compression::Message);
+    let (counted, _) = bag.scan_counted(|c| c.topic == "/b", row_of).unwrap();
+    assert_eq!(
+        counted.messages.len(),
+        rows.iter().filter(|r| r.1 == 2).count()
+    );
+    let bad = 75_000;
+    {
+        let c = rusqlite::Connection::open(folder.join("message.db3")).unwrap();
+        c.execute(
+            "UPDATE messages SET data = X'00112233' WHERE id = ?1",
+            [bad + bad / 7 + 1],
+        )
+        .unwrap();
+    }
+    let before = rows[..bad as usize].iter().filter(|r| r.1 == 1).count() as u64;
+    assert_eq!(rows[bad as usize].1, 1);
+    for e in [
+        bag.scan_counted(|c| c.topic == "/a", row_of).unwrap_err(),
+        bag.scan_map(|c| c.topic == "/a", row_of).unwrap_err(),
+    ] {
+        assert!(
+            matches!(reason(&e), BagError::MessageData { index, topic, .. }
+                if *index == before && topic == "/a"),
+            "{e}"
+        );
+    }
 }

@@ -30,7 +30,7 @@ use crate::io::messages::{
     ChannelCount, ChannelInfo, Inventory, MappedMessage, MappedScan, MessageSource, RawMessage,
     ReadMode,
 };
-use crate::io::rosbag::{Ros1Bag, Ros2Bag};
+use crate::io::rosbag::{Ros1Bag, Ros2Bag, Ros2Storage};
 use crate::keyframe::Keyframe;
 use crate::trajectory::Trajectory;
 
@@ -534,9 +534,9 @@ impl MessageSource for AnyContainer {
 /// from `sensor_msgs/Imu`; SLAM poses without depth from
 /// [`ReadOptions::est_topic`] when given.
 ///
-/// Where the container has an index (a closed ROS 1 bag, a `.db3`), the
-/// topics are chosen from it and only their messages are read; otherwise
-/// every message is read and counted.
+/// A closed ROS 1 bag's index chooses the topics and only their chunks are
+/// read; a `.db3` is read once, every row counted and the rows of known
+/// types decoded; otherwise every message is read and counted.
 ///
 /// Errors: [`Error::Container`] for a path that is no log slam2world reads;
 /// the readers' own ([`Error::Mcap`], [`Error::Bag`]) on damaged files;
@@ -547,13 +547,59 @@ impl MessageSource for AnyContainer {
 /// a message that does not decode.
 pub fn read_log(path: impl AsRef<Path>, options: &ReadOptions) -> Result<Log> {
     let source = AnyContainer::open(path.as_ref())?;
-    let counts = match &source {
-        // A closed bag's index and a .db3's tables count without reading messages.
-        AnyContainer::Ros1(b) if b.mode() == ReadMode::Indexed => Some(b.inventory()?),
-        AnyContainer::Ros2(b) if b.counts_from_index() => Some(b.inventory()?),
-        _ => None,
-    };
-    read_log_from(&source, Some(source.kind()), counts, options)
+    let container = Some(source.kind());
+    match &source {
+        // A closed bag's index counts without reading messages.
+        AnyContainer::Ros1(b) if b.mode() == ReadMode::Indexed => {
+            read_log_from(&source, container, Some(b.inventory()?), options)
+        }
+        // A .db3 is counted and read in one pass: every row counted, the rows
+        // of known types decoded; the topics are chosen on those counts.
+        AnyContainer::Ros2(b) if b.storage() == Ros2Storage::Sqlite3 => {
+            let kinds = KindCache::new();
+            let (scan, inv) = b.scan_counted(
+                |c| kinds.get(c).is_some(),
+                |c, m| decode_message(kinds.get(c), c, m),
+            )?;
+            let (topics, counts) = inventory_topics(&inv);
+            log_of_scan(
+                MessageSource::path(b),
+                scan,
+                topics,
+                counts,
+                container,
+                options,
+            )
+        }
+        _ => read_log_from(&source, container, None, options),
+    }
+}
+
+/// The kind of each channel, found once per channel id (the scans' tasks
+/// share it).
+struct KindCache(Vec<AtomicU8>);
+
+impl KindCache {
+    fn new() -> KindCache {
+        KindCache((0..1 << 16).map(|_| AtomicU8::new(0)).collect())
+    }
+
+    fn get(&self, c: &ChannelInfo) -> Option<MessageKind> {
+        // 0 not yet, 1 none, 2 + index in KINDS
+        let slot = &self.0[c.id as usize];
+        match slot.load(Ordering::Relaxed) {
+            0 => {
+                let k = kind_of(c);
+                let code = k
+                    .and_then(|k| KINDS.iter().position(|x| *x == k))
+                    .map_or(1, |i| i as u8 + 2);
+                slot.store(code, Ordering::Relaxed);
+                k
+            }
+            1 => None,
+            code => KINDS.get(code as usize - 2).copied(),
+        }
+    }
 }
 
 /// [`read_log`] over an opened source. With `counts` (the source's
@@ -567,24 +613,8 @@ pub fn read_log_from<S: MessageSource>(
     options: &ReadOptions,
 ) -> Result<Log> {
     let path = source.path();
-    // The kind of each channel, found once (0 not yet, 1 none, 2 + index in KINDS).
-    let kinds: Vec<AtomicU8> = (0..1 << 16).map(|_| AtomicU8::new(0)).collect();
-    let kind_cached = |c: &ChannelInfo| {
-        let slot = &kinds[c.id as usize];
-        match slot.load(Ordering::Relaxed) {
-            0 => {
-                let k = kind_of(c);
-                let code = k
-                    .and_then(|k| KINDS.iter().position(|x| *x == k))
-                    .map_or(1, |i| i as u8 + 2);
-                slot.store(code, Ordering::Relaxed);
-                k
-            }
-            1 => None,
-            code => KINDS.get(code as usize - 2).copied(),
-        }
-    };
-    let decode = |c: &ChannelInfo, m: &RawMessage<'_>| decode_message(kind_cached(c), c, m);
+    let kinds = KindCache::new();
+    let decode = |c: &ChannelInfo, m: &RawMessage<'_>| decode_message(kinds.get(c), c, m);
     let (scan, topics, counts) = match counts {
         Some(inv) => {
             // Choose from the index, then read the chosen channels alone.
@@ -612,6 +642,20 @@ pub fn read_log_from<S: MessageSource>(
             (scan, topics, counts)
         }
     };
+    log_of_scan(path, scan, topics, counts, container, options)
+}
+
+/// The log of `path` from a scan of it (the messages of the topics it may
+/// use decoded) and the counts of every topic: the topics picked, then
+/// keyframes, live frames, poses, IMU and fixes assembled.
+fn log_of_scan(
+    path: &Path,
+    scan: MappedScan<Decoded>,
+    topics: Vec<TopicInfo>,
+    counts: HashMap<u16, u64>,
+    container: Option<Container>,
+    options: &ReadOptions,
+) -> Result<Log> {
     let ch = &scan.channels;
     let picks = pick(path, options, ch, &counts)?;
     let mut log = Log {
@@ -670,7 +714,9 @@ enum Decoded {
     Pose(decode::PoseSample),
     Tf(Vec<StampedPose>),
     Imu(decode::ImuMsg),
-    Fix(GnssFix),
+    /// Boxed: a fix with its covariance is twice a pose's size, and every
+    /// decoded message of a scan is as large as the largest variant.
+    Fix(Box<GnssFix>),
     Error(WireError),
     #[default]
     Other,
@@ -721,7 +767,7 @@ fn decode_message(kind: Option<MessageKind>, c: &ChannelInfo, m: &RawMessage<'_>
             Err(e) => err(e),
         },
         Some(k @ (K::NavSatFix | K::LocationFix)) => match gnss::gnss_fix(k, enc, m.data) {
-            Ok(f) => Decoded::Fix(f),
+            Ok(f) => Decoded::Fix(Box::new(f)),
             Err(e) => err(e),
         },
         Some(k) if k.is_pose() => {
@@ -1128,7 +1174,7 @@ fn read_fixes(path: &Path, messages: &[Mapped], c: &ChannelInfo) -> Result<GnssF
     let mut fixes = Vec::new();
     for (i, m) in messages.iter().filter(|m| m.channel_id == c.id).enumerate() {
         match &m.value {
-            Decoded::Fix(f) => fixes.push(*f),
+            Decoded::Fix(f) => fixes.push(**f),
             Decoded::Error(e) => return Err(at(path, &c.topic, i, m.log_time, e.clone())),
             _ => {
                 return Err(at(

@@ -240,8 +240,9 @@ impl Ros2Bag {
         self.compression
     }
 
-    /// True when [`Ros2Bag::inventory`] counts from the index without reading
-    /// a message (`.db3` storage, not compressed per file).
+    /// True when [`Ros2Bag::inventory`] counts from the tables without
+    /// decompressing a file (`.db3` storage, not compressed per file): one
+    /// SQL pass over every row's topic and time, no message data read.
     pub fn counts_from_index(&self) -> bool {
         self.storage == Ros2Storage::Sqlite3 && self.compression != Ros2Compression::File
     }
@@ -303,7 +304,18 @@ impl Ros2Bag {
         self.each_file(|plain, label| {
             let got = match self.storage {
                 Ros2Storage::Sqlite3 => {
-                    sqlite_scan(plain, label, &mut table, zstd_messages, &want, &map)?
+                    let mut counts = HashMap::new();
+                    let visit = Rows::Wanted;
+                    sqlite_scan(
+                        plain,
+                        label,
+                        &mut table,
+                        zstd_messages,
+                        visit,
+                        &want,
+                        &map,
+                        &mut counts,
+                    )?
                 }
                 Ros2Storage::Mcap => {
                     let (got, m) = mcap_scan(plain, label, &mut table, zstd_messages, &want, &map)?;
@@ -313,7 +325,11 @@ impl Ros2Bag {
                     got
                 }
             };
-            messages.extend(got);
+            if messages.is_empty() {
+                messages = got;
+            } else {
+                messages.extend(got);
+            }
             Ok(())
         })?;
         sort_by_time(&mut messages);
@@ -325,71 +341,100 @@ impl Ros2Bag {
         })
     }
 
-    /// Counts and time ranges per topic: SQL counts of each `.db3` (no message
-    /// read), a scan of each `.mcap`. A `.db3` row of a topic that the topics
-    /// table does not list is an error here ([`BagError::UnknownTopic`]);
-    /// `scan_map` only queries the rows of the wanted topics.
+    /// Counts and time ranges per topic: one SQL pass over each `.db3`'s rows
+    /// (topic and time, no message data), a scan of each `.mcap`. A `.db3` row
+    /// of a topic that the topics table does not list is an error
+    /// ([`BagError::UnknownTopic`]).
     pub fn inventory(&self) -> Result<Inventory> {
         if self.storage == Ros2Storage::Mcap {
             return Ok(Inventory::of_scan(&self.scan_map(|_| true, |_, _| ())?));
         }
+        Ok(self.scan_counted(|_| false, |_, _| ())?.1)
+    }
+
+    /// [`Ros2Bag::scan_map`] and [`Ros2Bag::inventory`] in one pass: every
+    /// message is counted, those of a topic `want` keeps are mapped. A `.db3`
+    /// is read once, in rowid order, the data of the other topics' rows left
+    /// unread; an `.mcap` is scanned once.
+    pub fn scan_counted<T: Send + Default>(
+        &self,
+        want: impl Fn(&ChannelInfo) -> bool + Sync,
+        map: impl Fn(&ChannelInfo, &RawMessage<'_>) -> T + Sync,
+    ) -> Result<(MappedScan<T>, Inventory)> {
+        if self.storage == Ros2Storage::Mcap {
+            let all = self.scan_map(
+                |_| true,
+                |c, m| if want(c) { map(c, m) } else { T::default() },
+            )?;
+            let inventory = Inventory::of_scan(&all);
+            let keep: Vec<u16> = all
+                .channels
+                .values()
+                .filter(|c| want(c))
+                .map(|c| c.id)
+                .collect();
+            let MappedScan {
+                channels,
+                mut messages,
+                mode,
+                profile,
+            } = all;
+            messages.retain(|m| keep.contains(&m.channel_id));
+            let scan = MappedScan {
+                channels,
+                messages,
+                mode,
+                profile,
+            };
+            return Ok((scan, inventory));
+        }
         let mut table = ChannelTable::default();
-        let mut stats: BTreeMap<u16, (u64, u64, u64)> = BTreeMap::new();
+        let mut messages = Vec::new();
+        let mut stats: HashMap<u16, (u64, u64, u64)> = HashMap::new();
+        let zstd_messages = self.compression == Ros2Compression::Message;
         self.each_file(|plain, label| {
-            let db = open_db(plain, label)?;
-            let at = |r: BagError| bag_err(label, r);
-            let mut ids = HashMap::new();
-            for (topic_id, info) in topics(&db).map_err(at)? {
-                ids.insert(topic_id, table.intern(info).map_err(at)?);
-            }
-            // One pass in rowid order, counted here: `GROUP BY topic_id` sorts
-            // every row in a temporary b-tree (no index on topic_id), 4x slower.
-            let mut stmt = db
-                .prepare("SELECT id, topic_id, timestamp FROM messages")
-                .map_err(|e| at(e.into()))?;
-            let mut rows = stmt.query([]).map_err(|e| at(e.into()))?;
-            let mut last: Option<(i64, u16)> = None;
-            while let Some(row) = rows.next().map_err(|e| at(e.into()))? {
-                let row_id: i64 = row.get(0).map_err(|e| at(e.into()))?;
-                let topic_id: i64 = row.get(1).map_err(|e| at(e.into()))?;
-                let stamp = row.get::<_, i64>(2).map_err(|e| at(e.into()))?.max(0) as u64;
-                let id = match last {
-                    Some((t, id)) if t == topic_id => id,
-                    _ => {
-                        let Some(&id) = ids.get(&topic_id) else {
-                            return Err(at(BagError::UnknownTopic {
-                                topic_id,
-                                row: row_id,
-                            }));
-                        };
-                        last = Some((topic_id, id));
-                        id
-                    }
-                };
-                let s = stats.entry(id).or_insert((0, u64::MAX, 0));
-                s.0 += 1;
-                s.1 = s.1.min(stamp);
-                s.2 = s.2.max(stamp);
+            let got = sqlite_scan(
+                plain,
+                label,
+                &mut table,
+                zstd_messages,
+                Rows::All,
+                &want,
+                &map,
+                &mut stats,
+            )?;
+            if messages.is_empty() {
+                messages = got;
+            } else {
+                messages.extend(got);
             }
             Ok(())
         })?;
-        let channels = table
+        sort_by_time(&mut messages);
+        let counts = table
             .channels
-            .into_values()
+            .values()
             .map(|c| {
                 let (count, lo, hi) = stats.get(&c.id).copied().unwrap_or((0, 0, 0));
                 ChannelCount {
-                    channel: c,
+                    channel: c.clone(),
                     count,
                     time_range: (count > 0).then_some((lo, hi)),
                 }
             })
             .collect();
-        Ok(Inventory {
-            channels,
+        let inventory = Inventory {
+            channels: counts,
             mode: ReadMode::Indexed,
             from_index: self.counts_from_index(),
-        })
+        };
+        let scan = MappedScan {
+            channels: table.channels,
+            messages,
+            mode: ReadMode::Indexed,
+            profile: "ros2".into(),
+        };
+        Ok((scan, inventory))
     }
 }
 
@@ -536,118 +581,201 @@ fn with_bytes<T>(
     })
 }
 
-/// Rows gathered before they are mapped in parallel.
-const BATCH_ROWS: usize = 1 << 14;
-/// Bytes gathered before they are mapped in parallel.
-const BATCH_BYTES: usize = 16 << 20;
+/// Rowids below which a `.db3` is scanned by one connection.
+const MIN_RANGE_ROWS: i64 = 1 << 15;
 
-/// The wanted messages of one `.db3`, mapped in parallel batches of rows.
+/// Which rows of a `.db3` a scan visits.
+#[derive(Clone, Copy, PartialEq, Eq)]
+enum Rows {
+    /// The wanted topics' rows only (`WHERE topic_id IN (…)`).
+    Wanted,
+    /// Every row, counted; only the wanted topics' data is read.
+    All,
+}
+
+/// Count, first and last stamp (ns) per channel id.
+type Stats = HashMap<u16, (u64, u64, u64)>;
+
+/// The wanted messages of one `.db3` in rowid order, each visited row counted
+/// into `stats`. The rowid span is cut into one range per thread, each read
+/// by its own read-only connection and mapped as it is read (the blob
+/// borrowed from SQLite's page, never copied).
+#[allow(clippy::too_many_arguments)]
 fn sqlite_scan<T: Send + Default>(
     plain: &Path,
     label: &Path,
     table: &mut ChannelTable,
     zstd_messages: bool,
+    visit: Rows,
     want: &(impl Fn(&ChannelInfo) -> bool + Sync),
     map: &(impl Fn(&ChannelInfo, &RawMessage<'_>) -> T + Sync),
+    stats: &mut Stats,
 ) -> Result<Vec<MappedMessage<T>>> {
     let at = |r: BagError| bag_err(label, r);
     let db = open_db(plain, label)?;
-    let mut ids: HashMap<i64, u16> = HashMap::new();
+    // topics.id -> (channel id, wanted)
+    let mut ids: HashMap<i64, (u16, bool)> = HashMap::new();
     for (topic_id, info) in topics(&db).map_err(at)? {
-        ids.insert(topic_id, table.intern(info).map_err(at)?);
+        let id = table.intern(info).map_err(at)?;
+        ids.insert(topic_id, (id, table.channels.get(&id).is_some_and(want)));
     }
-    let wanted: Vec<i64> = ids
+    let mut wanted: Vec<i64> = ids.iter().filter(|(_, v)| v.1).map(|(t, _)| *t).collect();
+    wanted.sort_unstable();
+    if wanted.is_empty() && visit == Rows::Wanted {
+        return Ok(Vec::new());
+    }
+    let span: (Option<i64>, Option<i64>) = db
+        .query_row("SELECT min(id), max(id) FROM messages", [], |r| {
+            Ok((r.get(0)?, r.get(1)?))
+        })
+        .map_err(|e| at(e.into()))?;
+    drop(db);
+    let (Some(lo), Some(hi)) = span else {
+        return Ok(Vec::new());
+    };
+    let list = wanted
         .iter()
-        .filter(|(_, id)| table.channels.get(id).is_some_and(want))
-        .map(|(t, _)| *t)
+        .map(i64::to_string)
+        .collect::<Vec<_>>()
+        .join(",");
+    // In id (rowid) order, which is the table's own: `ORDER BY timestamp, id`
+    // would sort every row, data and all, in a temporary b-tree (4x slower on
+    // 1e6 PoseStamped); the callers' stable sort by time gives that order.
+    // Every row counted here rather than with `GROUP BY topic_id` (no index on
+    // topic_id: a sort of every row, 4x slower).
+    let sql = match visit {
+        Rows::Wanted => format!(
+            "SELECT id, topic_id, timestamp, data FROM messages \
+             WHERE id BETWEEN ?1 AND ?2 AND topic_id IN ({list}) ORDER BY id"
+        ),
+        // The other rows' data is not read (NULL): no overflow page of theirs
+        // is visited.
+        Rows::All => format!(
+            "SELECT id, topic_id, timestamp, {} FROM messages \
+             WHERE id BETWEEN ?1 AND ?2 ORDER BY id",
+            if wanted.is_empty() {
+                "NULL".to_string()
+            } else {
+                format!("CASE WHEN topic_id IN ({list}) THEN data END")
+            }
+        ),
+    };
+    // One range per thread, each read by its own connection into its own
+    // vector; the first becomes the file's, the others are appended.
+    let parts = (rayon::current_num_threads() as i64).clamp(1, (hi - lo) / MIN_RANGE_ROWS + 1);
+    let step = (hi - lo) / parts + 1;
+    let ranges: Vec<(i64, i64)> = (0..parts)
+        .map(|k| (lo + k * step, (lo + (k + 1) * step - 1).min(hi)))
+        .filter(|(a, b)| a <= b)
         .collect();
-    let mut out = Vec::new();
-    if wanted.is_empty() {
-        return Ok(out);
-    }
-    let list: Vec<String> = wanted.iter().map(i64::to_string).collect();
-    let sql = format!(
-        // In id (rowid) order, which is the table's own: `ORDER BY timestamp, id`
-        // would sort every row, data and all, in a temporary b-tree (4x slower
-        // on 1e6 PoseStamped); `scan_map`'s stable sort by time gives that order.
-        "SELECT id, topic_id, timestamp, data FROM messages WHERE topic_id IN ({}) \
-         ORDER BY id",
-        list.join(",")
-    );
-    let mut stmt = db.prepare(&sql).map_err(|e| at(e.into()))?;
-    let mut rows = stmt.query([]).map_err(|e| at(e.into()))?;
-    let mut arena: Vec<u8> = Vec::new();
-    // (channel id, time, start, end) of each gathered row
-    let mut heads: Vec<(u16, u64, usize, usize)> = Vec::new();
     let channels = &table.channels;
-    let flush = |arena: &mut Vec<u8>,
-                 heads: &mut Vec<(u16, u64, usize, usize)>,
-                 out: &mut Vec<MappedMessage<T>>|
-     -> Result<()> {
-        let base = out.len() as u64;
-        let mapped: Vec<std::result::Result<MappedMessage<T>, BagError>> = heads
-            .par_iter()
-            .enumerate()
-            .map(|(k, &(id, time, s, e))| {
-                let c = &channels[&id];
-                let value = with_bytes(&arena[s..e], zstd_messages, |data| {
-                    map(
-                        c,
-                        &RawMessage {
-                            channel_id: id,
-                            sequence: 0,
-                            log_time: time,
-                            publish_time: time,
-                            data,
-                        },
-                    )
-                })
-                .map_err(|message| BagError::MessageData {
-                    index: base + k as u64,
-                    topic: c.topic.clone(),
-                    message,
-                })?;
-                Ok(MappedMessage {
+    let ids = &ids;
+    let sql = sql.as_str();
+    let scanned: Vec<Result<(Vec<MappedMessage<T>>, Stats)>> = ranges
+        .par_iter()
+        .map(|&range| {
+            let db = open_db(plain, label)?;
+            sqlite_range(&db, sql, range, ids, channels, zstd_messages, map).map_err(at)
+        })
+        .collect();
+    let mut out: Vec<MappedMessage<T>> = Vec::new();
+    for part in scanned {
+        let (got, counts) = part.map_err(|mut e| {
+            // The index among the wanted messages of the whole file.
+            if let Error::Bag {
+                reason: BagError::MessageData { index, .. },
+                ..
+            } = &mut e
+            {
+                *index += out.len() as u64;
+            }
+            e
+        })?;
+        for (id, (n, first, last)) in counts {
+            let s = stats.entry(id).or_insert((0, u64::MAX, 0));
+            s.0 += n;
+            s.1 = s.1.min(first);
+            s.2 = s.2.max(last);
+        }
+        if out.is_empty() {
+            out = got;
+        } else {
+            out.extend(got);
+        }
+    }
+    Ok(out)
+}
+
+/// The rows of one rowid range `(a, b)` of `sql`, counted and (the wanted
+/// topics', whose data is not NULL) mapped; a message that does not
+/// decompress stops the range (its index counted within the range).
+fn sqlite_range<T: Send + Default>(
+    db: &Connection,
+    sql: &str,
+    (a, b): (i64, i64),
+    ids: &HashMap<i64, (u16, bool)>,
+    channels: &BTreeMap<u16, ChannelInfo>,
+    zstd_messages: bool,
+    map: &(impl Fn(&ChannelInfo, &RawMessage<'_>) -> T + Sync),
+) -> std::result::Result<(Vec<MappedMessage<T>>, Stats), BagError> {
+    let mut stmt = db.prepare(sql)?;
+    let mut rows = stmt.query([a, b])?;
+    let mut out = Vec::new();
+    let mut stats = Stats::new();
+    // The last row's topic: rows of one topic come in runs.
+    let mut last: Option<(i64, u16, bool)> = None;
+    while let Some(row) = rows.next()? {
+        let row_id: i64 = row.get(0)?;
+        let topic_id: i64 = row.get(1)?;
+        let time = row.get::<_, i64>(2)?.max(0) as u64;
+        let (id, keep) = match last {
+            Some((t, id, keep)) if t == topic_id => (id, keep),
+            _ => {
+                let Some(&(id, keep)) = ids.get(&topic_id) else {
+                    return Err(BagError::UnknownTopic {
+                        topic_id,
+                        row: row_id,
+                    });
+                };
+                last = Some((topic_id, id, keep));
+                (id, keep)
+            }
+        };
+        let s = stats.entry(id).or_insert((0, u64::MAX, 0));
+        s.0 += 1;
+        s.1 = s.1.min(time);
+        s.2 = s.2.max(time);
+        if !keep {
+            continue;
+        }
+        let data = row.get_ref(3)?.as_blob().map_err(rusqlite::Error::from)?;
+        let c = &channels[&id];
+        let value = with_bytes(data, zstd_messages, |data| {
+            map(
+                c,
+                &RawMessage {
                     channel_id: id,
                     sequence: 0,
                     log_time: time,
                     publish_time: time,
-                    value,
-                })
-            })
-            .collect();
-        out.reserve(mapped.len());
-        for m in mapped {
-            out.push(m.map_err(|r| bag_err(label, r))?);
-        }
-        arena.clear();
-        heads.clear();
-        Ok(())
-    };
-    while let Some(row) = rows.next().map_err(|e| at(e.into()))? {
-        let row_id: i64 = row.get(0).map_err(|e| at(e.into()))?;
-        let topic_id: i64 = row.get(1).map_err(|e| at(e.into()))?;
-        let stamp: i64 = row.get(2).map_err(|e| at(e.into()))?;
-        let data = row
-            .get_ref(3)
-            .map_err(|e| at(e.into()))?
-            .as_blob()
-            .map_err(|e| at(rusqlite::Error::from(e).into()))?;
-        let Some(&id) = ids.get(&topic_id) else {
-            return Err(at(BagError::UnknownTopic {
-                topic_id,
-                row: row_id,
-            }));
-        };
-        let start = arena.len();
-        arena.extend_from_slice(data);
-        heads.push((id, stamp.max(0) as u64, start, arena.len()));
-        if heads.len() >= BATCH_ROWS || arena.len() >= BATCH_BYTES {
-            flush(&mut arena, &mut heads, &mut out)?;
-        }
+                    data,
+                },
+            )
+        })
+        .map_err(|message| BagError::MessageData {
+            index: out.len() as u64,
+            topic: c.topic.clone(),
+            message,
+        })?;
+        out.push(MappedMessage {
+            channel_id: id,
+            sequence: 0,
+            log_time: time,
+            publish_time: time,
+            value,
+        });
     }
-    flush(&mut arena, &mut heads, &mut out)?;
-    Ok(out)
+    Ok((out, stats))
 }
 
 /// What the map of an `.mcap` in `MESSAGE` mode gives: the value, or why the
