@@ -390,7 +390,7 @@ fn first_bad_row<R: Rows + ?Sized>(r: &R) -> Option<usize> {
     (0..r.n_rows()).find(|&i| r.row(i).iter().any(|v| !v.is_finite()))
 }
 
-/// The fit of running moments ([`Moments::running`] / [`Moments::push`]): the
+/// The fit of running moments ([`Moments::running`] / [`Moments::push_weighted`]): the
 /// transform and diagnostics [`align`] gives for the same pairs (up to the
 /// rounding of the sums), refusing degenerate geometry the same way.
 pub(crate) fn solve_running(m: &Moments, opts: &AlignOptions) -> Result<(Sim3, AlignDiagnostics)> {

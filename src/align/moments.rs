@@ -217,7 +217,7 @@ impl Moments {
 
     /// Empty running moments shifted to `(shift_a, shift_b)` (a first pair,
     /// or any point near the data), without a prior: pairs are added one at a
-    /// time with [`Moments::push`], each in O(1).
+    /// time with [`Moments::push_weighted`], each in O(1).
     pub fn running(shift_a: Vector3<f64>, shift_b: Vector3<f64>) -> Moments {
         Moments {
             n: 0,
@@ -230,16 +230,17 @@ impl Moments {
         }
     }
 
-    /// Adds the pair `(a, b)` with weight 1 (the same terms [`Moments::accumulate`]
-    /// sums, relative to this accumulator's shifts and prior).
-    pub fn push(&mut self, a: &Vector3<f64>, b: &Vector3<f64>) {
-        self.add_weighted(a, b, 1.0);
+    /// Adds the pair `(a, b)` with weight `w` (the terms
+    /// [`Moments::accumulate`] sums for a pair of that weight, relative to this
+    /// accumulator's shifts and prior).
+    pub fn push_weighted(&mut self, a: &Vector3<f64>, b: &Vector3<f64>, w: f64) {
+        self.add_weighted(a, b, w);
         self.n += 1;
     }
 
-    /// Takes the pair `(a, b)` out again (one that [`Moments::push`] added).
-    pub fn pull(&mut self, a: &Vector3<f64>, b: &Vector3<f64>) {
-        self.add_weighted(a, b, -1.0);
+    /// Takes out a pair that [`Moments::push_weighted`] added with weight `w`.
+    pub fn pull_weighted(&mut self, a: &Vector3<f64>, b: &Vector3<f64>, w: f64) {
+        self.add_weighted(a, b, -w);
         self.n = self.n.saturating_sub(1);
     }
 

@@ -377,6 +377,9 @@ impl FollowReport {
         self.rebuilds = s.rebuilds;
         self.stable_time = s.stable_time;
         self.stable_reported_at = s.stable_reported_at;
+        self.enu_origin = s.enu_origin.map(|g| [g.lat, g.lon, g.alt]);
+        self.fixes = s.fixes;
+        self.fixes_dropped = s.fixes_dropped;
         match session.transform() {
             Ok(tr) => {
                 self.t_world_slam = Some(TransformReport::from(&tr.transform));

@@ -28,6 +28,7 @@ use nalgebra::{UnitQuaternion, Vector3};
 
 use super::report::GnssReport;
 use super::source::{Recording, Source};
+use super::startup::{cut_of_pairs, LiveCut};
 use crate::error::{Error, Result};
 use crate::geo::{EnuFrame, GeoCrs, GnssFixes, Origin, UtmZone};
 use crate::geometry::Sim3;
@@ -354,6 +355,26 @@ pub fn reference(
         noise,
         report,
     })
+}
+
+/// The start-up cut of the live frames (`live`, sorted) paired with the
+/// fixes the way the online session pairs them: the fixes in ENU
+/// interpolated at each live stamp plus `offset`, where two fixes at most
+/// `max_gap` apart bracket it ([`super::startup::cut_of_pairs`] on those pairs).
+pub fn live_cut(
+    fixes: &GnssFixes,
+    live: &Trajectory,
+    opts: &GnssOptions,
+    offset: f64,
+) -> Result<LiveCut> {
+    let track = fixes.to_enu(&opts.origin)?;
+    let times: Vec<f64> = live.timestamps.iter().map(|t| t + offset).collect();
+    let at = track
+        .trajectory
+        .interpolate_where_covered(&times, opts.max_gap)?;
+    let stamps: Vec<f64> = at.kept.iter().map(|&j| live.timestamps[j]).collect();
+    let slam: Vec<Vector3<f64>> = at.kept.iter().map(|&j| live.positions[j]).collect();
+    cut_of_pairs(&stamps, &slam, &at.trajectory.positions)
 }
 
 fn span(t: &[f64]) -> String {

@@ -44,6 +44,7 @@ use std::collections::BTreeMap;
 use std::path::Path;
 use std::time::Instant;
 
+use crate::align::trajectories::SkipInit;
 use crate::cloud::{backproject_counted, backproject_per_keyframe_counted, PointCloud};
 use crate::error::{Error, Result};
 use crate::geometry::Sim3;
@@ -271,7 +272,17 @@ pub fn convert(rec: &Recording, opts: &ConvertOptions) -> Result<Conversion> {
         None => (rec.reference.as_ref(), None, opts),
     };
     let world = match (reference, &rec.imu) {
-        (Some(r), _) => WorldFrame::Poses(Box::new(poses::fit(rec, &slam, r, weights, opts)?)),
+        (Some(r), _) => {
+            // Against fixes, the live frames are paired with the fixes
+            // interpolated at their own stamps (the online session's rule).
+            let live = match (&rec.gnss, &rec.live, opts.align.skip_init) {
+                (Some(f), Some(live), SkipInit::Auto) if opts.align.estimate_offset.is_none() => {
+                    Some(gnss::live_cut(f, live, &opts.gnss, opts.align.offset)?)
+                }
+                _ => None,
+            };
+            WorldFrame::Poses(Box::new(poses::fit(rec, &slam, r, weights, live, opts)?))
+        }
         (None, Some(imu)) => WorldFrame::Imu(Box::new(imu::fit(&slam, imu, opts)?)),
         (None, None) if rec.source.reconstruction.is_some() => {
             return Err(Error::invalid(

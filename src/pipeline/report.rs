@@ -471,6 +471,14 @@ pub struct FollowReport {
     pub stable_reported_at: Option<f64>,
     /// `T_world_slam`, once stable.
     pub t_world_slam: Option<TransformReport>,
+    /// With a GNSS reference: the world frame is ENU at this origin
+    /// (latitude, longitude in degrees, height above the WGS84 ellipsoid in
+    /// metres), and `t_world_slam` is `T_enu_slam`.
+    pub enu_origin: Option<[f64; 3]>,
+    /// GNSS fixes taken.
+    pub fixes: usize,
+    /// GNSS fixes dropped for having no fix.
+    pub fixes_dropped: usize,
     /// rms residual of the fitted keyframe pairs, metres.
     pub fit_rmse: Option<f64>,
     /// Keyframe pairs fitted.
@@ -507,6 +515,9 @@ impl FollowReport {
             stable_time: None,
             stable_reported_at: None,
             t_world_slam: None,
+            enu_origin: None,
+            fixes: 0,
+            fixes_dropped: 0,
             fit_rmse: None,
             pairs_fitted: 0,
             decode_s: 0.0,

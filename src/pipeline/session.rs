@@ -33,8 +33,15 @@
 //!   [`SessionOptions::rebuild_tolerance`] the map is rebuilt from the
 //!   keyframes in order; [`Session::finish`] rebuilds when anything moved at
 //!   all, so that the final map equals the batch octree node for node.
-//! - Not yet online: GNSS fixes ([`Session::push_fix`] refuses them with a
-//!   clear error) and the IMU-only path (IMU samples are kept, not used).
+//! - GNSS: fixes ([`Session::push_fix`]) instead of reference poses put the
+//!   world frame in ENU at the first fix (or a given origin), and the pairing
+//!   is the batch GNSS path's: the fixes interpolated linearly at each SLAM
+//!   stamp (plus the offset) between two fixes at most `max_gap` apart,
+//!   decided once a fix at or after that time has arrived, each pair weighing
+//!   `1 / σ̄²` while every fix has a covariance. A session takes poses or
+//!   fixes, not both.
+//! - Not yet online: the IMU-only path (IMU samples are kept, not used) and
+//!   a lever arm (it needs the orientations the session does not fit with).
 
 use std::collections::BTreeMap;
 use std::time::Instant;
@@ -46,11 +53,13 @@ use crate::align::trajectories::TrajectoryAlignOptions;
 use crate::align::{solve_running, AlignOptions, Moments};
 use crate::cloud::{backproject_counted, PointFilter};
 use crate::error::{Error, Result};
+use crate::geo::{EnuFrame, Geodetic, GnssFix, Origin};
 use crate::geometry::Sim3;
 use crate::keyframe::Keyframe;
 use crate::map::{Grid2d, MapParams, OccupancyMap};
 use crate::trajectory::Association;
 
+use super::gnss::GnssOptions;
 use super::startup::{cut_of_pairs, LiveCut};
 
 /// Seconds of stable stage the detection must see before it is reported.
@@ -94,6 +103,9 @@ pub struct SessionOptions {
     /// Metres an inserted keyframe's camera (or a point at the map's max range,
     /// 10 m without one) may move before the map is rebuilt.
     pub rebuild_tolerance: f64,
+    /// How GNSS fixes become the reference (origin first or given, weights,
+    /// `max_gap`); the mean origin and a lever arm are refused online.
+    pub gnss: GnssOptions,
 }
 
 impl Default for SessionOptions {
@@ -108,6 +120,7 @@ impl Default for SessionOptions {
             rebuild_tolerance: 0.5 * map.resolution,
             map,
             stable_hold: STABLE_HOLD_S,
+            gnss: GnssOptions::default(),
         }
     }
 }
@@ -143,6 +156,17 @@ impl SessionOptions {
         }
         if a.association != Association::Evo {
             return refuse("association");
+        }
+        self.gnss.check()?;
+        if self.gnss.origin == Origin::Mean {
+            return Err(Error::invalid(
+                "origin",
+                "the mean of the fixes is known only once the log has ended: give the first fix \
+                 or a position as the origin of an online session",
+            ));
+        }
+        if self.gnss.lever_arm.is_some() {
+            return refuse("lever_arm");
         }
         for (what, v) in [
             ("stable_hold", self.stable_hold),
@@ -213,6 +237,12 @@ pub struct SessionState {
     pub points: usize,
     /// Times the map was rebuilt because inserted keyframes moved.
     pub rebuilds: usize,
+    /// GNSS fixes taken.
+    pub fixes: usize,
+    /// GNSS fixes dropped (status: no fix).
+    pub fixes_dropped: usize,
+    /// The ENU frame's origin (the world frame of a session fed fixes).
+    pub enu_origin: Option<Geodetic>,
 }
 
 /// `T_world_slam` as the session has it.
@@ -271,8 +301,21 @@ struct Kf {
     arrival: usize,
     /// The reference position it is paired with.
     reference: Option<Vector3<f64>>,
+    /// The pair's weight (1, or `1 / σ̄²` of interpolated fixes).
+    weight: f64,
     /// The SLAM position that is in the moments (when it is fitted).
     in_fit: Option<Vector3<f64>>,
+}
+
+/// What the session's reference is.
+#[derive(Clone, Copy, Debug, PartialEq)]
+enum Reference {
+    /// Nothing pushed yet.
+    None,
+    /// Reference poses (`push_reference`), paired by the nearest stamp.
+    Poses,
+    /// GNSS fixes in ENU at this frame, interpolated at the SLAM stamps.
+    Fixes(EnuFrame),
 }
 
 /// An inserted keyframe: the `T_world_cam` it was inserted with.
@@ -284,9 +327,16 @@ struct Inserted {
 /// The online conversion (see the module doc).
 pub struct Session {
     opts: SessionOptions,
+    /// Poses or fixes, once the first one came.
+    reference: Reference,
     ref_times: Vec<f64>,
     ref_pos: Vec<Vector3<f64>>,
     ref_rot: Vec<Option<UnitQuaternion<f64>>>,
+    /// Per fix, its mean variance `1 / (3 / trace Σ)` (the batch weight's
+    /// inverse), while every fix has a covariance and weights are asked for.
+    ref_var: Vec<f64>,
+    weighted: bool,
+    fixes_dropped: usize,
     imu: usize,
     // Tracked frames: matched pairs in time order.
     frames: usize,
@@ -335,6 +385,10 @@ impl Session {
         opts.check()?;
         Ok(Session {
             opts,
+            reference: Reference::None,
+            ref_var: Vec::new(),
+            weighted: true,
+            fixes_dropped: 0,
             ref_times: Vec::new(),
             ref_pos: Vec::new(),
             ref_rot: Vec::new(),
@@ -383,6 +437,14 @@ impl Session {
         if !time.is_finite() {
             return Err(Error::invalid("time", format!("{time} is not finite")));
         }
+        if matches!(self.reference, Reference::Fixes(_)) {
+            return Err(Error::invalid(
+                "push_reference",
+                "this session's reference is GNSS fixes (push_fix): one session takes \
+                 reference poses or fixes, not both",
+            ));
+        }
+        self.reference = Reference::Poses;
         if let Some(&last) = self.ref_times.last() {
             if time <= last {
                 return Err(Error::invalid(
@@ -413,13 +475,81 @@ impl Session {
         Ok(())
     }
 
-    /// A GNSS fix: refused, GNSS fixes are not part of the online session yet.
-    pub fn push_fix(&mut self, _time: f64, _lat_lon_alt: [f64; 3]) -> Result<()> {
-        Err(Error::invalid(
-            "push_fix",
-            "GNSS fixes are not supported by the online session yet (the batch convert's GNSS \
-             path is not wired into it); give reference poses with push_reference",
-        ))
+    /// A GNSS fix (seconds; WGS84 degrees, metres above the ellipsoid; ENU
+    /// covariance in m² when known). The first fix puts the world frame: ENU
+    /// at it, or at [`GnssOptions::origin`] when one is given. A fix without
+    /// a fix (status) is dropped and counted, as the batch reader does. Fixes
+    /// must come in increasing time; a session fed reference poses refuses
+    /// them.
+    pub fn push_fix(&mut self, fix: &GnssFix) -> Result<()> {
+        if !fix.time.is_finite() {
+            return Err(Error::invalid(
+                "time",
+                format!("{} is not finite", fix.time),
+            ));
+        }
+        let g = Geodetic::try_new(fix.lat, fix.lon, fix.alt)?;
+        if let Some(c) = &fix.covariance {
+            if !c.iter().all(|v| v.is_finite()) {
+                return Err(Error::NonFinite {
+                    what: "fix covariance".into(),
+                    index: 0,
+                });
+            }
+        }
+        if self.reference == Reference::Poses {
+            return Err(Error::invalid(
+                "push_fix",
+                "this session's reference is reference poses (push_reference): one session \
+                 takes reference poses or fixes, not both",
+            ));
+        }
+        if !fix.status.is_fix() {
+            self.fixes_dropped += 1;
+            return Ok(());
+        }
+        if let Some(&last) = self.ref_times.last() {
+            if fix.time <= last {
+                return Err(Error::invalid(
+                    "time",
+                    format!(
+                        "fix at {} s is not after the previous one ({last} s): the session \
+                         takes fixes in time order",
+                        fix.time
+                    ),
+                ));
+            }
+        }
+        let frame = match self.reference {
+            Reference::Fixes(f) => f,
+            _ => {
+                let origin = match self.opts.gnss.origin {
+                    Origin::Given(o) => o,
+                    // `Mean` is refused by the options' check.
+                    Origin::First | Origin::Mean => g,
+                };
+                let f = EnuFrame::new(origin)?;
+                self.reference = Reference::Fixes(f);
+                f
+            }
+        };
+        // The batch weight is 3 / trace(Σ) per fix, used only when every fix
+        // has one; its inverse is what is interpolated.
+        match (&fix.covariance, self.weighted && self.opts.gnss.weights) {
+            (Some(c), true) => self.ref_var.push(1.0 / (3.0 / c.trace())),
+            (_, true) => {
+                // From here on all pairs weigh the same, those fitted already too.
+                self.weighted = false;
+                self.ref_var.clear();
+                self.resum();
+            }
+            (_, false) => {}
+        }
+        self.ref_times.push(fix.time);
+        self.ref_pos.push(frame.geodetic_to_enu(&g));
+        self.ref_rot.push(None);
+        self.match_pending(false);
+        Ok(())
     }
 
     /// A tracked frame: the SLAM's `T_slam_cam` at `time` as published live
@@ -472,6 +602,7 @@ impl Session {
                         keyframe,
                         arrival,
                         reference: None,
+                        weight: 1.0,
                         in_fit: None,
                     },
                 );
@@ -535,6 +666,15 @@ impl Session {
             keyframes_inserted: self.inserted.len(),
             points: self.points,
             rebuilds: self.rebuilds,
+            fixes: match self.reference {
+                Reference::Fixes(_) => self.ref_times.len(),
+                _ => 0,
+            },
+            fixes_dropped: self.fixes_dropped,
+            enu_origin: match self.reference {
+                Reference::Fixes(f) => Some(f.origin()),
+                _ => None,
+            },
         }
     }
 
@@ -546,7 +686,8 @@ impl Session {
                 reason: self.reason.clone(),
             });
         };
-        let (src, dst) = self.fitted_pairs();
+        let (src, dst, w) = self.fitted_pairs();
+        let weights = self.weighs().then_some(w.as_slice());
         let rmse = (src
             .iter()
             .zip(&dst)
@@ -556,7 +697,7 @@ impl Session {
             .sqrt();
         Ok(SessionTransform {
             transform: t,
-            covariance: covariance(&t, &src, &dst, None, self.opts.align.scale).ok(),
+            covariance: covariance(&t, &src, &dst, weights, self.opts.align.scale).ok(),
             rmse,
             pairs: src.len(),
             stable_time: self.fit_from,
@@ -598,14 +739,49 @@ impl Session {
 
     // ------------------------------------------------------------ pairing
 
-    /// The reference position nearest `t` (after the offset) within
-    /// `max_diff`, by the `evo` rule ([`crate::trajectory::associate`]); `None`
-    /// when it cannot be decided yet (unless `all`) or there is none.
-    fn nearest(&self, t: f64, all: bool) -> Option<Option<usize>> {
+    /// The reference position paired with SLAM stamp `t` and the pair's
+    /// weight; `None` when it cannot be decided yet (unless `all`), `Some(None)`
+    /// when there is none. Poses: the nearest within `max_diff` after the
+    /// offset, by the `evo` rule ([`crate::trajectory::associate`]), decided
+    /// once a pose later than `t + max_diff` has come. Fixes: interpolated at
+    /// `t + offset` between two fixes at most `max_gap` apart (the rule of
+    /// [`crate::trajectory::Trajectory::interpolate_where_covered`]), decided
+    /// once a fix at or after that time has come.
+    fn reference_at(&self, t: f64, all: bool) -> Option<Option<(Vector3<f64>, f64)>> {
         let (max_diff, offset) = (self.opts.align.max_diff, self.opts.align.offset);
         let r = &self.ref_times;
         let t = t + offset;
         let last = *r.last()?;
+        if matches!(self.reference, Reference::Fixes(_)) {
+            if t > last {
+                return if all { Some(None) } else { None };
+            }
+            let k = r.partition_point(|&x| x <= t);
+            if k == 0 {
+                return Some(None);
+            }
+            let i = k - 1;
+            let (k, a) = if r[i] == t {
+                (i, 0.0)
+            } else {
+                let gap = r[k] - r[i];
+                let max_gap = self.opts.gnss.max_gap;
+                let rounding = 4.0 * f64::EPSILON * r[k].abs().max(max_gap.abs());
+                if max_gap.is_nan() || gap > max_gap + rounding {
+                    return Some(None);
+                }
+                (k, (t - r[i]) / gap)
+            };
+            let p = self.ref_pos[i].lerp(&self.ref_pos[k], a);
+            let w = if self.weighs() {
+                let v = Vector3::new(self.ref_var[i], 0.0, 0.0)
+                    .lerp(&Vector3::new(self.ref_var[k], 0.0, 0.0), a);
+                1.0 / v.x
+            } else {
+                1.0
+            };
+            return Some(Some((p, w)));
+        }
         if !all && last <= t + max_diff {
             return None;
         }
@@ -615,13 +791,14 @@ impl Session {
         let k = r.partition_point(|&x| x <= t).min(r.len() - 1);
         let diff_ub = r[k] - t;
         let diff_lb = if k > 0 { t - r[k - 1] } else { f64::INFINITY };
-        Some(if diff_ub <= max_diff && diff_ub < diff_lb {
+        let at = if diff_ub <= max_diff && diff_ub < diff_lb {
             Some(k)
         } else if diff_lb <= max_diff && diff_lb <= diff_ub {
             Some(k - 1)
         } else {
             None
-        })
+        };
+        Some(at.map(|k| (self.ref_pos[k], 1.0)))
     }
 
     fn match_pending(&mut self, all: bool) {
@@ -632,9 +809,9 @@ impl Session {
         let mut keep = Vec::new();
         let mut matched = Vec::new();
         for (time, slam) in std::mem::take(&mut self.pending_frames) {
-            match self.nearest(time, all) {
+            match self.reference_at(time, all) {
                 None => keep.push((time, slam)),
-                Some(Some(r)) => matched.push((time, slam, self.ref_pos[r])),
+                Some(Some((r, _))) => matched.push((time, slam, r)),
                 Some(None) => {}
             }
         }
@@ -652,11 +829,12 @@ impl Session {
             let Some(t) = self.kfs.get(&id).map(|k| k.keyframe.timestamp) else {
                 continue;
             };
-            match self.nearest(t, all) {
+            match self.reference_at(t, all) {
                 None => keep.push(id),
                 Some(r) => {
                     if let Some(k) = self.kfs.get_mut(&id) {
-                        k.reference = r.map(|r| self.ref_pos[r]);
+                        k.reference = r.map(|(p, _)| p);
+                        k.weight = r.map_or(1.0, |(_, w)| w);
                     }
                     self.fit_in(id);
                 }
@@ -667,11 +845,39 @@ impl Session {
 
     // ------------------------------------------------------------ fit
 
-    fn fitted_pairs(&self) -> (Vec<Vector3<f64>>, Vec<Vector3<f64>>) {
-        self.kfs
-            .values()
-            .filter_map(|k| Some((k.in_fit?, k.reference?)))
-            .unzip()
+    /// The fitted pairs (SLAM, reference) and their weights.
+    fn fitted_pairs(&self) -> (Vec<Vector3<f64>>, Vec<Vector3<f64>>, Vec<f64>) {
+        let mut out = (Vec::new(), Vec::new(), Vec::new());
+        for k in self.kfs.values() {
+            if let (Some(a), Some(b)) = (k.in_fit, k.reference) {
+                out.0.push(a);
+                out.1.push(b);
+                out.2.push(k.weight);
+            }
+        }
+        out
+    }
+
+    /// The moments summed again over the keyframes from the fit's start (the
+    /// weights changed).
+    fn resum(&mut self) {
+        for k in self.kfs.values_mut() {
+            k.in_fit = None;
+            k.weight = 1.0;
+        }
+        if self.moments.is_none() {
+            return;
+        }
+        self.moments = None;
+        let from = self.fit_from;
+        self.fit_from = f64::INFINITY;
+        self.move_cut(from);
+    }
+
+    /// Whether the pairs weigh `1 / σ̄²` (fixes, every one with a covariance,
+    /// weights asked for).
+    fn weighs(&self) -> bool {
+        matches!(self.reference, Reference::Fixes(_)) && self.weighted && self.opts.gnss.weights
     }
 
     /// Puts keyframe `id` into the moments when it belongs to the fit.
@@ -686,7 +892,7 @@ impl Session {
             return;
         }
         if let Some(r) = k.reference {
-            m.push(&k.keyframe.pose.translation, &r);
+            m.push_weighted(&k.keyframe.pose.translation, &r, k.weight);
             k.in_fit = Some(k.keyframe.pose.translation);
         }
     }
@@ -697,7 +903,7 @@ impl Session {
             return;
         };
         if let (Some(a), Some(b)) = (k.in_fit.take(), k.reference) {
-            m.pull(&a, &b);
+            m.pull_weighted(&a, &b, k.weight);
         }
     }
 
@@ -1079,7 +1285,7 @@ pub enum Pushed {
         /// The update it caused.
         timing: UpdateTiming,
     },
-    /// A tracked frame, a graph update, a reference pose or an IMU sample.
+    /// A tracked frame, a graph update, a reference pose, a GNSS fix or an IMU sample.
     Other,
     /// A message the session does not use (another type, a second pose topic,
     /// a reference pose of a repeated stamp).
@@ -1090,13 +1296,20 @@ pub enum Pushed {
 /// order, as `follow` reads them: LSD-SLAM keyframes and live frames
 /// (`keyframeMsg`, told apart by `isKeyframe`), graph messages, the first
 /// pose topic seen as the reference (a repeated stamp keeps its first pose,
-/// as the batch reader does), IMU samples.
+/// as the batch reader does) — or the first GNSS topic (`NavSatFix`,
+/// `LocationFix`), whichever comes first — IMU samples.
 #[derive(Debug)]
 pub struct LogFeed {
     /// The session.
     pub session: Session,
     reference_topic: Option<String>,
     last_reference: f64,
+}
+
+/// Whether `topic` is the feed's reference topic: the first one offered
+/// becomes it.
+fn is_reference(reference: &mut Option<String>, topic: &str) -> bool {
+    reference.get_or_insert_with(|| topic.to_string()) == topic
 }
 
 impl LogFeed {
@@ -1169,12 +1382,23 @@ impl LogFeed {
                     .push_imu(s.time, Vector3::from(s.gyro), Vector3::from(s.accel))?;
                 Ok(Pushed::Other)
             }
+            Some(k @ (MessageKind::NavSatFix | MessageKind::LocationFix)) => {
+                if !is_reference(&mut self.reference_topic, topic) {
+                    return Ok(Pushed::Ignored);
+                }
+                let fix = crate::io::messages::gnss::gnss_fix(k, encoding, data)
+                    .map_err(|e| fail(e.to_string()))?;
+                if fix.status.is_fix() && fix.time <= self.last_reference {
+                    return Ok(Pushed::Ignored);
+                }
+                if fix.status.is_fix() {
+                    self.last_reference = fix.time;
+                }
+                self.session.push_fix(&fix)?;
+                Ok(Pushed::Other)
+            }
             Some(k) if k.is_pose() && k != MessageKind::Tf => {
-                if self
-                    .reference_topic
-                    .get_or_insert_with(|| topic.to_string())
-                    != topic
-                {
+                if !is_reference(&mut self.reference_topic, topic) {
                     return Ok(Pushed::Ignored);
                 }
                 let (t, p, [x, y, z, w]) =

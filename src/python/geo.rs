@@ -115,7 +115,7 @@ fn position(obj: &Bound<'_, PyAny>, what: &str) -> PyResult<Geodetic> {
 }
 
 /// `"first"`, `"mean"` or a position.
-fn origin_arg(obj: &Bound<'_, PyAny>) -> PyResult<Origin> {
+pub(crate) fn origin_arg(obj: &Bound<'_, PyAny>) -> PyResult<Origin> {
     if let Ok(s) = obj.extract::<String>() {
         return Ok(Origin::parse(&s)?);
     }

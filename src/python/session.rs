@@ -1,14 +1,17 @@
 //! `Session`: the online conversion (wraps `pipeline/session.rs`).
 
-use nalgebra::{Quaternion, UnitQuaternion, Vector3};
+use nalgebra::{Matrix3, Quaternion, UnitQuaternion, Vector3};
 use pyo3::prelude::*;
 use pyo3::types::PyDict;
 
 use super::cloud::{PyKeyframe, PyPointFilter};
+use super::geo::origin_arg;
 use super::geometry::PySim3;
 use super::map::{PyGrid, PyOccupancyMap};
 use crate::align::trajectories::TrajectoryAlignOptions;
+use crate::geo::{FixStatus, GnssFix, Origin};
 use crate::map::MapParams;
+use crate::pipeline::gnss::GnssOptions;
 use crate::pipeline::session::{Session, SessionOptions, UpdateTiming};
 
 fn vec3(what: &str, v: [f64; 3]) -> PyResult<Vector3<f64>> {
@@ -35,7 +38,8 @@ fn timing_dict<'py>(py: Python<'py>, t: &UpdateTiming) -> PyResult<Bound<'py, Py
 }
 
 /// The online conversion: push what a SLAM log holds as it arrives (tracked
-/// frames, keyframes, graph updates, reference poses, IMU samples);
+/// frames, keyframes, graph updates, reference poses or GNSS fixes, IMU
+/// samples);
 /// `state()` says the start-up stage decided on the data so far,
 /// `transform()` gives `T_world_slam` once the stable stage is reached (None
 /// before; `state()["reason"]` says why), `map()` and `grid()` the occupancy
@@ -49,10 +53,11 @@ pub struct PySession {
 #[pymethods]
 impl PySession {
     #[new]
-    #[pyo3(signature = (*, max_diff=0.01, offset=0.0, scale=true, filter=None, octree_resolution=0.1, octree_max_range=Some(10.0), prob_hit=0.7, prob_miss=0.4, clamp_min=0.1192, clamp_max=0.971, stable_hold=5.0, rebuild_tolerance=None),
+    #[pyo3(signature = (*, max_diff=0.01, offset=0.0, scale=true, filter=None, octree_resolution=0.1, octree_max_range=Some(10.0), prob_hit=0.7, prob_miss=0.4, clamp_min=0.1192, clamp_max=0.971, stable_hold=5.0, rebuild_tolerance=None, origin=None, gnss_weights=true, gnss_max_gap=0.5),
            text_signature = "(*, max_diff=0.01, offset=0.0, scale=True, filter=None, octree_resolution=0.1, \
                              octree_max_range=10.0, prob_hit=0.7, prob_miss=0.4, clamp_min=0.1192, \
-                             clamp_max=0.971, stable_hold=5.0, rebuild_tolerance=None)")]
+                             clamp_max=0.971, stable_hold=5.0, rebuild_tolerance=None, origin='first', \
+                             gnss_weights=True, gnss_max_gap=0.5)")]
     #[allow(clippy::too_many_arguments)]
     fn new(
         max_diff: f64,
@@ -67,6 +72,9 @@ impl PySession {
         clamp_max: f64,
         stable_hold: f64,
         rebuild_tolerance: Option<f64>,
+        origin: Option<&Bound<'_, PyAny>>,
+        gnss_weights: bool,
+        gnss_max_gap: f64,
     ) -> PyResult<Self> {
         let opts = SessionOptions {
             align: TrajectoryAlignOptions {
@@ -86,6 +94,15 @@ impl PySession {
             },
             stable_hold,
             rebuild_tolerance: rebuild_tolerance.unwrap_or(0.5 * octree_resolution),
+            gnss: GnssOptions {
+                origin: match origin {
+                    Some(o) => origin_arg(o)?,
+                    None => Origin::First,
+                },
+                lever_arm: None,
+                weights: gnss_weights,
+                max_gap: gnss_max_gap,
+            },
         };
         Ok(PySession {
             inner: Session::new(opts)?,
@@ -143,15 +160,36 @@ impl PySession {
             .push_imu(time, vec3("gyro", gyro)?, vec3("accel", accel)?)?)
     }
 
-    /// A GNSS fix: raises (GNSS is not part of the online session yet).
+    /// A GNSS fix: time (s), WGS84 latitude and longitude (degrees), height
+    /// above the ellipsoid (m), the ENU position covariance (3×3, m²) when
+    /// known, and whether the receiver had a fix (a fix without one is
+    /// dropped and counted). The first fix puts the world frame (ENU at it,
+    /// or at the session's `origin`); fixes come in increasing time, and a
+    /// session takes fixes or reference poses, not both.
+    #[pyo3(signature = (time, latitude, longitude, altitude, covariance=None, has_fix=true))]
+    #[allow(clippy::too_many_arguments)]
     fn push_fix(
         &mut self,
         time: f64,
         latitude: f64,
         longitude: f64,
         altitude: f64,
+        covariance: Option<[[f64; 3]; 3]>,
+        has_fix: bool,
     ) -> PyResult<()> {
-        Ok(self.inner.push_fix(time, [latitude, longitude, altitude])?)
+        let fix = GnssFix {
+            time,
+            lat: latitude,
+            lon: longitude,
+            alt: altitude,
+            covariance: covariance.map(|c| Matrix3::from_fn(|i, j| c[i][j])),
+            status: if has_fix {
+                FixStatus::Single
+            } else {
+                FixStatus::NoFix
+            },
+        };
+        Ok(self.inner.push_fix(&fix)?)
     }
 
     /// After the last push: pairs what still waits, updates the fit and makes
@@ -180,6 +218,9 @@ impl PySession {
         d.set_item("keyframes_inserted", s.keyframes_inserted)?;
         d.set_item("points", s.points)?;
         d.set_item("rebuilds", s.rebuilds)?;
+        d.set_item("fixes", s.fixes)?;
+        d.set_item("fixes_dropped", s.fixes_dropped)?;
+        d.set_item("enu_origin", s.enu_origin.map(|g| (g.lat, g.lon, g.alt)))?;
         Ok(d)
     }
 

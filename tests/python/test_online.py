@@ -11,6 +11,7 @@ import sys
 import textwrap
 import time
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 import pytest
@@ -105,10 +106,68 @@ def test_session_in_time_order() -> None:
     assert m is not None and m.num_nodes > 0
     g = s.grid(0.25, 0.75)
     assert g.width > 0
-    with pytest.raises(s2w.Slam2WorldError, match="not supported"):
+    with pytest.raises(s2w.Slam2WorldError, match="not both"):
         s.push_fix(1.0, 47.0, 8.0, 400.0)
     with pytest.raises(s2w.Slam2WorldError, match="time order"):
         s.push_reference(0.0, [0.0, 0.0, 0.0])
+
+
+def _feed(s: s2w.Session, sim: s2w.Simulation, reference: Any) -> None:
+    """Pushes the simulated run in time order, the reference through ``reference``."""
+    events: list[tuple[float, int, int]] = []
+    rt = sim.reference_timestamps
+    ft, fp, fq = sim.slam_timestamps, sim.slam_positions, sim.slam_orientations
+    assert fq is not None
+    keyframes = sim.keyframes
+    events += [(float(t), 0, i) for i, t in enumerate(rt)]
+    events += [(float(t), 1, i) for i, t in enumerate(ft)]
+    events += [(float(t), 2, i) for i, t in enumerate(sim.keyframe_timestamps)]
+    events.sort()
+    for _, kind, i in events:
+        if kind == 0:
+            reference(i)
+        elif kind == 1:
+            s.push_frame(float(ft[i]), s2w.Sim3.from_quaternion(fq[i], fp[i], 1.0))
+        else:
+            s.push_keyframe(keyframes[i])
+    s.finish()
+
+
+def test_session_with_gnss_fixes_fits_in_enu_at_the_first_fix() -> None:
+    """Fixes (10 Hz, WGS84 by pymap3d from the reference positions in an ENU frame)
+    instead of reference poses: the world frame is ENU at the first fix, and the
+    transform is the pose session's moved by that fix (the two ENU frames, metres
+    apart, differ by a rotation of micro-radians)."""
+    pm = pytest.importorskip("pymap3d")
+    sim = s2w.simulate(seed=3, reduced=4)
+    rt, rp, rq = sim.reference_timestamps, sim.reference_positions, sim.reference_orientations
+    assert rq is not None
+    poses = s2w.Session(stable_hold=1.0)
+    _feed(poses, sim, lambda i: poses.push_reference(float(rt[i]), rp[i].tolist(), rq[i].tolist()))
+    lat, lon, alt = pm.enu2geodetic(rp[:, 0], rp[:, 1], rp[:, 2], 47.37, 8.54, 410.0)
+    cov = np.diag([0.01, 0.01, 0.04])
+    fixes = s2w.Session(stable_hold=1.0)
+
+    def fix(i: int) -> None:
+        if i % 20 == 0:
+            fixes.push_fix(float(rt[i]), float(lat[i]), float(lon[i]), float(alt[i]), cov)
+        if i == 40:
+            fixes.push_fix(float(rt[i]) + 1e-3, 0.0, 0.0, 0.0, has_fix=False)
+
+    _feed(fixes, sim, fix)
+    st = fixes.state()
+    assert st["fixes"] == len(range(0, len(rt), 20)) and st["fixes_dropped"] == 1
+    assert st["enu_origin"] == pytest.approx((lat[0], lon[0], alt[0]), abs=1e-12)
+    a, b = fixes.transform(), poses.transform()
+    assert a is not None and b is not None
+    assert a.scale == pytest.approx(b.scale, rel=2e-3)
+    # ENU at the first fix: the pose session's world shifted by the first position.
+    pts = np.array([k.pose.translation for k in sim.keyframes])
+    assert np.abs(a.apply(pts) - (b.apply(pts) - rp[0])).max() < 0.05
+    with pytest.raises(s2w.Slam2WorldError, match="not both"):
+        fixes.push_reference(1e6, [0.0, 0.0, 0.0])
+    with pytest.raises(s2w.Slam2WorldError, match="origin"):
+        s2w.Session(origin="mean")
 
 
 WRITER = textwrap.dedent(
