@@ -2,7 +2,8 @@
 //! run at 640×480, the viewer's default filter, a 0.1 m octree with 10 m
 //! rays, fed message by message; per keyframe pushed once the map exists,
 //! push-to-map-updated (decode + fit + backproject + insert) and the 2-D grid
-//! projected after it, p50 / p99 and the breakdown. Run it on one core
+//! projected after it, p50 / p99 and the breakdown; and every tracked-frame
+//! push (one keyframe inserted per frame while a map is built in steps). Run it on one core
 //! (`RAYON_NUM_THREADS=1 taskset -c 0 cargo bench --bench online`), and again
 //! with another process keeping the other core busy.
 
@@ -34,6 +35,7 @@ fn main() {
     let (mut total, mut decode, mut fit, mut bp, mut ins, mut grid) =
         (vec![], vec![], vec![], vec![], vec![], vec![]);
     let mut rebuilds = 0;
+    let mut frames = vec![];
     for m in scan.iter() {
         let c = &channels[&m.channel_id];
         let kind = MessageKind::from_schema(&c.schema_name);
@@ -42,6 +44,10 @@ fn main() {
             .push(&c.topic, kind, &c.message_encoding, m.data)
             .expect("push");
         let dt = t0.elapsed().as_secs_f64();
+        if kind == Some(MessageKind::Keyframe) && matches!(pushed, Pushed::Other) {
+            // A tracked frame: while a map is built in steps, it inserts one keyframe.
+            frames.push(dt);
+        }
         if let Pushed::Keyframe {
             decode_s, timing, ..
         } = pushed
@@ -76,6 +82,7 @@ fn main() {
         ("  backproject", &mut bp),
         ("  insert", &mut ins),
         ("grid (after)", &mut grid),
+        ("tracked-frame push", &mut frames),
     ] {
         let (p50, p99) = ms(v);
         println!("{name:22} p50 {p50:8.2} ms  p99 {p99:8.2} ms");

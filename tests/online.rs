@@ -9,7 +9,7 @@ use slam2world::align::trajectories::SkipInit;
 use slam2world::io::mcap::McapFile;
 use slam2world::io::messages::decode::MessageKind;
 use slam2world::map::MapParams;
-use slam2world::pipeline::session::{LogFeed, Pushed, SessionOptions, Stage};
+use slam2world::pipeline::session::{LogFeed, Pushed, SessionOptions, Stage, BUILD_STEP};
 use slam2world::pipeline::{convert_path, ConvertOptions};
 
 /// `slam2world simulate` of the paper run (all 7000 frames and 123
@@ -33,24 +33,26 @@ fn simulate(dir: &std::path::Path, seed: u64) -> std::path::PathBuf {
 }
 
 /// Feeds the log's messages in log order; the log time of every keyframe
-/// push with the stage after it.
-fn feed(log: &std::path::Path, opts: SessionOptions) -> (LogFeed, Vec<(f64, Stage)>) {
+/// push with the stage after it, and the most keyframes one push inserted.
+fn feed(log: &std::path::Path, opts: SessionOptions) -> (LogFeed, Vec<(f64, Stage)>, usize) {
     let file = McapFile::open(log).unwrap();
     let channels = file.channels().unwrap();
     let scan = file.scan(|_| true).unwrap();
     let mut feed = LogFeed::new(opts).unwrap();
     let mut stages = Vec::new();
+    let mut most = 0;
     for m in scan.iter() {
         let c = &channels[&m.channel_id];
         let kind = MessageKind::from_schema(&c.schema_name);
-        if let Pushed::Keyframe { .. } = feed
+        let pushed = feed
             .push(&c.topic, kind, &c.message_encoding, m.data)
-            .unwrap()
-        {
+            .unwrap();
+        most = most.max(feed.session.last_update().inserted);
+        if let Pushed::Keyframe { .. } = pushed {
             stages.push((m.log_time as f64 * 1e-9, feed.session.state().stage));
         }
     }
-    (feed, stages)
+    (feed, stages, most)
 }
 
 const TRUE_STABLE_S: f64 = 4300.0 / 60.0;
@@ -80,7 +82,13 @@ fn runs() -> &'static [Run] {
             .into_par_iter()
             .map(|seed| {
                 let log = simulate(dir.path(), seed);
-                let (mut f, stages) = feed(&log, SessionOptions::default());
+                let (mut f, stages, most) = feed(&log, SessionOptions::default());
+                // No push waits for a whole map: it is built in steps.
+                assert!(
+                    most <= BUILD_STEP,
+                    "seed {seed}: {most} keyframes in one push"
+                );
+                assert!(f.session.state().rebuilds >= 1, "seed {seed}");
                 let stable_reported_at = f.session.state().stable_reported_at;
                 f.session.finish().unwrap();
                 let online = f.session.transform().expect("a transform");
@@ -346,7 +354,7 @@ fn gnss_run(unknown: Option<usize>) {
     let dir = tempfile::tempdir().unwrap();
     let log = dir.path().join("gnss.mcap");
     let unknown_time = gnss_log(&r.log, &log, unknown);
-    let (mut f, _) = feed(&log, SessionOptions::default());
+    let (mut f, _, _) = feed(&log, SessionOptions::default());
     // Stable online too, in the window the pose run is held to; and before
     // the fix without a covariance (the fitted pairs then weigh 1 anew).
     let at = f

@@ -31,8 +31,12 @@
 //!   are inserted then. OctoMap cannot take a scan out again, so when the
 //!   transform or a keyframe pose has moved an inserted keyframe by more than
 //!   [`SessionOptions::rebuild_tolerance`] the map is rebuilt from the
-//!   keyframes in order; [`Session::finish`] rebuilds when anything moved at
-//!   all, so that the final map equals the batch octree node for node.
+//!   keyframes in order — in steps, so that no push waits for a whole map:
+//!   [`BUILD_STEP`] keyframes per keyframe push and one per tracked frame,
+//!   the last complete map served meanwhile (the first map is served as far
+//!   as it is built). [`Session::finish`] completes the build and rebuilds
+//!   when anything moved at all, so that the final map equals the batch
+//!   octree node for node.
 //! - GNSS: fixes ([`Session::push_fix`]) instead of reference poses put the
 //!   world frame in ENU at the first fix (or a given origin), and the pairing
 //!   is the batch GNSS path's: the fixes interpolated linearly at each SLAM
@@ -324,6 +328,18 @@ struct Inserted {
     t_world_cam: Sim3,
 }
 
+/// An occupancy map and the keyframes in it.
+#[derive(Clone, Debug, Default)]
+struct MapState {
+    map: Option<OccupancyMap>,
+    inserted: BTreeMap<i32, Inserted>,
+    points: usize,
+}
+
+/// Keyframes a keyframe push inserts into a map being built in steps
+/// ([`Session`]'s map doc); a tracked frame's push inserts one.
+pub const BUILD_STEP: usize = 2;
+
 /// The online conversion (see the module doc).
 pub struct Session {
     opts: SessionOptions,
@@ -360,10 +376,9 @@ pub struct Session {
     moments: Option<Moments>,
     fit_from: f64,
     transform: Option<Sim3>,
-    // The map.
-    map: Option<OccupancyMap>,
-    inserted: BTreeMap<i32, Inserted>,
-    points: usize,
+    // The map served, and the one being built in steps to replace it.
+    served: MapState,
+    building: Option<MapState>,
     rebuilds: usize,
     last_update: UpdateTiming,
 }
@@ -412,9 +427,8 @@ impl Session {
             moments: None,
             fit_from: f64::INFINITY,
             transform: None,
-            map: None,
-            inserted: BTreeMap::new(),
-            points: 0,
+            served: MapState::default(),
+            building: None,
             rebuilds: 0,
             last_update: UpdateTiming::default(),
         })
@@ -567,6 +581,11 @@ impl Session {
             // The stage only: the fit and the map move with keyframes.
             self.detect(false);
         }
+        // A map being built takes one more keyframe (an update of its own).
+        if self.building.is_some() && self.transform.is_some() {
+            self.last_update = UpdateTiming::default();
+            self.step_build(1)?;
+        }
         Ok(())
     }
 
@@ -640,11 +659,14 @@ impl Session {
         self.finished = true;
         self.match_pending(true);
         self.update()?;
-        if self.transform.is_some() && self.map_moved(0.0) {
-            let t = Instant::now();
-            self.rebuild()?;
-            self.last_update.insert_s += t.elapsed().as_secs_f64();
-            self.last_update.rebuilt = true;
+        if self.transform.is_some() {
+            // The build in progress completed; then, where anything inserted
+            // moved at all, built again, so that the map is the batch's.
+            self.step_build(usize::MAX)?;
+            if self.moved(&self.served, 0.0) {
+                self.building = Some(MapState::default());
+                self.step_build(usize::MAX)?;
+            }
         }
         Ok(self.last_update)
     }
@@ -663,8 +685,8 @@ impl Session {
             keyframes: self.kfs.len(),
             keyframes_matched: self.kfs.values().filter(|k| k.reference.is_some()).count(),
             pairs_fitted: self.moments.as_ref().map_or(0, |m| m.n),
-            keyframes_inserted: self.inserted.len(),
-            points: self.points,
+            keyframes_inserted: self.shown().inserted.len(),
+            points: self.shown().points,
             rebuilds: self.rebuilds,
             fixes: match self.reference {
                 Reference::Fixes(_) => self.ref_times.len(),
@@ -706,13 +728,22 @@ impl Session {
 
     /// The occupancy map (world frame), once the transform is known.
     pub fn map(&self) -> Option<&OccupancyMap> {
-        self.map.as_ref()
+        self.shown().map.as_ref()
+    }
+
+    /// The map served: the one built last, or while the first is still being
+    /// built, that one as far as it goes.
+    fn shown(&self) -> &MapState {
+        match (&self.served.map, &self.building) {
+            (None, Some(b)) => b,
+            _ => &self.served,
+        }
     }
 
     /// The 2-D grid of the map ([`OccupancyMap::grid`]); an error before there
     /// is a map.
     pub fn grid(&self, z_min: f64, z_max: f64, resolution: Option<f64>) -> Result<Grid2d> {
-        match &self.map {
+        match &self.shown().map {
             Some(m) => m.grid(z_min, z_max, resolution),
             None => Err(Error::invalid(
                 "grid",
@@ -1172,12 +1203,12 @@ impl Session {
         self.transform.map(|t| t * kf.pose)
     }
 
-    /// Whether some inserted keyframe's `T_world_cam` moved by more than `tol`
-    /// (metres at its camera and at the map's max range, 10 m without one);
-    /// `tol = 0`: moved at all.
-    fn map_moved(&self, tol: f64) -> bool {
+    /// Whether some keyframe inserted into `m` has a `T_world_cam` that moved
+    /// by more than `tol` (metres at its camera and at the map's max range,
+    /// 10 m without one); `tol = 0`: moved at all.
+    fn moved(&self, m: &MapState, tol: f64) -> bool {
         let range = self.opts.map.max_range.unwrap_or(10.0);
-        self.inserted.iter().any(|(id, ins)| {
+        m.inserted.iter().any(|(id, ins)| {
             let Some(now) = self.kfs.get(id).and_then(|k| self.t_world_cam(&k.keyframe)) else {
                 return true;
             };
@@ -1192,7 +1223,15 @@ impl Session {
         })
     }
 
-    fn insert_one(&mut self, id: i32) -> Result<()> {
+    /// Whether a keyframe not in `m` has an id below one that is (inserting
+    /// it would change the batch order).
+    fn out_of_order(&self, m: &MapState) -> bool {
+        let first_new = self.kfs.keys().find(|id| !m.inserted.contains_key(id));
+        matches!((first_new, m.inserted.keys().next_back()), (Some(a), Some(b)) if a < b)
+    }
+
+    /// Inserts keyframe `id` into `m` with the current transform.
+    fn insert_one(&mut self, id: i32, m: &mut MapState) -> Result<()> {
         let Some((kf, arrival)) = self.kfs.get(&id).map(|k| (&k.keyframe, k.arrival)) else {
             return Ok(());
         };
@@ -1215,50 +1254,84 @@ impl Session {
         let c = t.transform_point(&kf.pose.translation);
         let origin = [c.x as f32, c.y as f32, c.z as f32];
         let t_world_cam = t * kf.pose;
+        let map = match &mut m.map {
+            Some(map) => map,
+            None => m.map.insert(OccupancyMap::try_new(self.opts.map)?),
+        };
         if !cloud.points.is_empty() {
-            let map = self
-                .map
-                .get_or_insert(OccupancyMap::try_new(self.opts.map)?);
             map.insert_scan(&cloud.points, origin)?;
-            self.points += cloud.len();
+            m.points += cloud.len();
         }
-        self.inserted.insert(id, Inserted { t_world_cam });
+        m.inserted.insert(id, Inserted { t_world_cam });
         self.last_update.insert_s += ti.elapsed().as_secs_f64();
         self.last_update.inserted += 1;
         Ok(())
     }
 
-    fn rebuild(&mut self) -> Result<()> {
-        self.map = Some(OccupancyMap::try_new(self.opts.map)?);
-        self.inserted.clear();
-        self.points = 0;
-        self.rebuilds += 1;
-        let ids: Vec<i32> = self.kfs.keys().copied().collect();
-        for id in ids {
+    /// Inserts up to `n` keyframes (ascending id) into the map being built;
+    /// once every keyframe is in, it replaces the served map.
+    fn step_build(&mut self, n: usize) -> Result<()> {
+        if self.transform.is_none() {
+            return Ok(());
+        }
+        let Some(mut b) = self.building.take() else {
+            return Ok(());
+        };
+        let todo: Vec<i32> = self
+            .kfs
+            .keys()
+            .copied()
+            .filter(|id| !b.inserted.contains_key(id))
+            .take(n)
+            .collect();
+        for id in todo {
             crate::interrupt::check()?;
-            self.insert_one(id)?;
+            self.insert_one(id, &mut b)?;
+        }
+        if b.inserted.len() == self.kfs.len() {
+            b.map.get_or_insert(OccupancyMap::try_new(self.opts.map)?);
+            self.served = b;
+            self.rebuilds += 1;
+            self.last_update.rebuilt = true;
+        } else {
+            self.building = Some(b);
         }
         Ok(())
     }
 
+    /// Keeps the map up to date: new keyframes into the served map; a map
+    /// built anew in steps of [`BUILD_STEP`] keyframes per push (the served
+    /// one kept until it is complete) when there is none yet, when an
+    /// inserted keyframe moved beyond the tolerance, or when a keyframe came
+    /// out of id order; a build whose keyframes moved starts again.
     fn update_map(&mut self) -> Result<()> {
-        let max_inserted = self.inserted.keys().next_back().copied();
+        let tol = self.opts.rebuild_tolerance;
+        let restart = match &self.building {
+            Some(b) => self.out_of_order(b) || self.moved(b, tol),
+            None => {
+                self.served.map.is_none()
+                    || self.out_of_order(&self.served)
+                    || self.moved(&self.served, tol)
+            }
+        };
+        if restart {
+            self.building = Some(MapState::default());
+        }
+        if self.building.is_some() {
+            return self.step_build(BUILD_STEP);
+        }
         let new: Vec<i32> = self
             .kfs
             .keys()
             .copied()
-            .filter(|id| !self.inserted.contains_key(id))
+            .filter(|id| !self.served.inserted.contains_key(id))
             .collect();
-        // A keyframe below an inserted id would change the batch order.
-        let out_of_order = matches!((new.first(), max_inserted), (Some(a), Some(b)) if *a < b);
-        if self.map.is_none() || out_of_order || self.map_moved(self.opts.rebuild_tolerance) {
-            self.last_update.rebuilt = true;
-            return self.rebuild();
-        }
-        for id in new {
-            self.insert_one(id)?;
-        }
-        Ok(())
+        let mut m = std::mem::take(&mut self.served);
+        let r = new
+            .into_iter()
+            .try_for_each(|id| self.insert_one(id, &mut m));
+        self.served = m;
+        r
     }
 }
 
