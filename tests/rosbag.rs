@@ -1103,3 +1103,33 @@ fn db3_scans_split_into_ranges_keep_order_counts_and_error_places() {
         );
     }
 }
+
+#[test]
+fn db3_rowids_across_the_whole_i64_range_are_read() {
+    // Rowids at both ends of i64 (SQLite allows negative ones): the range split
+    // neither overflows nor loses a row.
+    let dir = tempfile::tempdir().unwrap();
+    let path = dir.path().join("wide.db3");
+    big_db3(&path, 10, false);
+    {
+        let c = rusqlite::Connection::open(&path).unwrap();
+        c.execute(
+            "UPDATE messages SET id = -9223372036854775808 WHERE id = 1",
+            [],
+        )
+        .unwrap();
+        c.execute(
+            "UPDATE messages SET id = 9223372036854775807 WHERE id = 2",
+            [],
+        )
+        .unwrap();
+    }
+    let bag = Ros2Bag::open(&path).unwrap();
+    let (scan, inv) = bag.scan_counted(|_| true, |_, m| m.data.len()).unwrap();
+    assert_eq!(scan.messages.len(), 10);
+    assert_eq!(inv.channels.iter().map(|c| c.count).sum::<u64>(), 10);
+    assert_eq!(
+        bag.scan_map(|_| true, |_, _| ()).unwrap().messages.len(),
+        10
+    );
+}

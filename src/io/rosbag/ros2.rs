@@ -582,7 +582,7 @@ fn with_bytes<T>(
 }
 
 /// Rowids below which a `.db3` is scanned by one connection.
-const MIN_RANGE_ROWS: i64 = 1 << 15;
+const MIN_RANGE_ROWS: i128 = 1 << 15;
 
 /// Which rows of a `.db3` a scan visits.
 #[derive(Clone, Copy, PartialEq, Eq)]
@@ -662,11 +662,16 @@ fn sqlite_scan<T: Send + Default>(
     };
     // One range per thread, each read by its own connection into its own
     // vector; the first becomes the file's, the others are appended.
-    let parts = (rayon::current_num_threads() as i64).clamp(1, (hi - lo) / MIN_RANGE_ROWS + 1);
-    let step = (hi - lo) / parts + 1;
+    // In i128: rowids may span the whole i64 range.
+    let span = i128::from(hi) - i128::from(lo) + 1;
+    let parts = (rayon::current_num_threads() as i128).clamp(1, span / MIN_RANGE_ROWS + 1);
+    let step = (span + parts - 1) / parts;
+    let (lo_w, hi_w) = (i128::from(lo), i128::from(hi));
     let ranges: Vec<(i64, i64)> = (0..parts)
-        .map(|k| (lo + k * step, (lo + (k + 1) * step - 1).min(hi)))
-        .filter(|(a, b)| a <= b)
+        .map(|k| lo_w + k * step)
+        .filter(|&a| a <= hi_w)
+        // Within [lo, hi]: the casts are exact.
+        .map(|a| (a as i64, (a + step - 1).min(hi_w) as i64))
         .collect();
     let channels = &table.channels;
     let ids = &ids;
