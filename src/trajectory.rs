@@ -94,6 +94,37 @@ pub struct Interpolated {
 /// Where a query time falls: `(i, k, alpha)` with the pose `lerp(i, k, alpha)`.
 type Bracket = (usize, usize, f64);
 
+/// The poses around `t` in sorted stamps `ts`: `(i, k, a)` with `t` at
+/// fraction `a` from stamp `i` to stamp `k` (`i == k` at a stamp), or why
+/// there are none (before the first, after the last, a gap over `max_gap`).
+pub(crate) fn bracket(ts: &[f64], t: f64, max_gap: f64) -> std::result::Result<Bracket, String> {
+    let n = ts.len();
+    if n == 0 {
+        return Err("the trajectory is empty".into());
+    }
+    let k = ts.partition_point(|&x| x <= t);
+    if k == 0 {
+        return Err(format!("before the first pose ({} s)", ts[0]));
+    }
+    let i = k - 1;
+    if ts[i] == t {
+        return Ok((i, i, 0.0));
+    }
+    if k == n {
+        return Err(format!("after the last pose ({} s)", ts[n - 1]));
+    }
+    let gap = ts[k] - ts[i];
+    // A gap of max_gap up to the rounding of the stamps is bridged (a 10 Hz
+    // stream in Unix seconds has steps of 0.1 ± 2e-7).
+    let rounding = 4.0 * f64::EPSILON * ts[k].abs().max(max_gap.abs());
+    if max_gap.is_nan() || gap > max_gap + rounding {
+        return Err(format!(
+            "inside a gap of {gap} s between poses {i} and {k} (max_gap {max_gap} s)"
+        ));
+    }
+    Ok((i, k, (t - ts[i]) / gap))
+}
+
 impl Trajectory {
     /// Checks that positions and orientations have one entry per timestamp
     /// (the fields are public, so a literal can break what `try_new` checks).
@@ -161,32 +192,7 @@ impl Trajectory {
     }
 
     fn bracket(&self, t: f64, max_gap: f64) -> std::result::Result<Bracket, String> {
-        let ts = &self.timestamps;
-        let n = ts.len();
-        if n == 0 {
-            return Err("the trajectory is empty".into());
-        }
-        let k = ts.partition_point(|&x| x <= t);
-        if k == 0 {
-            return Err(format!("before the first pose ({} s)", ts[0]));
-        }
-        let i = k - 1;
-        if ts[i] == t {
-            return Ok((i, i, 0.0));
-        }
-        if k == n {
-            return Err(format!("after the last pose ({} s)", ts[n - 1]));
-        }
-        let gap = ts[k] - ts[i];
-        // A gap of max_gap up to the rounding of the stamps is bridged (a 10 Hz
-        // stream in Unix seconds has steps of 0.1 ± 2e-7).
-        let rounding = 4.0 * f64::EPSILON * ts[k].abs().max(max_gap.abs());
-        if max_gap.is_nan() || gap > max_gap + rounding {
-            return Err(format!(
-                "inside a gap of {gap} s between poses {i} and {k} (max_gap {max_gap} s)"
-            ));
-        }
-        Ok((i, k, (t - ts[i]) / gap))
+        bracket(&self.timestamps, t, max_gap)
     }
 
     fn build(&self, stamps: Vec<f64>, brackets: &[Bracket]) -> Result<Trajectory> {

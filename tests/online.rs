@@ -55,6 +55,25 @@ fn feed(log: &std::path::Path, opts: SessionOptions) -> (LogFeed, Vec<(f64, Stag
     (feed, stages, most)
 }
 
+/// The session's transform `a` is the batch's `b` to 1e-9 (scale relative,
+/// translation in metres, rotation in radians).
+fn same_transform(a: &slam2world::geometry::Sim3, b: &slam2world::geometry::Sim3, what: &str) {
+    assert!(
+        (a.scale - b.scale).abs() <= 1e-9 * b.scale,
+        "{what}: {} {}",
+        a.scale,
+        b.scale
+    );
+    assert!(
+        (a.translation - b.translation).norm() <= 1e-9,
+        "{what}: {a:?} {b:?}"
+    );
+    assert!(
+        a.rotation.angle_to(&b.rotation) <= 1e-9,
+        "{what}: {a:?} {b:?}"
+    );
+}
+
 const TRUE_STABLE_S: f64 = 4300.0 / 60.0;
 const SEEDS: std::ops::Range<u64> = 0..5;
 
@@ -152,20 +171,10 @@ fn a_whole_log_ends_on_the_batch_transform_and_octree() {
             },
         )
         .unwrap();
-        let (a, b) = (r.online.transform, batch.transform());
-        assert!(
-            (a.scale - b.scale).abs() <= 1e-9 * b.scale,
-            "seed {seed}: {} {}",
-            a.scale,
-            b.scale
-        );
-        assert!(
-            (a.translation - b.translation).norm() <= 1e-9,
-            "seed {seed}: {a:?} {b:?}"
-        );
-        assert!(
-            a.rotation.angle_to(&b.rotation) <= 1e-9,
-            "seed {seed}: {a:?} {b:?}"
+        same_transform(
+            &r.online.transform,
+            &batch.transform(),
+            &format!("seed {seed}"),
         );
         assert_eq!(r.online.pairs, batch.report.pairs_fitted, "seed {seed}");
         // The cut is the batch's (the report says it came from the live frames).
@@ -391,17 +400,7 @@ fn gnss_run(unknown: Option<usize>) {
     assert_eq!(gnss.weighted, unknown.is_none());
     assert_eq!(gnss.origin, [origin.lat, origin.lon, origin.alt]);
     let (a, b) = (online.transform, batch.transform());
-    assert!(
-        (a.scale - b.scale).abs() <= 1e-9 * b.scale,
-        "{} {}",
-        a.scale,
-        b.scale
-    );
-    assert!(
-        (a.translation - b.translation).norm() <= 1e-9,
-        "{a:?} {b:?}"
-    );
-    assert!(a.rotation.angle_to(&b.rotation) <= 1e-9, "{a:?} {b:?}");
+    same_transform(&a, &b, "gnss");
     assert_eq!(online.pairs, batch.report.pairs_fitted);
     let startup = batch.report.startup.as_ref().expect("a live cut");
     assert_eq!(Some(startup.stable_time), st.stable_time);

@@ -787,21 +787,9 @@ impl Session {
             if t > last {
                 return if all { Some(None) } else { None };
             }
-            let k = r.partition_point(|&x| x <= t);
-            if k == 0 {
+            // Before the first fix or inside a gap: none (fixes come in order).
+            let Ok((i, k, a)) = crate::trajectory::bracket(r, t, self.opts.gnss.max_gap) else {
                 return Some(None);
-            }
-            let i = k - 1;
-            let (k, a) = if r[i] == t {
-                (i, 0.0)
-            } else {
-                let gap = r[k] - r[i];
-                let max_gap = self.opts.gnss.max_gap;
-                let rounding = 4.0 * f64::EPSILON * r[k].abs().max(max_gap.abs());
-                if max_gap.is_nan() || gap > max_gap + rounding {
-                    return Some(None);
-                }
-                (k, (t - r[i]) / gap)
             };
             let p = self.ref_pos[i].lerp(&self.ref_pos[k], a);
             let w = if self.weighs() {

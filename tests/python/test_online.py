@@ -72,29 +72,42 @@ def test_convert_grid_writes_map_server_files_and_a_grid_channel(log: Path, tmp_
         s2w.convert(log, grid=(0.0, 1.0))
 
 
-def test_session_in_time_order() -> None:
-    sim = s2w.simulate(seed=3, reduced=4)
-    s = s2w.Session(stable_hold=1.0)
-    assert s.transform() is None and s.map() is None
-    assert s.state()["stage"] == "waiting"
+def _feed(s: s2w.Session, sim: s2w.Simulation, reference: Any) -> list[dict[str, Any]]:
+    """Pushes the simulated run in time order, the reference through ``reference``,
+    then finishes; the timing of every keyframe push."""
     events: list[tuple[float, int, int]] = []
-    rt, rp, rq = sim.reference_timestamps, sim.reference_positions, sim.reference_orientations
+    rt = sim.reference_timestamps
     ft, fp, fq = sim.slam_timestamps, sim.slam_positions, sim.slam_orientations
-    assert rq is not None and fq is not None
+    assert fq is not None
     keyframes = sim.keyframes
     events += [(float(t), 0, i) for i, t in enumerate(rt)]
     events += [(float(t), 1, i) for i, t in enumerate(ft)]
     events += [(float(t), 2, i) for i, t in enumerate(sim.keyframe_timestamps)]
     events.sort()
+    timings = []
     for _, kind, i in events:
         if kind == 0:
-            s.push_reference(float(rt[i]), rp[i].tolist(), rq[i].tolist())
+            reference(i)
         elif kind == 1:
             s.push_frame(float(ft[i]), s2w.Sim3.from_quaternion(fq[i], fp[i], 1.0))
         else:
-            timing = s.push_keyframe(keyframes[i])
-            assert set(timing) == {"fit_s", "backproject_s", "insert_s", "inserted", "rebuilt"}
+            timings.append(s.push_keyframe(keyframes[i]))
     s.finish()
+    return timings
+
+
+def test_session_in_time_order() -> None:
+    sim = s2w.simulate(seed=3, reduced=4)
+    s = s2w.Session(stable_hold=1.0)
+    assert s.transform() is None and s.map() is None
+    assert s.state()["stage"] == "waiting"
+    rt, rp, rq = sim.reference_timestamps, sim.reference_positions, sim.reference_orientations
+    assert rq is not None
+    timings = _feed(
+        s, sim, lambda i: s.push_reference(float(rt[i]), rp[i].tolist(), rq[i].tolist())
+    )
+    for timing in timings:
+        assert set(timing) == {"fit_s", "backproject_s", "insert_s", "inserted", "rebuilt"}
     st = s.state()
     assert st["stage"] == "stable" and st["keyframes"] == len(sim.keyframes)
     t = s.transform()
@@ -110,27 +123,6 @@ def test_session_in_time_order() -> None:
         s.push_fix(1.0, 47.0, 8.0, 400.0)
     with pytest.raises(s2w.Slam2WorldError, match="time order"):
         s.push_reference(0.0, [0.0, 0.0, 0.0])
-
-
-def _feed(s: s2w.Session, sim: s2w.Simulation, reference: Any) -> None:
-    """Pushes the simulated run in time order, the reference through ``reference``."""
-    events: list[tuple[float, int, int]] = []
-    rt = sim.reference_timestamps
-    ft, fp, fq = sim.slam_timestamps, sim.slam_positions, sim.slam_orientations
-    assert fq is not None
-    keyframes = sim.keyframes
-    events += [(float(t), 0, i) for i, t in enumerate(rt)]
-    events += [(float(t), 1, i) for i, t in enumerate(ft)]
-    events += [(float(t), 2, i) for i, t in enumerate(sim.keyframe_timestamps)]
-    events.sort()
-    for _, kind, i in events:
-        if kind == 0:
-            reference(i)
-        elif kind == 1:
-            s.push_frame(float(ft[i]), s2w.Sim3.from_quaternion(fq[i], fp[i], 1.0))
-        else:
-            s.push_keyframe(keyframes[i])
-    s.finish()
 
 
 def test_session_with_gnss_fixes_fits_in_enu_at_the_first_fix() -> None:
