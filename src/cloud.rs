@@ -384,7 +384,7 @@ pub fn backproject_counted<K: Borrow<Keyframe> + Sync>(
     transform: Option<&Sim3>,
 ) -> Result<(PointCloud, NonFinite)> {
     let t = transform.copied().unwrap_or_else(Sim3::identity);
-    let mut cloud = backproject_with(keyframes, filter, |_| t, Isa::detect())?;
+    let mut cloud = backproject_with(keyframes, 0, filter, |_| t, None, Isa::detect())?;
     let dropped = cloud.drop_non_finite();
     Ok((cloud, dropped))
 }
@@ -412,9 +412,46 @@ pub fn backproject_per_keyframe_counted<K: Borrow<Keyframe> + Sync>(
             got: format!("{}", transforms.len()),
         });
     }
-    let mut cloud = backproject_with(keyframes, filter, |i| transforms[i], Isa::detect())?;
+    let mut cloud = backproject_with(keyframes, 0, filter, |i| transforms[i], None, Isa::detect())?;
     let dropped = cloud.drop_non_finite();
     Ok((cloud, dropped))
+}
+
+/// One batch of a stream of keyframes, as [`backproject_per_keyframe_counted`]
+/// gives its share of the whole: `keyframes` are those at arrival indices
+/// `first..` (what [`PointFilter::cuts`] counts), `world_slam(i)` is
+/// `T_world_slam` of `keyframes[i]`, and `with_color` says whether every
+/// keyframe of the whole stream has colour. The batches' clouds, appended in
+/// order, are the cloud of the whole (the filter is per keyframe).
+pub(crate) fn backproject_batch_counted<K: Borrow<Keyframe> + Sync>(
+    keyframes: &[K],
+    first: usize,
+    filter: &PointFilter,
+    world_slam: impl Fn(usize) -> Sim3,
+    with_color: bool,
+) -> Result<(PointCloud, NonFinite)> {
+    let mut cloud = backproject_with(
+        keyframes,
+        first,
+        filter,
+        world_slam,
+        Some(with_color),
+        Isa::detect(),
+    )?;
+    let dropped = cloud.drop_non_finite();
+    Ok((cloud, dropped))
+}
+
+impl NonFinite {
+    /// Adds the points another batch dropped (its keyframes follow these).
+    pub(crate) fn extend(&mut self, other: NonFinite) {
+        self.points += other.points;
+        for id in other.keyframes {
+            if !self.keyframes.contains(&id) {
+                self.keyframes.push(id);
+            }
+        }
+    }
 }
 
 /// Points a backprojection dropped because a coordinate was not finite.
@@ -429,19 +466,33 @@ pub struct NonFinite {
 /// Two parallel passes: the filter lists the kept columns of each block of rows,
 /// then, with every block's offset known, the points, colours and ids are written
 /// straight into the output buffers.
+///
+/// `first` is the arrival index of `keyframes[0]` (a batch of a longer
+/// stream); `with_color` (default: every keyframe has colour) whether the
+/// points carry colours.
 fn backproject_with<K: Borrow<Keyframe> + Sync>(
     keyframes: &[K],
+    first: usize,
     filter: &PointFilter,
     world_slam: impl Fn(usize) -> Sim3,
+    with_color: Option<bool>,
     kernel: Isa,
 ) -> Result<PointCloud> {
     filter.validate()?;
-    let with_color = !keyframes.is_empty() && keyframes.iter().all(|k| k.borrow().color.is_some());
+    let with_color = with_color.unwrap_or_else(|| {
+        !keyframes.is_empty() && keyframes.iter().all(|k| k.borrow().color.is_some())
+    });
     let mut prepared = Vec::new();
     for (i, k) in keyframes.iter().enumerate() {
         let kf = k.borrow();
         check_keyframe(kf)?;
-        if filter.cuts(i) {
+        if with_color && kf.color.is_none() {
+            return Err(Error::invalid(
+                "keyframes",
+                format!("keyframe {} has no colour where the others have", kf.id),
+            ));
+        }
+        if filter.cuts(first + i) {
             continue;
         }
         prepared.push(PreparedKeyframe::new(kf, world_slam(i) * kf.pose));
@@ -1105,7 +1156,7 @@ mod tests {
                     "set {si} filter {fi}"
                 );
                 for &kernel in &kernels {
-                    let got = backproject_with(set, f, |_| world, kernel).unwrap();
+                    let got = backproject_with(set, 0, f, |_| world, None, kernel).unwrap();
                     assert_same_cloud(&got, &want, &format!("set {si} filter {fi} {kernel:?}"));
                 }
             }

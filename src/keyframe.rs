@@ -81,6 +81,42 @@ impl Keyframe {
         })
     }
 
+    /// A keyframe whose `pixels` per-pixel values are kept elsewhere (a
+    /// bounded-memory read leaves them on disk): the checks of
+    /// [`Keyframe::try_new`] on the pose, camera, stamp and pixel count, with
+    /// empty arrays. Backprojection needs the arrays put back first.
+    pub fn without_pixels(
+        id: i32,
+        timestamp: f64,
+        pose: Sim3,
+        camera: PinholeCamera,
+        pixels: usize,
+    ) -> Result<Self> {
+        let n = camera.width as usize * camera.height as usize;
+        if pixels != n {
+            return Err(Error::ShapeMismatch {
+                what: format!("keyframe {id} idepth"),
+                expected: format!("({}, {})", camera.height, camera.width),
+                got: format!("{pixels} values"),
+            });
+        }
+        if !timestamp.is_finite() {
+            return Err(Error::NonFinite {
+                what: format!("keyframe {id} timestamp"),
+                index: 0,
+            });
+        }
+        Ok(Keyframe {
+            id,
+            timestamp,
+            pose,
+            camera,
+            idepth: Vec::new(),
+            idepth_var: None,
+            color: None,
+        })
+    }
+
     /// Number of pixels, `width × height`.
     pub fn len(&self) -> usize {
         self.idepth.len()

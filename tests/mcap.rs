@@ -546,8 +546,7 @@ fn world_mcap_reads_back() {
     for flavor in [WorldFlavor::Foxglove, WorldFlavor::Ros2] {
         let path = dir.path().join(format!("world-{flavor:?}.mcap"));
         let scene = WorldScene {
-            points: &points,
-            colors: Some(&colors),
+            cloud: slam2world::io::spill::CloudRef::Memory(&points, Some(&colors)),
             t_world_slam: Sim3::identity(),
             slam_trajectory: Some(&r),
             reference: Some(&r),

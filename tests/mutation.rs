@@ -130,8 +130,7 @@ fn seeds(reader: &str, dir: &Path) -> Vec<PathBuf> {
             let world = p("world.mcap");
             let pts: Vec<f32> = (0..300).map(|i| (i as f32 * 0.37).sin()).collect();
             let scene = slam2world::io::mcap::WorldScene {
-                points: &pts,
-                colors: None,
+                cloud: slam2world::io::spill::CloudRef::Memory(&pts, None),
                 t_world_slam: Sim3::identity(),
                 slam_trajectory: Some(&traj),
                 reference: Some(&traj),

@@ -31,7 +31,7 @@ use crate::pipeline::native::ReferenceFormat;
 use crate::pipeline::outputs::output_set;
 use crate::pipeline::reconstruction::{open_input, ReconstructionOptions, ReferenceSpec};
 use crate::pipeline::report::{ImuReport, Report, TextInfoReport};
-use crate::pipeline::{convert_source, ConvertOptions};
+use crate::pipeline::{convert_source_bounded, ConvertOptions};
 
 fn reference_format(s: &str) -> std::result::Result<ReferenceFormat, String> {
     s.parse().map_err(|e: Error| e.to_string())
@@ -295,7 +295,8 @@ pub fn run(args: &ConvertArgs) -> Result<()> {
     } else {
         "reading, aligning and backprojecting"
     });
-    let c = convert_source(&*src, &opts)?;
+    // Bounded memory: keyframe pixels and the world cloud stay on disk.
+    let c = convert_source_bounded(&*src, &opts)?;
     bar.inc(2);
     bar.set_message("writing");
     let flavor = if args.ros2 {

@@ -331,8 +331,7 @@ fn write_outputs(
         };
         let extra: Vec<ExtraChannel<'_>> = channels.iter().map(GridChannel::as_extra).collect();
         let scene = WorldScene {
-            points: &[],
-            colors: None,
+            cloud: crate::io::spill::CloudRef::Memory(&[], None),
             t_world_slam: t.transform,
             slam_trajectory: None,
             reference: None,

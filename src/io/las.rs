@@ -24,6 +24,7 @@ use rayon::prelude::*;
 use crate::cloud::PointCloud;
 use crate::error::{Error, Result};
 use crate::geo::{enu_to_crs, EnuFrame, GeoCrs, Geodetic, UtmZone};
+use crate::io::spill::CloudRef;
 
 /// LAS coordinate step, metres.
 pub const LAS_SCALE: f64 = 0.001;
@@ -104,38 +105,68 @@ pub fn las_bytes(
             });
         }
     }
+    let (w, info) = las_cloud_into(
+        Cursor::new(Vec::new()),
+        path,
+        CloudRef::Memory(points, colors),
+        origin,
+        crs,
+        compressed,
+    )?;
+    Ok((w.into_inner(), info))
+}
+
+/// [`las_bytes`] of a cloud in memory or on disk into `w`, a piece at a time
+/// (two sweeps: the bounds that choose the offsets, then the points).
+pub fn las_cloud_into<
+    W: std::io::Write + std::io::Seek + std::fmt::Debug + Send + Sync + 'static,
+>(
+    w: W,
+    path: &Path,
+    cloud: CloudRef<'_>,
+    origin: &Geodetic,
+    crs: GeoCrs,
+    compressed: bool,
+) -> Result<(W, LasInfo)> {
+    const BATCH: usize = 1 << 16;
+    let n = cloud.len();
     let frame = EnuFrame::new(*origin)?;
-    let global = enu_to_crs(points, &frame, crs)?;
-    let xyz = &global.xyz;
+    let meta = enu_to_crs(&[], &frame, crs)?;
+    let mut lo = [f64::INFINITY; 3];
+    let mut hi = [f64::NEG_INFINITY; 3];
+    cloud.for_each_piece(BATCH, |points, _| {
+        let global = enu_to_crs(points, &frame, crs)?;
+        for p in global.xyz.chunks_exact(3) {
+            for k in 0..3 {
+                lo[k] = lo[k].min(p[k]);
+                hi[k] = hi[k].max(p[k]);
+            }
+        }
+        Ok(())
+    })?;
 
     // Offsets: the whole metre nearest the centre of the bounds.
     let mut offset = [0.0; 3];
     for (k, o) in offset.iter_mut().enumerate() {
-        let (lo, hi) = xyz
-            .iter()
-            .skip(k)
-            .step_by(3)
-            .fold((f64::INFINITY, f64::NEG_INFINITY), |(lo, hi), &v| {
-                (lo.min(v), hi.max(v))
-            });
         if n == 0 {
             continue;
         }
-        *o = ((lo + hi) / 2.0).round();
-        let half = (hi - *o).max(*o - lo);
+        *o = ((lo[k] + hi[k]) / 2.0).round();
+        let half = (hi[k] - *o).max(*o - lo[k]);
         if half / LAS_SCALE > i32::MAX as f64 - 1.0 {
             return Err(Error::invalid(
                 "cloud",
                 format!(
                     "spans {:.0} m on axis {k}: more than LAS 32-bit coordinates hold at {LAS_SCALE} m",
-                    hi - lo
+                    hi[k] - lo[k]
                 ),
             ));
         }
     }
 
-    let mut format = las::point::Format::new(if colors.is_some() { 7 } else { 6 })
-        .map_err(|e| las_err(path, e))?;
+    let with_colors = cloud.has_colors();
+    let mut format =
+        las::point::Format::new(if with_colors { 7 } else { 6 }).map_err(|e| las_err(path, e))?;
     format.is_compressed = compressed;
     let mut builder = las::Builder::from((1, 4));
     builder.point_format = format;
@@ -152,44 +183,39 @@ pub fn las_bytes(
     };
     let mut header = builder.into_header().map_err(|e| las_err(path, e))?;
     header
-        .set_wkt_crs(global.wkt.as_bytes().to_vec())
+        .set_wkt_crs(meta.wkt.as_bytes().to_vec())
         .map_err(|e| las_err(path, e))?;
 
-    let make = |i: usize| las::Point {
-        x: xyz[3 * i],
-        y: xyz[3 * i + 1],
-        z: xyz[3 * i + 2],
-        return_number: 1,
-        number_of_returns: 1,
-        gps_time: Some(0.0),
-        color: colors.map(|c| las::Color {
-            red: c[3 * i] as u16 * 257,
-            green: c[3 * i + 1] as u16 * 257,
-            blue: c[3 * i + 2] as u16 * 257,
-        }),
-        ..Default::default()
-    };
-    let mut writer =
-        las::Writer::new(Cursor::new(Vec::new()), header).map_err(|e| las_err(path, e))?;
-    const BATCH: usize = 1 << 16;
-    for start in (0..n).step_by(BATCH) {
-        let batch: Vec<las::Point> = (start..(start + BATCH).min(n))
-            .into_par_iter()
-            .map(make)
-            .collect();
+    let mut writer = las::Writer::new(w, header).map_err(|e| las_err(path, e))?;
+    cloud.for_each_piece(BATCH, |points, colors| {
+        crate::interrupt::check()?;
+        let xyz = enu_to_crs(points, &frame, crs)?.xyz;
+        let make = |i: usize| las::Point {
+            x: xyz[3 * i],
+            y: xyz[3 * i + 1],
+            z: xyz[3 * i + 2],
+            return_number: 1,
+            number_of_returns: 1,
+            gps_time: Some(0.0),
+            color: colors.map(|c| las::Color {
+                red: c[3 * i] as u16 * 257,
+                green: c[3 * i + 1] as u16 * 257,
+                blue: c[3 * i + 2] as u16 * 257,
+            }),
+            ..Default::default()
+        };
+        let batch: Vec<las::Point> = (0..points.len() / 3).into_par_iter().map(make).collect();
         for p in batch {
             writer.write_point(p).map_err(|e| las_err(path, e))?;
         }
-    }
-    let bytes = writer
-        .into_inner()
-        .map_err(|e| las_err(path, e))?
-        .into_inner();
+        Ok(())
+    })?;
+    let w = writer.into_inner().map_err(|e| las_err(path, e))?;
     Ok((
-        bytes,
+        w,
         LasInfo {
-            epsg: global.epsg,
-            zone: global.zone,
+            epsg: meta.epsg,
+            zone: meta.zone,
             scale: [LAS_SCALE; 3],
             offset,
             compressed,

@@ -31,6 +31,7 @@ use crate::io::messages::{
     ReadMode,
 };
 use crate::io::rosbag::{Ros1Bag, Ros2Bag, Ros2Storage};
+use crate::io::spill::{PixelSpill, SpilledKeyframes, SpilledPixels};
 use crate::keyframe::Keyframe;
 use crate::trajectory::Trajectory;
 
@@ -133,6 +134,10 @@ pub struct Log {
     pub topics: Vec<TopicInfo>,
     /// True when the log was read through its index (false: a linear scan).
     pub indexed: bool,
+    /// Where the keyframes' pixels are when the log was read with them left
+    /// on disk ([`read_log_spilled`]): then every keyframe of `keyframes`
+    /// has empty pixel arrays, and `at[i]` holds those of keyframe `i`.
+    pub pixels: Option<std::sync::Arc<SpilledKeyframes>>,
 }
 
 fn log_err(path: &Path, reason: LogError) -> Error {
@@ -546,12 +551,31 @@ impl MessageSource for AnyContainer {
 /// [`Error::Decode`] (file, topic, message index, log time, byte offset) for
 /// a message that does not decode.
 pub fn read_log(path: impl AsRef<Path>, options: &ReadOptions) -> Result<Log> {
-    let source = AnyContainer::open(path.as_ref())?;
+    read_log_with(path.as_ref(), options, None).map(|r| r.0)
+}
+
+/// [`read_log`] with the keyframes' pixels left on disk, in a [`PixelSpill`]
+/// written as the log is read: the log in memory is then its poses, IMU and
+/// fixes, whatever its length ([`Log::pixels`] says where the pixels are).
+pub fn read_log_spilled(path: impl AsRef<Path>, options: &ReadOptions) -> Result<Log> {
+    let spill = PixelSpill::new()?;
+    let (mut log, at) = read_log_with(path.as_ref(), options, Some(&spill))?;
+    log.pixels = Some(std::sync::Arc::new(SpilledKeyframes { spill, at }));
+    Ok(log)
+}
+
+/// The log, and where the keyframes' pixels went when `spill` is given.
+fn read_log_with(
+    path: &Path,
+    options: &ReadOptions,
+    spill: Option<&PixelSpill>,
+) -> Result<(Log, Vec<SpilledPixels>)> {
+    let source = AnyContainer::open(path)?;
     let container = Some(source.kind());
     match &source {
         // A closed bag's index counts without reading messages.
         AnyContainer::Ros1(b) if b.mode() == ReadMode::Indexed => {
-            read_log_from(&source, container, Some(b.inventory()?), options)
+            read_log_spilling(&source, container, Some(b.inventory()?), options, spill)
         }
         // A .db3 is counted and read in one pass: every row counted, the rows
         // of known types decoded; the topics are chosen on those counts.
@@ -559,7 +583,7 @@ pub fn read_log(path: impl AsRef<Path>, options: &ReadOptions) -> Result<Log> {
             let kinds = KindCache::new();
             let (scan, inv) = b.scan_counted(
                 |c| kinds.get(c).is_some(),
-                |c, m| decode_message(kinds.get(c), c, m),
+                |c, m| decode_message(kinds.get(c), c, m, spill),
             )?;
             let (topics, counts) = inventory_topics(&inv);
             log_of_scan(
@@ -571,7 +595,7 @@ pub fn read_log(path: impl AsRef<Path>, options: &ReadOptions) -> Result<Log> {
                 options,
             )
         }
-        _ => read_log_from(&source, container, None, options),
+        _ => read_log_spilling(&source, container, None, options, spill),
     }
 }
 
@@ -612,9 +636,20 @@ pub fn read_log_from<S: MessageSource>(
     counts: Option<Inventory>,
     options: &ReadOptions,
 ) -> Result<Log> {
+    read_log_spilling(source, container, counts, options, None).map(|r| r.0)
+}
+
+/// [`read_log_from`], the keyframes' pixels into `spill` when given.
+fn read_log_spilling<S: MessageSource>(
+    source: &S,
+    container: Option<Container>,
+    counts: Option<Inventory>,
+    options: &ReadOptions,
+    spill: Option<&PixelSpill>,
+) -> Result<(Log, Vec<SpilledPixels>)> {
     let path = source.path();
     let kinds = KindCache::new();
-    let decode = |c: &ChannelInfo, m: &RawMessage<'_>| decode_message(kinds.get(c), c, m);
+    let decode = |c: &ChannelInfo, m: &RawMessage<'_>| decode_message(kinds.get(c), c, m, spill);
     let (scan, topics, counts) = match counts {
         Some(inv) => {
             // Choose from the index, then read the chosen channels alone.
@@ -655,7 +690,7 @@ fn log_of_scan(
     counts: HashMap<u16, u64>,
     container: Option<Container>,
     options: &ReadOptions,
-) -> Result<Log> {
+) -> Result<(Log, Vec<SpilledPixels>)> {
     let ch = &scan.channels;
     let picks = pick(path, options, ch, &counts)?;
     let mut log = Log {
@@ -673,8 +708,9 @@ fn log_of_scan(
         ..Log::default()
     };
     let mut messages = scan.messages;
+    let mut spilled = Vec::new();
     if let Some(kf) = picks.keyframes {
-        read_keyframes(path, &mut messages, kf, picks.graph, &mut log)?;
+        spilled = read_keyframes(path, &mut messages, kf, picks.graph, &mut log)?;
     }
     if let Some(c) = picks.live {
         log.live = read_live(path, &messages, c)?;
@@ -696,12 +732,22 @@ fn log_of_scan(
     if let Some(c) = picks.gnss {
         log.gnss = Some(read_fixes(path, &messages, c)?);
     }
-    Ok(log)
+    Ok((log, spilled))
 }
 
-/// A keyframe message without its point cloud, and the cloud split into
-/// inverse depth, variance and RGB (for keyframes; live frames have none).
-type DecodedKeyframe = (KeyframeMsg<'static>, Option<(Vec<f32>, Vec<f32>, Vec<u8>)>);
+/// A keyframe message without its point cloud, and its pixels (for
+/// keyframes; live frames have none).
+type DecodedKeyframe = (KeyframeMsg<'static>, Option<Pixels>);
+
+/// A keyframe message's pixels.
+enum Pixels {
+    /// Split into inverse depth, variance and RGB.
+    Arrays(Vec<f32>, Vec<f32>, Vec<u8>),
+    /// Left in a [`PixelSpill`].
+    Spilled(SpilledPixels),
+    /// The spill could not be written (the error's text).
+    Failed(String),
+}
 
 /// What a message becomes inside the chunk task. Errors keep what and where
 /// in the message; the file, topic and message index are added when the
@@ -738,17 +784,30 @@ const KINDS: [MessageKind; 12] = [
     MessageKind::LocationFix,
 ];
 
-fn decode_message(kind: Option<MessageKind>, c: &ChannelInfo, m: &RawMessage<'_>) -> Decoded {
+fn decode_message(
+    kind: Option<MessageKind>,
+    c: &ChannelInfo,
+    m: &RawMessage<'_>,
+    spill: Option<&PixelSpill>,
+) -> Decoded {
     use MessageKind as K;
     let enc = c.message_encoding.as_str();
     let err = Decoded::Error;
     match kind {
         // The point cloud goes from the (decompressed) message bytes straight
-        // into the keyframe's arrays: no copy of the message is kept.
+        // into the keyframe's arrays, or into the spill: no copy of the
+        // message is kept.
         Some(K::Keyframe) => Decoded::Keyframe(Box::new(decode::keyframe_ros1(m.data).map(|k| {
-            let arrays = k
-                .is_keyframe
-                .then(|| decode::split_pointcloud(k.pointcloud));
+            let arrays = k.is_keyframe.then(|| match spill {
+                None => {
+                    let (d, v, c) = decode::split_pointcloud(k.pointcloud);
+                    Pixels::Arrays(d, v, c)
+                }
+                Some(s) => match s.put(k.pointcloud) {
+                    Ok(at) => Pixels::Spilled(at),
+                    Err(e) => Pixels::Failed(e),
+                },
+            });
             (
                 KeyframeMsg {
                     pointcloud: &[],
@@ -795,7 +854,7 @@ fn at(path: &Path, topic: &str, i: usize, log_time: u64, e: WireError) -> Error 
 
 struct Entry {
     msg: KeyframeMsg<'static>,
-    arrays: (Vec<f32>, Vec<f32>, Vec<u8>),
+    arrays: Pixels,
     topic_index: usize,
     pose: [f64; 7],
     pose_source: String,
@@ -807,7 +866,7 @@ fn read_keyframes(
     kf: &ChannelInfo,
     graph: Option<&ChannelInfo>,
     log: &mut Log,
-) -> Result<()> {
+) -> Result<Vec<SpilledPixels>> {
     let graph_id = graph.map(|g| g.id);
     let graph_topic = graph.map(|g| g.topic.as_str()).unwrap_or_default();
     let mut order: Vec<i32> = Vec::new();
@@ -874,15 +933,23 @@ fn read_keyframes(
     log.keyframe_messages = kf_index;
     log.graph_messages = graph_index;
     let mut entries: Vec<Entry> = order.iter().filter_map(|id| latest.remove(id)).collect();
-    let keyframes: Result<Vec<Keyframe>> = entries
+    let keyframes: Result<Vec<(Keyframe, Option<SpilledPixels>)>> = entries
         .par_iter_mut()
         .map(|e| to_keyframe(path, &kf.topic, e))
         .collect();
-    log.keyframes = keyframes?;
-    Ok(())
+    let (keyframes, spilled): (Vec<Keyframe>, Vec<Option<SpilledPixels>>) =
+        keyframes?.into_iter().unzip();
+    log.keyframes = keyframes;
+    Ok(spilled.into_iter().flatten().collect())
 }
 
-fn to_keyframe(path: &Path, topic: &str, e: &mut Entry) -> Result<Keyframe> {
+/// The keyframe of `e`, with where its pixels are when they were spilled
+/// (the keyframe then holds none).
+fn to_keyframe(
+    path: &Path,
+    topic: &str,
+    e: &mut Entry,
+) -> Result<(Keyframe, Option<SpilledPixels>)> {
     let m = &e.msg;
     let what = |what: String| {
         log_err(
@@ -905,9 +972,19 @@ fn to_keyframe(path: &Path, topic: &str, e: &mut Entry) -> Result<Keyframe> {
         .map_err(|err| what(format!("camToWorld {:?}: {err}", e.pose)))?;
     let camera = PinholeCamera::try_new(m.fx, m.fy, m.cx, m.cy, m.width, m.height)
         .map_err(|err| what(format!("camera: {err}")))?;
-    let (idepth, var, color) = std::mem::take(&mut e.arrays);
-    Keyframe::try_new(m.id, m.time, pose, camera, idepth, Some(var), Some(color))
-        .map_err(|err| what(err.to_string()))
+    match std::mem::replace(&mut e.arrays, Pixels::Failed(String::new())) {
+        Pixels::Arrays(idepth, var, color) => {
+            Keyframe::try_new(m.id, m.time, pose, camera, idepth, Some(var), Some(color))
+                .map(|k| (k, None))
+                .map_err(|err| what(err.to_string()))
+        }
+        Pixels::Spilled(at) => Keyframe::without_pixels(m.id, m.time, pose, camera, at.pixels)
+            .map(|k| (k, Some(at)))
+            .map_err(|err| what(err.to_string())),
+        Pixels::Failed(reason) => Err(what(format!(
+            "its pixels could not be set aside on disk: {reason}"
+        ))),
+    }
 }
 
 /// The tracked poses of the live-frame channel `c` (see [`Log::live`]);

@@ -98,6 +98,41 @@ impl Mapped {
         })
     }
 
+    /// Gives back this process's pages of `bytes` (a slice of the map) once a
+    /// reader is done with them (a chunk decompressed): the memory they held
+    /// no longer counts as the process's, and a later read of them maps them
+    /// again from the page cache. A reader that walks a long log chunk by
+    /// chunk then holds a few chunks of it, not the whole file. A no-op for
+    /// a slice outside the map, and elsewhere than Linux.
+    pub fn release(&self, bytes: &[u8]) {
+        #[cfg(target_os = "linux")]
+        {
+            let base = self.map.as_ptr() as usize;
+            let (start, len) = (bytes.as_ptr() as usize, bytes.len());
+            if len == 0 || start < base || start + len > base + self.map.len() {
+                return;
+            }
+            // SAFETY: sysconf has no preconditions.
+            let page = usize::try_from(unsafe { libc::sysconf(libc::_SC_PAGESIZE) })
+                .unwrap_or(4096)
+                .max(1);
+            // Whole pages inside the slice: those of a neighbour stay.
+            let a = start.div_ceil(page) * page;
+            let b = (start + len) / page * page;
+            if b > a {
+                // SAFETY: [a, b) lies inside this read-only file map, which
+                // stays mapped: MADV_DONTNEED only drops the page-table
+                // entries, and a later access faults the same file pages in
+                // again (the map is never written, so nothing is lost).
+                unsafe {
+                    libc::madvise(a as *mut libc::c_void, b - a, libc::MADV_DONTNEED);
+                }
+            }
+        }
+        #[cfg(not(target_os = "linux"))]
+        let _ = bytes;
+    }
+
     /// Fails when the file shrank since it was mapped (a page past its new end
     /// was read as zeros, or its size is now smaller): whatever was read from
     /// the map is then not the file.

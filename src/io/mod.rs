@@ -23,6 +23,7 @@ pub mod npy;
 pub mod pcd;
 pub mod ply;
 pub mod rosbag;
+pub mod spill;
 pub mod text;
 
 pub use log::{

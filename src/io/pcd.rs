@@ -15,6 +15,7 @@ use rayon::prelude::*;
 use crate::cloud::PointCloud;
 use crate::error::{Error, Result};
 use crate::io::atomic::OutputSet;
+use crate::io::spill::CloudRef;
 
 /// PCL's packed colour: `0x00RRGGBB` as the bits of an `f32`.
 pub fn pack_rgb(r: u8, g: u8, b: u8) -> f32 {
@@ -28,7 +29,8 @@ pub fn write_pcd(path: impl AsRef<Path>, cloud: &PointCloud) -> Result<()> {
 
 /// [`write_pcd`] from the raw buffers: `points` `(N, 3)` f32, `colors` `(N, 3)` bytes.
 pub fn write_pcd_parts(path: &Path, points: &[f32], colors: Option<&[u8]>) -> Result<()> {
-    pcd_into(None, path, points, colors)
+    crate::io::ply::check_shapes(points, colors)?;
+    pcd_into(None, path, CloudRef::Memory(points, colors))
 }
 
 /// [`write_pcd_parts`] as one output of `set`.
@@ -38,35 +40,20 @@ pub fn write_pcd_into(
     points: &[f32],
     colors: Option<&[u8]>,
 ) -> Result<()> {
-    pcd_into(Some(set), path, points, colors)
+    crate::io::ply::check_shapes(points, colors)?;
+    pcd_into(Some(set), path, CloudRef::Memory(points, colors))
 }
 
-fn pcd_into(
-    set: Option<&mut OutputSet>,
-    path: &Path,
-    points: &[f32],
-    colors: Option<&[u8]>,
-) -> Result<()> {
-    if points.len() % 3 != 0 {
-        return Err(Error::ShapeMismatch {
-            what: "points".into(),
-            expected: "(N, 3)".into(),
-            got: format!("{} values", points.len()),
-        });
-    }
-    let n = points.len() / 3;
-    if let Some(c) = colors {
-        if c.len() != 3 * n {
-            return Err(Error::ShapeMismatch {
-                what: "colors".into(),
-                expected: format!("({n}, 3)"),
-                got: format!("{} values", c.len()),
-            });
-        }
-    }
-    let (fields, size, kind, count, stride) = match colors {
-        Some(_) => ("x y z rgb", "4 4 4 4", "F F F F", "1 1 1 1", 16),
-        None => ("x y z", "4 4 4", "F F F", "1 1 1", 12),
+/// [`write_pcd_into`] of a cloud in memory or on disk, a piece at a time.
+pub fn write_pcd_cloud_into(set: &mut OutputSet, path: &Path, cloud: CloudRef<'_>) -> Result<()> {
+    pcd_into(Some(set), path, cloud)
+}
+
+fn pcd_into(set: Option<&mut OutputSet>, path: &Path, cloud: CloudRef<'_>) -> Result<()> {
+    let n = cloud.len();
+    let (fields, size, kind, count, stride) = match cloud.has_colors() {
+        true => ("x y z rgb", "4 4 4 4", "F F F F", "1 1 1 1", 16),
+        false => ("x y z", "4 4 4", "F F F", "1 1 1", 12),
     };
     let header = format!(
         "# .PCD v0.7 - Point Cloud Data file format\nVERSION 0.7\nFIELDS {fields}\nSIZE {size}\n\
@@ -78,14 +65,12 @@ fn pcd_into(
         let mut w = BufWriter::with_capacity(1 << 20, file);
         w.write_all(header.as_bytes()).map_err(io_err)?;
         let mut buf = Vec::new();
-        for start in (0..n).step_by(BATCH) {
-            let end = (start + BATCH).min(n);
+        cloud.for_each_piece(BATCH, |points, colors| {
             buf.clear();
-            buf.resize((end - start) * stride, 0u8);
+            buf.resize(points.len() / 3 * stride, 0u8);
             buf.par_chunks_exact_mut(stride)
                 .enumerate()
-                .for_each(|(j, rec)| {
-                    let i = start + j;
+                .for_each(|(i, rec)| {
                     for k in 0..3 {
                         rec[4 * k..4 * k + 4].copy_from_slice(&points[3 * i + k].to_le_bytes());
                     }
@@ -94,8 +79,8 @@ fn pcd_into(
                         rec[12..16].copy_from_slice(&rgb.to_le_bytes());
                     }
                 });
-            w.write_all(&buf).map_err(io_err)?;
-        }
+            w.write_all(&buf).map_err(io_err)
+        })?;
         w.flush().map_err(io_err)
     };
     match set {

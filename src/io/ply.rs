@@ -22,6 +22,7 @@ use rayon::prelude::*;
 use crate::cloud::PointCloud;
 use crate::error::{Error, Result};
 use crate::io::atomic::OutputSet;
+use crate::io::spill::CloudRef;
 
 /// Vertices per block when encoding or decoding binary data in parallel.
 const VERTICES_PER_TASK: usize = 1 << 14;
@@ -46,6 +47,12 @@ pub fn write_ply_into(
     points: &[f32],
     colors: Option<&[u8]>,
 ) -> Result<()> {
+    check_shapes(points, colors)?;
+    write_ply_cloud_into(set, path, CloudRef::Memory(points, colors))
+}
+
+/// `points` `(N, 3)` and `colors` `(N, 3)` (when given) agree.
+pub(crate) fn check_shapes(points: &[f32], colors: Option<&[u8]>) -> Result<()> {
     if points.len() % 3 != 0 {
         return Err(Error::ShapeMismatch {
             what: "points".into(),
@@ -63,33 +70,39 @@ pub fn write_ply_into(
             });
         }
     }
+    Ok(())
+}
+
+/// [`write_ply_into`] of a cloud in memory or on disk, a piece at a time.
+pub fn write_ply_cloud_into(set: &mut OutputSet, path: &Path, cloud: CloudRef<'_>) -> Result<()> {
+    let n = cloud.len();
+    let with_colors = cloud.has_colors();
     let mut header = format!(
         "ply\nformat binary_little_endian 1.0\ncomment slam2world point cloud\nelement vertex {n}\n\
          property float x\nproperty float y\nproperty float z\n"
     );
-    if colors.is_some() {
+    if with_colors {
         header.push_str("property uchar red\nproperty uchar green\nproperty uchar blue\n");
     }
     header.push_str("end_header\n");
-    let stride = if colors.is_some() { 15 } else { 12 };
+    let stride = if with_colors { 15 } else { 12 };
 
     let io_err = |e| Error::io(path, e);
     set.write(path, |file| {
         let mut w = BufWriter::with_capacity(1 << 20, file);
         w.write_all(header.as_bytes()).map_err(io_err)?;
-        // Encode blocks of vertices in parallel, a batch of blocks at a time, and
+        // Encode blocks of vertices in parallel, a piece of blocks at a time, and
         // write them in order.
         let batch = VERTICES_PER_TASK * rayon::current_num_threads().max(1);
         let mut buf = Vec::new();
-        for start in (0..n).step_by(batch) {
+        cloud.for_each_piece(batch, |points, colors| {
             crate::interrupt::check()?;
-            let end = (start + batch).min(n);
             buf.clear();
-            buf.resize((end - start) * stride, 0u8);
+            buf.resize(points.len() / 3 * stride, 0u8);
             buf.par_chunks_mut(VERTICES_PER_TASK * stride)
                 .enumerate()
                 .for_each(|(b, out)| {
-                    let first = start + b * VERTICES_PER_TASK;
+                    let first = b * VERTICES_PER_TASK;
                     for (j, v) in out.chunks_exact_mut(stride).enumerate() {
                         let i = first + j;
                         for k in 0..3 {
@@ -100,8 +113,8 @@ pub fn write_ply_into(
                         }
                     }
                 });
-            w.write_all(&buf).map_err(io_err)?;
-        }
+            w.write_all(&buf).map_err(io_err)
+        })?;
         w.flush().map_err(io_err)
     })
 }

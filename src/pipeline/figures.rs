@@ -13,9 +13,9 @@ use serde::{Serialize, Serializer};
 
 use crate::align::stages::detect_stages;
 use crate::align::trajectories::{fit_scale_factors, TrajectoryAlignment};
-use crate::cloud::PointCloud;
 use crate::defaults;
 use crate::error::{Error, Result};
+use crate::io::spill::CloudRef;
 use crate::map::{OccupancyMap, VoxelState};
 use crate::trajectory::Trajectory;
 
@@ -199,9 +199,10 @@ impl FigureData {
             f.estimate.t.iter_mut().for_each(|t| *t += offset);
             f.add_pairs(&c.slam_frame, c.reference.as_ref(), &p.alignment);
         }
-        f.origin = center_of(&c.cloud, &f.estimate);
-        if !c.cloud.is_empty() {
-            f.cloud = Some(decimate(&c.cloud, f.origin, opts.max_points));
+        let cloud = c.cloud_ref();
+        f.origin = center_of(cloud, &f.estimate)?;
+        if !cloud.is_empty() {
+            f.cloud = Some(decimate(cloud, f.origin, opts.max_points)?);
         }
         f.voxels = octree.map(|m| voxels(m, f.origin, opts.max_voxels));
         Ok(f)
@@ -231,7 +232,7 @@ impl FigureData {
             ..FigureData::default()
         };
         f.add_pairs(slam, Some(reference), fit);
-        f.origin = center_of(&PointCloud::default(), &f.estimate);
+        f.origin = center_of(CloudRef::Memory(&[], None), &f.estimate)?;
         Ok(f)
     }
 
@@ -279,9 +280,12 @@ impl FigureData {
     }
 }
 
+/// Points per piece when the figures read a cloud.
+const PIECE: usize = 1 << 20;
+
 /// The middle of the bounding box of the cloud and the path (the origin of
 /// the page's `f32` offsets).
-fn center_of(cloud: &PointCloud, path: &PathData) -> [f64; 3] {
+fn center_of(cloud: CloudRef<'_>, path: &PathData) -> Result<[f64; 3]> {
     let mut lo = [f64::INFINITY; 3];
     let mut hi = [f64::NEG_INFINITY; 3];
     let mut add = |p: [f64; 3]| {
@@ -292,50 +296,54 @@ fn center_of(cloud: &PointCloud, path: &PathData) -> [f64; 3] {
             }
         }
     };
-    for p in cloud.points.chunks_exact(3) {
-        add([f64::from(p[0]), f64::from(p[1]), f64::from(p[2])]);
-    }
+    cloud.for_each_piece(PIECE, |points, _| {
+        for p in points.chunks_exact(3) {
+            add([f64::from(p[0]), f64::from(p[1]), f64::from(p[2])]);
+        }
+        Ok(())
+    })?;
     for p in &path.xyz {
         add(*p);
     }
-    std::array::from_fn(|k| {
+    Ok(std::array::from_fn(|k| {
         if lo[k] <= hi[k] {
             0.5 * (lo[k] + hi[k])
         } else {
             0.0
         }
-    })
+    }))
 }
 
 /// Every `stride`-th point (`stride = ⌈n / max⌉`), as offsets from `origin`.
-fn decimate(cloud: &PointCloud, origin: [f64; 3], max: usize) -> CloudData {
+fn decimate(cloud: CloudRef<'_>, origin: [f64; 3], max: usize) -> Result<CloudData> {
     let n_total = cloud.len();
     let stride = n_total.div_ceil(max.max(1)).max(1);
-    let keep: Vec<usize> = (0..n_total).step_by(stride).collect();
-    let mut xyz = Vec::with_capacity(keep.len() * 3);
-    for &i in &keep {
-        for (p, o) in cloud.points[3 * i..3 * i + 3].iter().zip(origin) {
-            xyz.push((f64::from(*p) - o) as f32);
+    let mut xyz = Vec::new();
+    let mut rgb = cloud.has_colors().then(Vec::new);
+    let mut first = 0usize;
+    cloud.for_each_piece(PIECE, |points, colors| {
+        let n = points.len() / 3;
+        // The first index of this piece that is a multiple of the stride.
+        let mut i = (first.div_ceil(stride) * stride) - first;
+        while i < n {
+            for (p, o) in points[3 * i..3 * i + 3].iter().zip(origin) {
+                xyz.push((f64::from(*p) - o) as f32);
+            }
+            if let (Some(rgb), Some(c)) = (rgb.as_mut(), colors) {
+                rgb.extend_from_slice(&c[3 * i..3 * i + 3]);
+            }
+            i += stride;
         }
-    }
-    let rgb = cloud
-        .colors
-        .as_ref()
-        .filter(|c| c.len() == 3 * n_total)
-        .map(|c| {
-            U8Array(
-                keep.iter()
-                    .flat_map(|&i| [c[3 * i], c[3 * i + 1], c[3 * i + 2]])
-                    .collect(),
-            )
-        });
-    CloudData {
+        first += n;
+        Ok(())
+    })?;
+    Ok(CloudData {
         n_total,
         stride,
-        n: keep.len(),
+        n: xyz.len() / 3,
         xyz: F32Array(xyz),
-        rgb,
-    }
+        rgb: rgb.map(U8Array),
+    })
 }
 
 /// The occupied leaves as cubes; with more than `max`, leaves smaller than a
@@ -388,6 +396,7 @@ fn voxels(map: &OccupancyMap, origin: [f64; 3], max: usize) -> VoxelData {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::cloud::PointCloud;
     use crate::map::MapParams;
 
     #[test]
@@ -396,13 +405,41 @@ mod tests {
         let pts: Vec<f32> = (0..3 * n).map(|v| v as f32).collect();
         let rgb: Vec<u8> = (0..3 * n).map(|v| v as u8).collect();
         let c = PointCloud::try_new(pts, Some(rgb), None).unwrap();
-        let d = decimate(&c, [1.0, 0.0, 0.0], 4);
+        let c = CloudRef::Memory(&c.points, c.colors.as_deref());
+        let d = decimate(c, [1.0, 0.0, 0.0], 4).unwrap();
         assert_eq!((d.n_total, d.stride, d.n), (10, 3, 4));
         // Points 0, 3, 6, 9, x offset by the origin.
         assert_eq!(&d.xyz.0[..6], &[-1.0, 1.0, 2.0, 8.0, 10.0, 11.0]);
         assert_eq!(d.rgb.unwrap().0[3..6], [9, 10, 11]);
-        let all = decimate(&c, [0.0; 3], 300);
+        let all = decimate(c, [0.0; 3], 300).unwrap();
         assert_eq!((all.stride, all.n), (1, 10));
+    }
+
+    #[test]
+    fn a_cloud_on_disk_decimates_as_in_memory_across_pieces() {
+        // More points than one piece, a stride that does not divide it.
+        let n = PIECE + PIECE / 2 + 7;
+        let pts: Vec<f32> = (0..3 * n).map(|v| (v % 1000) as f32).collect();
+        let rgb: Vec<u8> = (0..3 * n).map(|v| (v % 251) as u8).collect();
+        let mut file = crate::io::spill::CloudFile::new(true).unwrap();
+        file.push(&pts[..3 * 1000], Some(&rgb[..3 * 1000])).unwrap();
+        file.push(&pts[3 * 1000..], Some(&rgb[3 * 1000..])).unwrap();
+        let path = PathData::default();
+        let mem = CloudRef::Memory(&pts, Some(&rgb));
+        let disk = CloudRef::File(&file);
+        assert_eq!(
+            center_of(mem, &path).unwrap(),
+            center_of(disk, &path).unwrap()
+        );
+        for max in [1000, 300_000, 10 * n] {
+            let (a, b) = (
+                decimate(mem, [1.0, 2.0, 3.0], max).unwrap(),
+                decimate(disk, [1.0, 2.0, 3.0], max).unwrap(),
+            );
+            assert_eq!((a.n, a.stride), (b.n, b.stride));
+            assert_eq!(a.n, n.div_ceil(a.stride));
+            assert_eq!((a.xyz.0, a.rgb.unwrap().0), (b.xyz.0, b.rgb.unwrap().0));
+        }
     }
 
     #[test]

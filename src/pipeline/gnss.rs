@@ -207,6 +207,12 @@ impl Source for WithGnss {
         attach_gnss(&mut rec, &self.file)?;
         Ok(rec)
     }
+
+    fn read_bounded(&self) -> Result<Recording> {
+        let mut rec = self.inner.read_bounded()?;
+        attach_gnss(&mut rec, &self.file)?;
+        Ok(rec)
+    }
 }
 
 /// The reference a GNSS track gives the fit.

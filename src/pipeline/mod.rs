@@ -45,10 +45,16 @@ use std::path::Path;
 use std::time::Instant;
 
 use crate::align::trajectories::SkipInit;
-use crate::cloud::{backproject_counted, backproject_per_keyframe_counted, PointCloud};
+use rayon::prelude::*;
+
+use crate::cloud::{
+    backproject_batch_counted, backproject_counted, backproject_per_keyframe_counted, NonFinite,
+    PointCloud,
+};
 use crate::error::{Error, Result};
 use crate::geometry::Sim3;
 use crate::imu::ImuAlignment;
+use crate::io::spill::{CloudFile, SpilledKeyframes};
 use crate::keyframe::Keyframe;
 use crate::map::{Grid2d, GridParams, MapParams, OccupancyMap, VoxelState};
 use crate::trajectory::Trajectory;
@@ -123,12 +129,27 @@ pub struct Conversion {
     /// The 2-D occupancy grid projected from the octree, when asked for
     /// ([`ConvertOptions::grid`]), with its parameters.
     pub grid: Option<(Grid2d, GridParams)>,
+    /// The world cloud on disk, when the conversion kept it there (a
+    /// recording read with its pixels on disk, [`convert_path_bounded`]);
+    /// `cloud` is then empty and the writers read this one.
+    pub cloud_file: Option<std::sync::Arc<crate::io::spill::CloudFile>>,
 }
 
 impl Conversion {
     /// `T_world_slam`.
     pub fn transform(&self) -> Sim3 {
         self.world.transform()
+    }
+
+    /// The world cloud to write: on disk when the conversion kept it there,
+    /// else `cloud`.
+    pub fn cloud_ref(&self) -> crate::io::spill::CloudRef<'_> {
+        match &self.cloud_file {
+            Some(f) => crate::io::spill::CloudRef::File(f),
+            None => {
+                crate::io::spill::CloudRef::Memory(&self.cloud.points, self.cloud.colors.as_deref())
+            }
+        }
     }
 }
 
@@ -193,22 +214,168 @@ fn build_octree(
     let mut scans: Vec<i32> = cloud.keyframe_ids.clone();
     scans.sort_unstable();
     scans.dedup();
-    let report = OctreeReport {
+    let report = octree_report(&map, params, scans.len(), cloud.len(), time_s);
+    Ok((map, report))
+}
+
+/// The report of an octree built from `points` points in `scans` scans.
+fn octree_report(
+    map: &OccupancyMap,
+    params: MapParams,
+    scans: usize,
+    points: usize,
+    time_s: f64,
+) -> OctreeReport {
+    OctreeReport {
         resolution: params.resolution,
         max_range: params.max_range,
         prob_hit: params.prob_hit,
         prob_miss: params.prob_miss,
         clamp_min: params.clamp_min,
         clamp_max: params.clamp_max,
-        scans: scans.len(),
-        points: cloud.len(),
+        scans,
+        points,
         leaves_occupied: map.leaves(VoxelState::Occupied).len(),
         leaves_free: map.leaves(VoxelState::Free).len(),
         nodes: map.num_nodes(),
         memory_bytes: map.memory_bytes(),
         time_s,
+    }
+}
+
+/// Each keyframe's camera centre in the world frame, by id (`t_of(Some(i))`
+/// carries keyframe `i`).
+fn keyframe_origins(
+    keyframes: &[Keyframe],
+    t_of: &dyn Fn(Option<usize>) -> Sim3,
+) -> BTreeMap<i32, [f32; 3]> {
+    keyframes
+        .iter()
+        .enumerate()
+        .map(|(i, kf)| (kf.id, camera_center(kf, &t_of(Some(i)))))
+        .collect()
+}
+
+/// Keyframes per batch of a bounded conversion: a few per thread.
+fn batch_len() -> usize {
+    (2 * rayon::current_num_threads()).clamp(4, 32)
+}
+
+/// What [`stream_keyframes`] made.
+struct Streamed {
+    file: CloudFile,
+    non_finite: NonFinite,
+    octree: Option<(OccupancyMap, OctreeReport)>,
+    report: report::StreamReport,
+}
+
+/// The world cloud (on disk) and octree of a recording whose pixels are on
+/// disk: a batch of keyframes at a time read back, backprojected, inserted
+/// and appended, the same points and map as [`convert`] in memory (the
+/// octree inserts keyframes in id order there: here too, in a second sweep
+/// when the ids did not arrive in order).
+fn stream_keyframes(
+    rec: &Recording,
+    px: &SpilledKeyframes,
+    opts: &ConvertOptions,
+    t_of: &(dyn Fn(Option<usize>) -> Sim3 + Sync),
+) -> Result<Streamed> {
+    let kfs = &rec.keyframes;
+    let n = kfs.len();
+    if px.at.len() != n {
+        return Err(Error::invalid(
+            "keyframes",
+            format!(
+                "{n} keyframes and the pixels of {}: the recording is not whole",
+                px.at.len()
+            ),
+        ));
+    }
+    let batch = batch_len();
+    let load = |i: usize| -> Result<Keyframe> {
+        let (idepth, var, color) = px.spill.get(px.at[i])?;
+        let k = &kfs[i];
+        Keyframe::try_new(
+            k.id,
+            k.timestamp,
+            k.pose,
+            k.camera,
+            idepth,
+            Some(var),
+            Some(color),
+        )
     };
-    Ok((map, report))
+    let load_all =
+        |idx: &[usize]| -> Result<Vec<Keyframe>> { idx.par_iter().map(|&i| load(i)).collect() };
+    let ascending = kfs.windows(2).all(|w| w[0].id < w[1].id);
+    let origins = keyframe_origins(kfs, t_of);
+    let mut map = opts.map.map(OccupancyMap::try_new).transpose()?;
+    let mut file = CloudFile::new(true)?;
+    let mut non_finite = NonFinite::default();
+    let (mut in_memory, mut insert_s) = (0usize, 0.0);
+    let mut scans: std::collections::BTreeSet<i32> = std::collections::BTreeSet::new();
+    let order: Vec<usize> = (0..n).collect();
+    for (b, idx) in order.chunks(batch).enumerate() {
+        crate::interrupt::check()?;
+        let first = b * batch;
+        let keyframes = load_all(idx)?;
+        in_memory = in_memory.max(keyframes.len());
+        let (c, nf) = backproject_batch_counted(
+            &keyframes,
+            first,
+            &opts.filter,
+            |i| t_of(Some(first + i)),
+            true,
+        )?;
+        drop(keyframes);
+        non_finite.extend(nf);
+        scans.extend(c.keyframe_ids.iter().copied());
+        if let (Some(m), true) = (map.as_mut(), ascending) {
+            let t = Instant::now();
+            m.insert_keyframes(&c.points, &c.keyframe_ids, &origins)?;
+            insert_s += secs(t);
+        }
+        file.push(&c.points, c.colors.as_deref())?;
+    }
+    if let (Some(m), false) = (map.as_mut(), ascending) {
+        let mut by_id = order;
+        by_id.sort_by_key(|&i| kfs[i].id);
+        for idx in by_id.chunks(batch) {
+            crate::interrupt::check()?;
+            let keyframes = load_all(idx)?;
+            in_memory = in_memory.max(keyframes.len());
+            for (kf, &i) in keyframes.iter().zip(idx) {
+                let (c, _) = backproject_batch_counted(
+                    std::slice::from_ref(kf),
+                    i,
+                    &opts.filter,
+                    |_| t_of(Some(i)),
+                    true,
+                )?;
+                let t = Instant::now();
+                m.insert_keyframes(&c.points, &c.keyframe_ids, &origins)?;
+                insert_s += secs(t);
+            }
+        }
+    }
+    let octree = match (map, opts.map) {
+        (Some(m), Some(params)) => {
+            let r = octree_report(&m, params, scans.len(), file.len(), insert_s);
+            Some((m, r))
+        }
+        _ => None,
+    };
+    Ok(Streamed {
+        report: report::StreamReport {
+            batch_keyframes: batch,
+            max_keyframes_in_memory: in_memory,
+            pixel_bytes: px.spill.len(),
+            cloud_bytes: file.bytes(),
+        },
+        file,
+        non_finite,
+        octree,
+    })
 }
 
 /// The 2-D grid of `map` in `params`' band, with its report; an error when
@@ -332,38 +499,52 @@ pub fn convert(rec: &Recording, opts: &ConvertOptions) -> Result<Conversion> {
 
     let t1 = Instant::now();
     crate::interrupt::check()?;
-    let (cloud, non_finite) = if !rec.keyframes.is_empty() {
-        match &per_keyframe {
-            Some(ts) => backproject_per_keyframe_counted(&rec.keyframes, &opts.filter, ts)?,
-            None => backproject_counted(&rec.keyframes, &opts.filter, Some(&t))?,
+    let (cloud, cloud_file, non_finite, octree, octree_report, stream_report) = match &rec.pixels {
+        Some(px) if !rec.keyframes.is_empty() => {
+            let s = stream_keyframes(rec, px, opts, &t_of)?;
+            let (octree, octree_report) =
+                s.octree.map_or((None, None), |(m, r)| (Some(m), Some(r)));
+            let file = std::sync::Arc::new(s.file);
+            (
+                PointCloud::default(),
+                Some(file),
+                s.non_finite,
+                octree,
+                octree_report,
+                Some(s.report),
+            )
         }
-    } else {
-        let mut c = match &rec.cloud {
-            Some(c) => c.transformed(&t)?,
-            None => PointCloud::default(),
-        };
-        let dropped = c.drop_non_finite();
-        (c, dropped)
-    };
-    crate::interrupt::check()?;
-    let backproject_s = secs(t1);
-
-    let (octree, octree_report) = match opts.map {
-        Some(params) => {
-            let origins = match (&rec.cloud_origins, rec.keyframes.is_empty()) {
-                (Some(o), true) => cloud_ray_origins(o, &cloud, &t)?,
-                _ => rec
-                    .keyframes
-                    .iter()
-                    .enumerate()
-                    .map(|(i, kf)| (kf.id, camera_center(kf, &t_of(Some(i)))))
-                    .collect(),
+        _ => {
+            let (cloud, non_finite) = if !rec.keyframes.is_empty() {
+                match &per_keyframe {
+                    Some(ts) => backproject_per_keyframe_counted(&rec.keyframes, &opts.filter, ts)?,
+                    None => backproject_counted(&rec.keyframes, &opts.filter, Some(&t))?,
+                }
+            } else {
+                let mut c = match &rec.cloud {
+                    Some(c) => c.transformed(&t)?,
+                    None => PointCloud::default(),
+                };
+                let dropped = c.drop_non_finite();
+                (c, dropped)
             };
-            let (map, report) = build_octree(&origins, &cloud, params)?;
-            (Some(map), Some(report))
+            crate::interrupt::check()?;
+            let (octree, octree_report) = match opts.map {
+                Some(params) => {
+                    let origins = match (&rec.cloud_origins, rec.keyframes.is_empty()) {
+                        (Some(o), true) => cloud_ray_origins(o, &cloud, &t)?,
+                        _ => keyframe_origins(&rec.keyframes, &t_of),
+                    };
+                    let (map, report) = build_octree(&origins, &cloud, params)?;
+                    (Some(map), Some(report))
+                }
+                None => (None, None),
+            };
+            (cloud, None, non_finite, octree, octree_report, None)
         }
-        None => (None, None),
     };
+    let backproject_s = secs(t1) - octree_report.as_ref().map_or(0.0, |o| o.time_s);
+    let points = cloud_file.as_ref().map_or(cloud.len(), |f| f.len());
     let (grid, grid_report) = match (&opts.grid, &octree) {
         (Some(g), Some(map)) => {
             let (grid, report) = project_grid(map, g)?;
@@ -462,7 +643,7 @@ pub fn convert(rec: &Recording, opts: &ConvertOptions) -> Result<Conversion> {
         pairs,
         fit,
         windowed,
-        points: cloud.len(),
+        points,
         points_non_finite: non_finite.points,
         non_finite_keyframes: non_finite.keyframes,
         timing: Timing {
@@ -502,6 +683,7 @@ pub fn convert(rec: &Recording, opts: &ConvertOptions) -> Result<Conversion> {
             weight_range: weights.and(g.report.weight_range),
             ..g.report.clone()
         }),
+        stream: stream_report,
     };
     Ok(Conversion {
         world,
@@ -515,6 +697,7 @@ pub fn convert(rec: &Recording, opts: &ConvertOptions) -> Result<Conversion> {
         enu: gnss_ref.map(|g| g.frame),
         geo_outputs: opts.geo_outputs,
         grid,
+        cloud_file,
     })
 }
 
@@ -523,6 +706,28 @@ pub fn convert(rec: &Recording, opts: &ConvertOptions) -> Result<Conversion> {
 pub fn convert_path(path: impl AsRef<Path>, opts: &ConvertOptions) -> Result<Conversion> {
     opts.check()?;
     convert_source(&*source::open_log(path.as_ref(), &opts.read)?, opts)
+}
+
+/// [`convert_path`] in bounded memory: the keyframes' pixels and the world
+/// cloud stay on disk (temporary files, [`crate::io::spill`]), so that the
+/// memory is the trajectories, the octree and a batch of keyframes whatever
+/// the log's length; the conversion's `cloud` is then empty and its writers
+/// read [`Conversion::cloud_file`]. The outputs are those of the in-memory
+/// conversion, byte for byte.
+pub fn convert_path_bounded(path: impl AsRef<Path>, opts: &ConvertOptions) -> Result<Conversion> {
+    opts.check()?;
+    convert_source_bounded(&*source::open_log(path.as_ref(), &opts.read)?, opts)
+}
+
+/// [`convert_source`] in bounded memory where the source can read so
+/// ([`Source::read_bounded`]).
+pub fn convert_source_bounded(source: &dyn Source, opts: &ConvertOptions) -> Result<Conversion> {
+    let t = Instant::now();
+    let rec = source.read_bounded()?;
+    let read_s = secs(t);
+    let mut c = convert(&rec, opts)?;
+    c.report.timing.read_s = read_s;
+    Ok(c)
 }
 
 /// Reads `source` and converts it; the report's `read_s` is filled in.

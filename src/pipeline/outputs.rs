@@ -13,12 +13,12 @@ use std::time::Instant;
 use crate::error::{Error, Result};
 use crate::geo::GeoCrs;
 use crate::io::atomic::{Committed, OutputSet};
-use crate::io::las::{las_bytes, LasInfo};
+use crate::io::las::{las_cloud_into, LasInfo};
 use crate::io::mcap::grid_msgs::{grid_channels, GridChannel};
 use crate::io::mcap::write::{write_world_mcap_extra_into, ExtraChannel};
 use crate::io::mcap::{WorldFlavor, WorldScene};
 use crate::io::nav2::{write_nav2_into, Nav2Files};
-use crate::io::pcd::write_pcd_into;
+use crate::io::pcd::write_pcd_cloud_into;
 use crate::map::{OccupancyMap, VoxelState};
 
 use super::figures::{FigureData, FigureOptions};
@@ -157,8 +157,7 @@ impl Conversion {
         octree: Option<&OccupancyMap>,
     ) -> Result<()> {
         let scene = WorldScene {
-            points: &self.cloud.points,
-            colors: self.cloud.colors.as_deref(),
+            cloud: self.cloud_ref(),
             t_world_slam: self.transform(),
             slam_trajectory: Some(&self.slam_trajectory),
             reference: self.reference.as_ref(),
@@ -197,7 +196,7 @@ impl Conversion {
 
     /// The world cloud as binary PLY, one output of `set`.
     pub fn ply_into(&self, set: &mut OutputSet, path: &Path) -> Result<()> {
-        crate::io::ply::write_ply_into(set, path, &self.cloud.points, self.cloud.colors.as_deref())
+        crate::io::ply::write_ply_cloud_into(set, path, self.cloud_ref())
     }
 
     /// Writes `report.json` (through a temporary file, renamed).
@@ -366,13 +365,10 @@ impl Conversion {
     /// world frame), named in `report.gnss.outputs`.
     fn geo_clouds_into(&self, set: &mut OutputSet, report: &mut Report) -> Result<()> {
         let geo = &self.geo_outputs;
-        let (points, colors) = (&self.cloud.points, self.cloud.colors.as_deref());
         if let (Some(frame), true) = (&self.enu, geo.las_for(self.enu.is_some())?) {
             let name = if geo.laz { CLOUD_LAZ } else { CLOUD_LAS };
             let path = set.path(name);
-            let (bytes, info) =
-                las_bytes(&path, points, colors, &frame.origin(), geo.crs, geo.laz)?;
-            set.write_bytes(&path, &bytes)?;
+            let info = self.las_into(set, &path, &frame.origin(), geo.crs, geo.laz)?;
             if let Some(g) = report.gnss.as_mut() {
                 g.outputs.push(GeoOutputReport {
                     name: name.into(),
@@ -382,7 +378,7 @@ impl Conversion {
             }
         }
         if geo.pcd {
-            write_pcd_into(set, &set.path(CLOUD_PCD), points, colors)?;
+            write_pcd_cloud_into(set, &set.path(CLOUD_PCD), self.cloud_ref())?;
             if let Some(g) = report.gnss.as_mut() {
                 g.outputs.push(GeoOutputReport {
                     name: CLOUD_PCD.into(),
@@ -410,29 +406,36 @@ impl Conversion {
             .and_then(|e| e.to_str())
             .is_some_and(|e| e.eq_ignore_ascii_case("laz"));
         let mut set = OutputSet::new().with_inputs([&self.report.input]);
-        let (bytes, info) = las_bytes(
-            path,
-            &self.cloud.points,
-            self.cloud.colors.as_deref(),
-            &frame.origin(),
-            crs.unwrap_or(self.geo_outputs.crs),
-            compressed,
-        )?;
-        set.write_bytes(path, &bytes)?;
+        let crs = crs.unwrap_or(self.geo_outputs.crs);
+        let info = self.las_into(&mut set, path, &frame.origin(), crs, compressed)?;
         set.commit()?;
         Ok(info)
+    }
+
+    /// The world cloud as LAS (LAZ when `compressed`), one output of `set`.
+    fn las_into(
+        &self,
+        set: &mut OutputSet,
+        path: &Path,
+        origin: &crate::geo::Geodetic,
+        crs: GeoCrs,
+        compressed: bool,
+    ) -> Result<LasInfo> {
+        let mut info = None;
+        set.write(path, |file| {
+            let file = file.try_clone().map_err(|e| Error::io(path, e))?;
+            let w = std::io::BufWriter::with_capacity(1 << 20, file);
+            let (mut w, i) = las_cloud_into(w, path, self.cloud_ref(), origin, crs, compressed)?;
+            info = Some(i);
+            std::io::Write::flush(&mut w).map_err(|e| Error::io(path, e))
+        })?;
+        info.ok_or_else(|| Error::invalid("las", "no LAS was written"))
     }
 
     /// Writes the world cloud as binary PCD (world-frame `f32` metres).
     pub fn write_pcd(&self, path: impl AsRef<Path>) -> Result<()> {
         let mut set = OutputSet::new().with_inputs([&self.report.input]);
-        let path = path.as_ref();
-        write_pcd_into(
-            &mut set,
-            path,
-            &self.cloud.points,
-            self.cloud.colors.as_deref(),
-        )?;
+        write_pcd_cloud_into(&mut set, path.as_ref(), self.cloud_ref())?;
         set.commit().map(|_| ())
     }
 }

@@ -800,6 +800,12 @@ impl Source for WithReference {
         attach_reference(&mut rec, &self.reference)?;
         Ok(rec)
     }
+
+    fn read_bounded(&self) -> Result<Recording> {
+        let mut rec = self.inner.read_bounded()?;
+        attach_reference(&mut rec, &self.reference)?;
+        Ok(rec)
+    }
 }
 
 /// The source of any input: a reconstruction ([`detect_reconstruction`]) or

@@ -662,6 +662,25 @@ pub struct Report {
     /// is then ENU at `gnss.origin` and `t_world_slam` is `T_enu_slam`.
     #[serde(skip_serializing_if = "Option::is_none")]
     pub gnss: Option<GnssReport>,
+    /// How a bounded-memory conversion streamed the keyframes (absent when
+    /// the recording was converted in memory).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub stream: Option<StreamReport>,
+}
+
+/// A bounded-memory conversion: the keyframes' pixels and the world cloud
+/// were kept on disk, the keyframes backprojected and inserted a batch at a
+/// time.
+#[derive(Clone, Debug, PartialEq, Serialize, JsonSchema)]
+pub struct StreamReport {
+    /// Keyframes per batch.
+    pub batch_keyframes: usize,
+    /// The most keyframes whose pixels were in memory at once.
+    pub max_keyframes_in_memory: usize,
+    /// Bytes of keyframe pixels set aside on disk (every version read).
+    pub pixel_bytes: u64,
+    /// Bytes of the world cloud on disk.
+    pub cloud_bytes: u64,
 }
 
 /// A GNSS reference: where its fixes came from, what was dropped, the ENU

@@ -127,6 +127,10 @@ pub struct Recording {
     /// (LSD-SLAM's live frames), sorted by time: where the start-up stages are
     /// found when the log has them.
     pub live: Option<Trajectory>,
+    /// Where the keyframes' pixels are when the recording was read with them
+    /// left on disk ([`Source::read_bounded`]): the keyframes then hold none,
+    /// and the conversion reads them back a batch at a time.
+    pub pixels: Option<std::sync::Arc<crate::io::spill::SpilledKeyframes>>,
 }
 
 impl From<Log> for Recording {
@@ -152,6 +156,7 @@ impl From<Log> for Recording {
                 ..SourceInfo::default()
             },
             live: log.live,
+            pixels: log.pixels,
             keyframes: log.keyframes,
             frames: log.frames,
             cloud: None,
@@ -167,6 +172,14 @@ impl From<Log> for Recording {
 pub trait Source {
     /// Reads the input into a recording.
     fn read(&self) -> Result<Recording>;
+
+    /// Reads the input with what grows with its length left on disk where
+    /// the source can ([`Recording::pixels`]: a log's keyframe pixels), for
+    /// a conversion whose memory does not grow with the log. The default
+    /// reads it whole.
+    fn read_bounded(&self) -> Result<Recording> {
+        self.read()
+    }
 }
 
 /// A log of any container ([`read_log`]: MCAP, ROS 1 bag, rosbag2 folder or
@@ -186,6 +199,10 @@ pub type McapSource = LogSource;
 impl Source for LogSource {
     fn read(&self) -> Result<Recording> {
         read_log(&self.path, &self.read).map(Recording::from)
+    }
+
+    fn read_bounded(&self) -> Result<Recording> {
+        crate::io::log::read_log_spilled(&self.path, &self.read).map(Recording::from)
     }
 }
 

@@ -252,8 +252,7 @@ fn write_world_mcap_py(
     };
     py.detach(|| {
         let scene = WorldScene {
-            points: &pts,
-            colors: cols.as_deref(),
+            cloud: crate::io::spill::CloudRef::Memory(&pts, cols.as_deref()),
             t_world_slam: t,
             slam_trajectory: None,
             reference: None,

@@ -199,6 +199,12 @@ impl McapFile {
         Ok(self.scan_map(|_| false, |_, _| ())?.channels)
     }
 
+    /// Gives back the process's pages of `bytes`, a slice of the file's map
+    /// that a reader is done with ([`crate::io::mapped::Mapped::release`]).
+    pub(crate) fn release(&self, bytes: &[u8]) {
+        self.map.release(bytes);
+    }
+
     /// Fails when the file shrank while it was read (see [`crate::io::mapped`]).
     pub fn check_unchanged(&self) -> Result<()> {
         self.map.check()

@@ -316,6 +316,8 @@ impl McapFile {
                     Ok(())
                 })
                 .map_err(at)?;
+                // Done with the chunk's bytes: a long log is not held whole.
+                self.release(data);
             }
         }
         Ok((defs, msgs, raw_of))

@@ -13,6 +13,7 @@ use crate::geometry::Sim3;
 use crate::imu::ImuSamples;
 use crate::io::atomic::OutputSet;
 use crate::io::messages::wire::PbWriter;
+use crate::io::spill::CloudRef;
 use crate::keyframe::Keyframe;
 use crate::trajectory::Trajectory;
 
@@ -30,10 +31,11 @@ pub enum WorldFlavor {
 /// except `t_world_slam`, which maps the SLAM frame into it.
 #[derive(Clone, Debug)]
 pub struct WorldScene<'a> {
-    /// Points, `(N, 3)` row-major, world frame, metres.
-    pub points: &'a [f32],
-    /// Colours, `(N, 3)` RGB bytes, or `None` (written white).
-    pub colors: Option<&'a [u8]>,
+    /// The points (world frame, metres) and their RGB colours (or none:
+    /// written white), in memory or on disk. A cloud of more than
+    /// [`CLOUD_MESSAGE_POINTS`] points is written as consecutive messages of
+    /// that many points (the last one fewer), all at the one stamp.
+    pub cloud: CloudRef<'a>,
     /// `T_world_slam`; the transform messages carry its rotation and translation
     /// (a transform message has no scale; the points are already scaled).
     pub t_world_slam: Sim3,
@@ -48,6 +50,11 @@ pub struct WorldScene<'a> {
     /// Frame name of the SLAM map (`slam`).
     pub slam_frame: &'a str,
 }
+
+/// The most points one cloud message of `world.mcap` holds (64 MiB of
+/// Foxglove points): a larger cloud is split into several, so that no
+/// message of a long log needs the whole cloud in memory.
+pub const CLOUD_MESSAGE_POINTS: usize = 1 << 22;
 
 /// Topic names of the world output.
 pub mod topics {
@@ -507,6 +514,18 @@ pub fn write_world_mcap(
     set.commit().map(|_| ())
 }
 
+/// Calls `f` with each cloud message's points: pieces of at most
+/// [`CLOUD_MESSAGE_POINTS`], one empty message for an empty cloud.
+fn cloud_messages(
+    cloud: CloudRef<'_>,
+    mut f: impl FnMut(&[f32], Option<&[u8]>) -> Result<()>,
+) -> Result<()> {
+    if cloud.is_empty() {
+        return f(&[], cloud.has_colors().then_some(&[]));
+    }
+    cloud.for_each_piece(CLOUD_MESSAGE_POINTS, f)
+}
+
 fn write_world_impl(
     set: &mut OutputSet,
     path: &Path,
@@ -515,21 +534,8 @@ fn write_world_impl(
     extra: &[ExtraChannel<'_>],
     flavor: WorldFlavor,
 ) -> Result<()> {
-    if scene.points.len() % 3 != 0 {
-        return Err(Error::ShapeMismatch {
-            what: "points".into(),
-            expected: "(N, 3)".into(),
-            got: format!("{} values", scene.points.len()),
-        });
-    }
-    if let Some(c) = scene.colors {
-        if c.len() != scene.points.len() {
-            return Err(Error::ShapeMismatch {
-                what: "colors".into(),
-                expected: format!("({}, 3)", scene.points.len() / 3),
-                got: format!("{} values", c.len()),
-            });
-        }
+    if let CloudRef::Memory(points, colors) = scene.cloud {
+        crate::io::ply::check_shapes(points, colors)?;
     }
     let t = nanos(path, "stamp", scene.stamp)?;
     let options = mcap::WriteOptions::new()
@@ -563,13 +569,10 @@ fn write_world_impl(
                     &scene.t_world_slam,
                 );
                 put(w, path, &mut tf, t, &msg)?;
-                let msg = foxglove_point_cloud(
-                    scene.stamp,
-                    scene.world_frame,
-                    scene.points,
-                    scene.colors,
-                );
-                put(w, path, &mut cloud, t, &msg)?;
+                cloud_messages(scene.cloud, |points, colors| {
+                    let msg = foxglove_point_cloud(scene.stamp, scene.world_frame, points, colors);
+                    put(w, path, &mut cloud, t, &msg)
+                })?;
                 for (topic, traj) in [
                     (topics::SLAM_TRAJECTORY, scene.slam_trajectory),
                     (topics::REFERENCE, scene.reference),
@@ -619,13 +622,10 @@ fn write_world_impl(
                         &scene.t_world_slam,
                     ),
                 )?;
-                put(
-                    w,
-                    path,
-                    &mut cloud,
-                    t,
-                    &ros2_point_cloud(scene.stamp, scene.world_frame, scene.points, scene.colors),
-                )?;
+                cloud_messages(scene.cloud, |points, colors| {
+                    let msg = ros2_point_cloud(scene.stamp, scene.world_frame, points, colors);
+                    put(w, path, &mut cloud, t, &msg)
+                })?;
                 if let Some(leaves) = octomap {
                     let mut ch =
                         add_channel(w, path, topics::OCTOMAP, schemas::ROS2_POINT_CLOUD2, "cdr")?;

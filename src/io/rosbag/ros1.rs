@@ -751,6 +751,10 @@ impl Ros1Bag {
             }
             at = rec.end;
         }
+        // Done with the chunk's bytes in the map: a long bag is not held whole.
+        if let Ok(rec) = read_record(&self.map, pos) {
+            self.map.release(rec.data);
+        }
         Ok(part)
     }
 
