@@ -982,7 +982,7 @@ fn to_keyframe(
             .map(|k| (k, Some(at)))
             .map_err(|err| what(err.to_string())),
         Pixels::Failed(reason) => Err(what(format!(
-            "its pixels could not be set aside on disk: {reason}"
+            "its pixels could not be set aside in the temporary folder (TMPDIR): {reason}"
         ))),
     }
 }

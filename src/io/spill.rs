@@ -266,34 +266,38 @@ impl CloudRef<'_> {
     pub fn for_each_piece(
         &self,
         max: usize,
+        f: impl FnMut(&[f32], Option<&[u8]>) -> Result<()>,
+    ) -> Result<()> {
+        self.for_each_piece_in(0, self.len(), max, f)
+    }
+
+    /// [`CloudRef::for_each_piece`] of points `start .. start + n` (clipped
+    /// to the cloud).
+    pub fn for_each_piece_in(
+        &self,
+        start: usize,
+        n: usize,
+        max: usize,
         mut f: impl FnMut(&[f32], Option<&[u8]>) -> Result<()>,
     ) -> Result<()> {
         let max = max.max(1);
-        match self {
-            CloudRef::Memory(points, colors) => {
-                let n = points.len() / 3;
-                let mut start = 0;
-                while start < n {
-                    let end = (start + max).min(n);
-                    f(
-                        &points[3 * start..3 * end],
-                        colors.map(|c| &c[3 * start..3 * end]),
-                    )?;
-                    start = end;
-                }
-                Ok(())
-            }
-            CloudRef::File(file) => {
-                let mut start = 0;
-                while start < file.len() {
-                    let n = max.min(file.len() - start);
-                    let (points, colors) = file.read(start, n)?;
+        let end = start.saturating_add(n).min(self.len());
+        let mut at = start;
+        while at < end {
+            let len = max.min(end - at);
+            match self {
+                CloudRef::Memory(points, colors) => f(
+                    &points[3 * at..3 * (at + len)],
+                    colors.map(|c| &c[3 * at..3 * (at + len)]),
+                )?,
+                CloudRef::File(file) => {
+                    let (points, colors) = file.read(at, len)?;
                     f(&points, colors.as_deref())?;
-                    start += n;
                 }
-                Ok(())
             }
+            at += len;
         }
+        Ok(())
     }
 }
 

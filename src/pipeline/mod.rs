@@ -724,6 +724,9 @@ pub fn convert_path_bounded(path: impl AsRef<Path>, opts: &ConvertOptions) -> Re
 pub fn convert_source_bounded(source: &dyn Source, opts: &ConvertOptions) -> Result<Conversion> {
     let t = Instant::now();
     let rec = source.read_bounded()?;
+    // The scan's message vectors are freed: give that memory back, so that
+    // what follows does not add to it.
+    crate::buffer::release_free_memory();
     let read_s = secs(t);
     let mut c = convert(&rec, opts)?;
     c.report.timing.read_s = read_s;

@@ -320,6 +320,10 @@ impl McapFile {
                 self.release(data);
             }
         }
+        // The reservation was a guess from the chunk's size (a keyframe's
+        // chunk holds one message): parts wait for the merge, their spare
+        // capacity would add up over a long log.
+        msgs.shrink_to_fit();
         Ok((defs, msgs, raw_of))
     }
 }

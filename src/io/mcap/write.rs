@@ -198,11 +198,10 @@ fn pb_pose(p: [f64; 3], q: [f64; 4]) -> PbWriter {
 const FOXGLOVE_UINT8: i64 = 1;
 const FOXGLOVE_FLOAT32: i64 = 7;
 
-/// Packs points and colours as `x, y, z: f32` + `r, g, b, a: u8` (16 bytes a point).
-fn packed_points(points: &[f32], colors: Option<&[u8]>) -> Vec<u8> {
-    let n = points.len() / 3;
-    let mut data = Vec::with_capacity(16 * n);
-    for i in 0..n {
+/// Appends points and colours as `x, y, z: f32` + `r, g, b, a: u8` (16 bytes
+/// a point, white without colours).
+fn pack_foxglove(data: &mut Vec<u8>, points: &[f32], colors: Option<&[u8]>) {
+    for i in 0..points.len() / 3 {
         for v in &points[3 * i..3 * i + 3] {
             data.extend_from_slice(&v.to_le_bytes());
         }
@@ -211,8 +210,28 @@ fn packed_points(points: &[f32], colors: Option<&[u8]>) -> Vec<u8> {
             None => data.extend_from_slice(&[255, 255, 255, 255]),
         }
     }
-    data
 }
+
+/// Appends points and colours as `x, y, z: f32` + PCL's packed float `rgb`
+/// (the bytes b, g, r, 0 of a little-endian u32; white without colours).
+fn pack_pcl(data: &mut Vec<u8>, points: &[f32], colors: Option<&[u8]>) {
+    for i in 0..points.len() / 3 {
+        for v in &points[3 * i..3 * i + 3] {
+            data.extend_from_slice(&v.to_le_bytes());
+        }
+        let (r, g, b) = match colors {
+            Some(c) => (c[3 * i], c[3 * i + 1], c[3 * i + 2]),
+            None => (255, 255, 255),
+        };
+        data.extend_from_slice(&[b, g, r, 0]);
+    }
+}
+
+/// Fills a cloud message's point data in place: `pieces(f)` hands `f` the
+/// message's points, a piece at a time.
+/// One piece of a cloud message's points: coordinates and colours.
+type Piece<'f> = &'f mut dyn FnMut(&[f32], Option<&[u8]>);
+type Pieces<'p> = &'p mut dyn FnMut(Piece<'_>) -> Result<()>;
 
 /// The `foxglove.PointCloud` message of `points` (world frame, stride 16).
 pub fn foxglove_point_cloud(
@@ -221,6 +240,21 @@ pub fn foxglove_point_cloud(
     points: &[f32],
     colors: Option<&[u8]>,
 ) -> Vec<u8> {
+    let mut all = |f: Piece<'_>| {
+        f(points, colors);
+        Ok(())
+    };
+    // Slices in memory: the count is the slices' own.
+    foxglove_cloud_message(stamp, frame, points.len() / 3, &mut all).unwrap_or_default()
+}
+
+/// The `foxglove.PointCloud` message of `n` points given by `pieces`.
+fn foxglove_cloud_message(
+    stamp: f64,
+    frame: &str,
+    n: usize,
+    pieces: Pieces<'_>,
+) -> Result<Vec<u8>> {
     let mut m = PbWriter::new();
     m.message(1, &pb_time(stamp));
     m.bytes(2, frame.as_bytes());
@@ -241,8 +275,23 @@ pub fn foxglove_point_cloud(
         f.int(3, ty);
         m.message(5, &f);
     }
-    m.bytes(6, &packed_points(points, colors));
-    m.buf
+    let got = m.bytes_with(6, 16 * n, |buf| {
+        pieces(&mut |p, c| pack_foxglove(buf, p, c))
+    })?;
+    check_filled(16 * n, got)?;
+    Ok(m.buf)
+}
+
+/// A cloud message whose point data came out at another length than it
+/// declared (a cloud that changed while it was written).
+fn check_filled(declared: usize, got: usize) -> Result<()> {
+    if declared == got {
+        return Ok(());
+    }
+    Err(Error::invalid(
+        "cloud",
+        format!("a cloud message declared {declared} bytes of points and got {got}"),
+    ))
 }
 
 fn foxglove_poses(stamp: f64, frame: &str, traj: &Trajectory) -> Vec<u8> {
@@ -321,7 +370,16 @@ impl CdrWriter {
 }
 
 fn ros2_point_cloud(stamp: f64, frame: &str, points: &[f32], colors: Option<&[u8]>) -> Vec<u8> {
-    let n = points.len() / 3;
+    let mut all = |f: Piece<'_>| {
+        f(points, colors);
+        Ok(())
+    };
+    // Slices in memory: the count is the slices' own.
+    ros2_cloud_message(stamp, frame, points.len() / 3, &mut all).unwrap_or_default()
+}
+
+/// The `sensor_msgs/PointCloud2` (CDR) of `n` points given by `pieces`.
+fn ros2_cloud_message(stamp: f64, frame: &str, n: usize, pieces: Pieces<'_>) -> Result<Vec<u8>> {
     let mut w = CdrWriter::new();
     w.header(stamp, frame);
     w.u32(1); // height
@@ -336,22 +394,13 @@ fn ros2_point_cloud(stamp: f64, frame: &str, points: &[f32], colors: Option<&[u8
     w.u8(0); // is_bigendian
     w.u32(16);
     w.u32(16 * n as u32);
-    let mut data = Vec::with_capacity(16 * n);
-    for i in 0..n {
-        for v in &points[3 * i..3 * i + 3] {
-            data.extend_from_slice(&v.to_le_bytes());
-        }
-        let (r, g, b) = match colors {
-            Some(c) => (c[3 * i], c[3 * i + 1], c[3 * i + 2]),
-            None => (255, 255, 255),
-        };
-        // PCL's packed float rgb: the bytes b, g, r, 0 of a little-endian u32.
-        data.extend_from_slice(&[b, g, r, 0]);
-    }
-    w.u32(data.len() as u32);
-    w.buf.extend_from_slice(&data);
+    w.u32(16 * n as u32);
+    let start = w.buf.len();
+    w.buf.reserve(16 * n);
+    pieces(&mut |p, c| pack_pcl(&mut w.buf, p, c))?;
+    check_filled(16 * n, w.buf.len() - start)?;
     w.u8(1); // is_dense
-    w.buf
+    Ok(w.buf)
 }
 
 fn ros2_tf(stamp: f64, parent: &str, child: &str, t: &Sim3) -> Vec<u8> {
@@ -514,16 +563,35 @@ pub fn write_world_mcap(
     set.commit().map(|_| ())
 }
 
-/// Calls `f` with each cloud message's points: pieces of at most
-/// [`CLOUD_MESSAGE_POINTS`], one empty message for an empty cloud.
+/// Points per piece read from a cloud on disk into a cloud message.
+const MESSAGE_PIECE: usize = 1 << 18;
+
+/// Calls `f` with each cloud message's point count and a filler of its
+/// points: messages of at most [`CLOUD_MESSAGE_POINTS`], one empty message
+/// for an empty cloud; a cloud on disk is read a piece at a time straight
+/// into the message.
 fn cloud_messages(
     cloud: CloudRef<'_>,
-    mut f: impl FnMut(&[f32], Option<&[u8]>) -> Result<()>,
+    per_message: usize,
+    mut f: impl FnMut(usize, Pieces<'_>) -> Result<()>,
 ) -> Result<()> {
-    if cloud.is_empty() {
-        return f(&[], cloud.has_colors().then_some(&[]));
+    let n = cloud.len();
+    let per_message = per_message.max(1);
+    let mut start = 0;
+    loop {
+        let len = per_message.min(n - start);
+        let mut pieces = |g: Piece<'_>| {
+            cloud.for_each_piece_in(start, len, MESSAGE_PIECE, |p, c| {
+                g(p, c);
+                Ok(())
+            })
+        };
+        f(len, &mut pieces)?;
+        start += len;
+        if start >= n {
+            return Ok(());
+        }
     }
-    cloud.for_each_piece(CLOUD_MESSAGE_POINTS, f)
 }
 
 fn write_world_impl(
@@ -569,8 +637,8 @@ fn write_world_impl(
                     &scene.t_world_slam,
                 );
                 put(w, path, &mut tf, t, &msg)?;
-                cloud_messages(scene.cloud, |points, colors| {
-                    let msg = foxglove_point_cloud(scene.stamp, scene.world_frame, points, colors);
+                cloud_messages(scene.cloud, CLOUD_MESSAGE_POINTS, |n, pieces| {
+                    let msg = foxglove_cloud_message(scene.stamp, scene.world_frame, n, pieces)?;
                     put(w, path, &mut cloud, t, &msg)
                 })?;
                 for (topic, traj) in [
@@ -622,8 +690,8 @@ fn write_world_impl(
                         &scene.t_world_slam,
                     ),
                 )?;
-                cloud_messages(scene.cloud, |points, colors| {
-                    let msg = ros2_point_cloud(scene.stamp, scene.world_frame, points, colors);
+                cloud_messages(scene.cloud, CLOUD_MESSAGE_POINTS, |n, pieces| {
+                    let msg = ros2_cloud_message(scene.stamp, scene.world_frame, n, pieces)?;
                     put(w, path, &mut cloud, t, &msg)
                 })?;
                 if let Some(leaves) = octomap {
@@ -1066,6 +1134,42 @@ pub fn write_slam_log_live_into(
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn a_cloud_is_split_into_messages_alike_in_memory_and_on_disk() {
+        let n: usize = 1000;
+        let pts: Vec<f32> = (0..3 * n).map(|v| v as f32 * 0.25).collect();
+        let cols: Vec<u8> = (0..3 * n).map(|v| (v % 251) as u8).collect();
+        let mut file = crate::io::spill::CloudFile::new(true).unwrap();
+        file.push(&pts, Some(&cols)).unwrap();
+        let split = |cloud: CloudRef<'_>, per: usize| {
+            let mut out = Vec::new();
+            cloud_messages(cloud, per, |n, pieces| {
+                out.push((
+                    foxglove_cloud_message(1.0, "world", n, &mut *pieces)?,
+                    ros2_cloud_message(1.0, "world", n, pieces)?,
+                ));
+                Ok(())
+            })
+            .unwrap();
+            out
+        };
+        for per in [1000, 333, 5000] {
+            let mem = split(CloudRef::Memory(&pts, Some(&cols)), per);
+            assert_eq!(mem.len(), n.div_ceil(per));
+            assert_eq!(mem, split(CloudRef::File(&file), per));
+            // Each message as the one-slice writers make it.
+            let mut at = 0;
+            for (fox, ros) in &mem {
+                let k = per.min(n - at);
+                let (p, c) = (&pts[3 * at..3 * (at + k)], &cols[3 * at..3 * (at + k)]);
+                assert_eq!(fox, &foxglove_point_cloud(1.0, "world", p, Some(c)));
+                assert_eq!(ros, &ros2_point_cloud(1.0, "world", p, Some(c)));
+                at += k;
+            }
+        }
+        assert_eq!(split(CloudRef::Memory(&[], None), 10).len(), 1);
+    }
     use crate::io::messages::wire::pb_fields;
 
     #[test]

@@ -751,6 +751,9 @@ impl Ros1Bag {
             }
             at = rec.end;
         }
+        // The reservation was the index's count: spare capacity of parts
+        // waiting for the merge would add up over a long bag.
+        part.msgs.shrink_to_fit();
         // Done with the chunk's bytes in the map: a long bag is not held whole.
         if let Ok(rec) = read_record(&self.map, pos) {
             self.map.release(rec.data);
