@@ -26,6 +26,29 @@ pub struct Keyframe {
     pub color: Option<Vec<u8>>,
 }
 
+/// `pixels` inverse depths are `width × height` of `camera`.
+fn check_pixels(id: i32, camera: &PinholeCamera, pixels: usize) -> Result<()> {
+    if pixels != camera.width as usize * camera.height as usize {
+        return Err(Error::ShapeMismatch {
+            what: format!("keyframe {id} idepth"),
+            expected: format!("({}, {})", camera.height, camera.width),
+            got: format!("{pixels} values"),
+        });
+    }
+    Ok(())
+}
+
+/// The keyframe's stamp is finite.
+fn check_stamp(id: i32, timestamp: f64) -> Result<()> {
+    if !timestamp.is_finite() {
+        return Err(Error::NonFinite {
+            what: format!("keyframe {id} timestamp"),
+            index: 0,
+        });
+    }
+    Ok(())
+}
+
 impl Keyframe {
     /// Builds a keyframe, checking every per-pixel array against `width × height`.
     pub fn try_new(
@@ -39,13 +62,7 @@ impl Keyframe {
     ) -> Result<Self> {
         let n = camera.width as usize * camera.height as usize;
         let size = format!("({}, {})", camera.height, camera.width);
-        if idepth.len() != n {
-            return Err(Error::ShapeMismatch {
-                what: format!("keyframe {id} idepth"),
-                expected: size,
-                got: format!("{} values", idepth.len()),
-            });
-        }
+        check_pixels(id, &camera, idepth.len())?;
         if let Some(v) = &idepth_var {
             if v.len() != n {
                 return Err(Error::ShapeMismatch {
@@ -64,12 +81,7 @@ impl Keyframe {
                 });
             }
         }
-        if !timestamp.is_finite() {
-            return Err(Error::NonFinite {
-                what: format!("keyframe {id} timestamp"),
-                index: 0,
-            });
-        }
+        check_stamp(id, timestamp)?;
         Ok(Keyframe {
             id,
             timestamp,
@@ -92,20 +104,8 @@ impl Keyframe {
         camera: PinholeCamera,
         pixels: usize,
     ) -> Result<Self> {
-        let n = camera.width as usize * camera.height as usize;
-        if pixels != n {
-            return Err(Error::ShapeMismatch {
-                what: format!("keyframe {id} idepth"),
-                expected: format!("({}, {})", camera.height, camera.width),
-                got: format!("{pixels} values"),
-            });
-        }
-        if !timestamp.is_finite() {
-            return Err(Error::NonFinite {
-                what: format!("keyframe {id} timestamp"),
-                index: 0,
-            });
-        }
+        check_pixels(id, &camera, pixels)?;
+        check_stamp(id, timestamp)?;
         Ok(Keyframe {
             id,
             timestamp,
