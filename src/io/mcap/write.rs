@@ -606,8 +606,12 @@ fn write_world_impl(
         crate::io::ply::check_shapes(points, colors)?;
     }
     let t = nanos(path, "stamp", scene.stamp)?;
+    // Single-threaded zstd: the multithreaded encoder holds a job buffer per
+    // worker (about 75 MiB with a 64 MiB cloud message), more than the rest
+    // of a long log's conversion.
     let options = mcap::WriteOptions::new()
         .compression(Some(mcap::Compression::Zstd))
+        .compression_threads(0)
         .profile(match flavor {
             WorldFlavor::Foxglove => "",
             WorldFlavor::Ros2 => "ros2",
