@@ -27,6 +27,30 @@ pub fn release_free_memory() {
     }
 }
 
+/// Freed bytes between two [`release_free_memory`] calls of a [`Releaser`].
+pub const RELEASE_EVERY: usize = 16 << 20;
+
+/// Gives memory back while a loop frees it: a scan's per-chunk parts merged
+/// into one vector are freed one by one, and without this their pages stay
+/// the process's until the merge ends, the parts and the merged vector
+/// resident together (twice the scan).
+#[derive(Debug, Default)]
+pub struct Releaser {
+    freed: usize,
+}
+
+impl Releaser {
+    /// Counts `bytes` freed; every [`RELEASE_EVERY`] bytes, gives the free
+    /// memory back.
+    pub fn freed(&mut self, bytes: usize) {
+        self.freed += bytes;
+        if self.freed >= RELEASE_EVERY {
+            release_free_memory();
+            self.freed = 0;
+        }
+    }
+}
+
 /// Asks the kernel to back `buf` (not yet touched) with huge pages; a hint only.
 pub fn advise_huge_pages<T>(buf: &mut [T]) {
     let bytes = std::mem::size_of_val(buf);

@@ -7,7 +7,9 @@ use std::collections::BTreeMap;
 use mcap::records::{self, Record};
 use rayon::prelude::*;
 
-use super::reader::{channel_info, expand_chunk, walk_chunk, ChunkItem, Def, Item, McapFile};
+use super::reader::{
+    channel_info, count_messages, expand_chunk, walk_chunk, ChunkItem, Def, Item, McapFile,
+};
 use crate::error::Result;
 use crate::io::messages::{ChannelInfo, MappedMessage, MappedScan, RawMessage, ReadMode};
 
@@ -170,11 +172,15 @@ impl McapFile {
             .iter()
             .map(|p| p.as_ref().map_or(0, |p| p.1.len()))
             .sum();
+        // What the chunk tasks freed (their buffers) goes back first.
+        crate::buffer::release_free_memory();
         let mut messages: Vec<MappedMessage<T>> = Vec::with_capacity(total);
         let mut deferred: Vec<(usize, Vec<u8>)> = Vec::new();
+        let mut releaser = crate::buffer::Releaser::default();
         for part in parts {
             let (defs, msgs, raw) = part?;
             self.apply_defs(defs, &mut schemas, &mut channels, &mut keep, want)?;
+            releaser.freed(msgs.capacity() * std::mem::size_of::<MappedMessage<T>>());
             let mut raw = raw.into_iter().peekable();
             for (j, m) in msgs.into_iter().enumerate() {
                 let bytes = match raw.peek() {
@@ -249,11 +255,23 @@ impl McapFile {
         let mut defs = Vec::new();
         let mut msgs: Vec<MappedMessage<T>> = Vec::new();
         let mut raw_of: Vec<(usize, Vec<u8>)> = Vec::new();
-        if let Item::Chunk { header, data, .. } = &item {
-            // A guess of the message count (a hint only: failure to reserve is fine).
-            let guess = (header.uncompressed_size / 128).min(data.len() as u64 * 64);
-            let _ = msgs.try_reserve(usize::try_from(guess).unwrap_or(0));
-        }
+        // Parts wait for the merge: each holds exactly its messages (no
+        // guessed spare capacity adding up over a long log, no regrowth
+        // leaving freed copies behind).
+        let expected = match &item {
+            Item::Chunk {
+                offset,
+                header,
+                data,
+            } => {
+                expand_chunk(header, data, buf)
+                    .map_err(|what| self.err(format!("chunk at offset {offset}: {what}")))?;
+                count_messages(buf)
+            }
+            Item::Message(_) => 1,
+            _ => 0,
+        };
+        msgs.reserve_exact(expected);
         let mut local: BTreeMap<u16, ChannelInfo> = BTreeMap::new();
         let mut local_schemas: BTreeMap<u16, (records::SchemaHeader, Vec<u8>)> = BTreeMap::new();
         let mut push = |raw: RawMessage<'_>, local: &BTreeMap<u16, ChannelInfo>| {
@@ -291,13 +309,8 @@ impl McapFile {
                 };
                 push(raw, &local);
             }
-            Item::Chunk {
-                offset,
-                header,
-                data,
-            } => {
+            Item::Chunk { offset, data, .. } => {
                 let at = |what: String| self.err(format!("chunk at offset {offset}: {what}"));
-                expand_chunk(&header, data, buf).map_err(at)?;
                 walk_chunk(buf, |item| {
                     match item {
                         ChunkItem::Message(_, raw) => push(raw, &local),
@@ -320,10 +333,6 @@ impl McapFile {
                 self.release(data);
             }
         }
-        // The reservation was a guess from the chunk's size (a keyframe's
-        // chunk holds one message): parts wait for the merge, their spare
-        // capacity would add up over a long log.
-        msgs.shrink_to_fit();
         Ok((defs, msgs, raw_of))
     }
 }

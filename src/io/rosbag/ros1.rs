@@ -596,8 +596,10 @@ impl Ros1Bag {
                     .collect()
             };
             let mut deferred = Vec::new();
+            let mut releaser = crate::buffer::Releaser::default();
             for part in parts {
                 let part = part.map_err(|f| self.err(f))?;
+                releaser.freed(part.msgs.capacity() * std::mem::size_of::<MappedMessage<T>>());
                 for d in part.defs {
                     known.entry(d.id).or_insert(d);
                 }
