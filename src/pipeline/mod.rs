@@ -730,6 +730,10 @@ pub fn convert_source_bounded(source: &dyn Source, opts: &ConvertOptions) -> Res
     let read_s = secs(t);
     let mut c = convert(&rec, opts)?;
     c.report.timing.read_s = read_s;
+    // The recording (its trajectories and IMU) and the keyframe batches are
+    // freed: the writers start from the conversion alone.
+    drop(rec);
+    crate::buffer::release_free_memory();
     Ok(c)
 }
 
