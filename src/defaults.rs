@@ -94,6 +94,9 @@ pub const OCCUPANCY_THRESHOLD: f64 = 0.5;
 
 /// Most cloud points embedded in `report.html` (a deterministic stride).
 pub const HTML_MAX_POINTS: usize = 300_000;
+/// Most reference poses drawn in `report.html` (a deterministic stride, the
+/// last pose kept): a line of more has more vertices than the view has pixels.
+pub const HTML_MAX_PATH_POINTS: usize = 20_000;
 /// Most occupied voxels embedded in `report.html` (coarser levels beyond it).
 pub const HTML_MAX_VOXELS: usize = 200_000;
 /// Voxel edge of the octree `slam2world demo` builds, metres.

@@ -56,13 +56,39 @@ pub struct PathData {
     pub t: Vec<f64>,
     /// Positions, metres, world frame.
     pub xyz: Vec<[f64; 3]>,
+    /// Poses in the trajectory.
+    pub n_total: usize,
+    /// Every `stride`-th pose is kept (and the last one).
+    pub stride: usize,
 }
 
 impl From<&Trajectory> for PathData {
     fn from(t: &Trajectory) -> Self {
+        PathData::decimated(t, usize::MAX)
+    }
+}
+
+impl PathData {
+    /// Poses `0, stride, 2·stride, …` and the last of `t`, at most `max + 1`
+    /// (the smallest stride that keeps `max` or fewer before the last).
+    pub fn decimated(t: &Trajectory, max: usize) -> Self {
+        let n = t.len();
+        let stride = n.div_ceil(max.max(1)).max(1);
+        let mut keep: Vec<usize> = (0..n).step_by(stride).collect();
+        if n > 0 && keep.last() != Some(&(n - 1)) {
+            keep.push(n - 1);
+        }
         PathData {
-            t: t.timestamps.clone(),
-            xyz: t.positions.iter().map(|p| [p.x, p.y, p.z]).collect(),
+            t: keep.iter().map(|&i| t.timestamps[i]).collect(),
+            xyz: keep
+                .iter()
+                .map(|&i| {
+                    let p = t.positions[i];
+                    [p.x, p.y, p.z]
+                })
+                .collect(),
+            n_total: n,
+            stride,
         }
     }
 }
@@ -191,7 +217,10 @@ impl FigureData {
         opts.check()?;
         let mut f = FigureData {
             estimate: PathData::from(&c.slam_trajectory),
-            reference: c.reference.as_ref().map(PathData::from),
+            reference: c
+                .reference
+                .as_ref()
+                .map(|r| PathData::decimated(r, defaults::HTML_MAX_PATH_POINTS)),
             ..FigureData::default()
         };
         if let Some(p) = c.world.poses() {
@@ -228,7 +257,10 @@ impl FigureData {
         };
         let mut f = FigureData {
             estimate: PathData::from(&world),
-            reference: Some(PathData::from(reference)),
+            reference: Some(PathData::decimated(
+                reference,
+                defaults::HTML_MAX_PATH_POINTS,
+            )),
             ..FigureData::default()
         };
         f.add_pairs(slam, Some(reference), fit);
@@ -398,6 +430,26 @@ mod tests {
     use super::*;
     use crate::cloud::PointCloud;
     use crate::map::MapParams;
+
+    #[test]
+    fn a_path_keeps_every_stride_th_pose_and_the_last() {
+        let t = Trajectory::try_new(
+            (0..10).map(f64::from).collect(),
+            (0..10)
+                .map(|i| nalgebra::Vector3::new(f64::from(i), 0.0, 0.0))
+                .collect(),
+            None,
+        )
+        .unwrap();
+        let d = PathData::decimated(&t, 4);
+        assert_eq!((d.n_total, d.stride), (10, 3));
+        assert_eq!(d.t, [0.0, 3.0, 6.0, 9.0]);
+        let d = PathData::decimated(&t, 3);
+        assert_eq!((d.stride, d.t.clone()), (4, vec![0.0, 4.0, 8.0, 9.0]));
+        assert_eq!(d.xyz[3], [9.0, 0.0, 0.0]);
+        let all = PathData::from(&t);
+        assert_eq!((all.stride, all.t.len()), (1, 10));
+    }
 
     #[test]
     fn decimation_keeps_every_stride_th_point_and_its_colour() {
