@@ -15,6 +15,7 @@ BIN=${SLAM2WORLD:-target/release/slam2world}
 REDUCED=${REDUCED:-1}
 OCTREE=${OCTREE:-}
 WORK=${WORK:-$(mktemp -d)}
+mkdir -p "$WORK"
 
 if [ ! -x /usr/bin/time ]; then
     # GNU time (Debian's `time`): the shell keyword has no -v.
@@ -49,8 +50,8 @@ print(f"{sys.argv[2]} {r['keyframes']} {r['points']} {int(sys.argv[3]) / 1024:.1
 PY
 }
 
-demo=$(simulate demo 1)
-long=$(simulate long10 10)
+demo=$(simulate demo 1) || exit 1
+long=$(simulate long10 10) || exit 1
 echo "# log keyframes points peak_rss_MiB wall (reduced $REDUCED, octree ${OCTREE:-none}, $BIN)"
 a=$(measure demo "$demo")
 b=$(measure long10 "$long")
