@@ -708,16 +708,42 @@ fn log_of_scan(
         ..Log::default()
     };
     let mut messages = scan.messages;
+    // The channels read by each step below, in order: once a step is done, the
+    // messages no later step reads are dropped and their memory given back, so
+    // that a long log's scan and what is built from it are not held together.
+    let steps = [
+        picks.keyframes,
+        picks.graph,
+        picks.live,
+        picks.est,
+        picks.pose,
+        picks.imu,
+        picks.gnss,
+    ]
+    .map(|c| c.map(|c| c.id));
+    let keep_from = |messages: &mut Vec<Mapped>, step: usize| {
+        let later = &steps[step..];
+        let before = messages.len();
+        messages.retain(|m| later.contains(&Some(m.channel_id)));
+        if messages.len() < before {
+            messages.shrink_to_fit();
+            crate::buffer::release_free_memory();
+        }
+    };
+    keep_from(&mut messages, 0);
     let mut spilled = Vec::new();
     if let Some(kf) = picks.keyframes {
         spilled = read_keyframes(path, &mut messages, kf, picks.graph, &mut log)?;
     }
+    keep_from(&mut messages, 2);
     if let Some(c) = picks.live {
         log.live = read_live(path, &messages, c)?;
     }
+    keep_from(&mut messages, 3);
     if let Some(c) = picks.est {
         log.frames = Some(read_poses(path, &messages, c, (&None, &None))?);
     }
+    keep_from(&mut messages, 4);
     if let Some(c) = picks.pose {
         log.reference = Some(read_poses(
             path,
@@ -726,9 +752,11 @@ fn log_of_scan(
             (&options.tf_parent, &options.tf_child),
         )?);
     }
+    keep_from(&mut messages, 5);
     if let Some(c) = picks.imu {
         log.imu = Some(read_imu(path, &messages, c)?);
     }
+    keep_from(&mut messages, 6);
     if let Some(c) = picks.gnss {
         log.gnss = Some(read_fixes(path, &messages, c)?);
     }
