@@ -1,19 +1,23 @@
 #!/usr/bin/env bash
-# Peak resident memory of `slam2world convert` on the demo-size log and on a
-# simulated log 10x as long (frames, keyframes, path), by /usr/bin/time -v.
-# Issue 20's goal: the long log's peak within 1.3x of the demo's.
+# Peak resident memory of `slam2world convert` on the demo-size log and on
+# simulated logs FACTORS times as long (frames, keyframes, path; default 10),
+# by /usr/bin/time -v. Issue 20's goal: the 10x log's peak within 1.3x of the
+# demo's; a second factor (FACTORS="10 20") shows what still grows with length.
 #
 #   benches/memory.sh                  # paper-size demo (slow to simulate: use a release binary)
-#   REDUCED=4 benches/memory.sh        # both logs divided by 4 (frames, keyframes, image side)
+#   REDUCED=4 benches/memory.sh        # every log divided by 4 (frames, keyframes, image side)
+#   FACTORS="10 20" benches/memory.sh  # the 10x and the 20x log
 #   SLAM2WORLD=target/debug/slam2world OCTREE=0.2 benches/memory.sh
 #
 # Prints one line per log (keyframes, points, peak RSS in MiB, convert seconds)
-# and the ratio long / demo. Logs and outputs go under $WORK (default a temp dir).
+# and the ratio of each long log to the demo. Logs and outputs go under $WORK
+# (default a temp dir).
 set -euo pipefail
 
 BIN=${SLAM2WORLD:-target/release/slam2world}
 REDUCED=${REDUCED:-1}
 OCTREE=${OCTREE:-}
+FACTORS=${FACTORS:-10}
 WORK=${WORK:-$(mktemp -d)}
 mkdir -p "$WORK"
 
@@ -51,11 +55,13 @@ PY
 }
 
 demo=$(simulate demo 1) || exit 1
-long=$(simulate long10 10) || exit 1
 echo "# log keyframes points peak_rss_MiB wall (reduced $REDUCED, octree ${OCTREE:-none}, $BIN)"
 a=$(measure demo "$demo")
-b=$(measure long10 "$long")
 echo "$a"
-echo "$b"
-python3 -c "import sys; a, b = float(sys.argv[1]), float(sys.argv[2]); print(f'ratio long/demo {b / a:.2f} (goal <= 1.3)')" \
-    "$(echo "$a" | cut -d' ' -f4)" "$(echo "$b" | cut -d' ' -f4)"
+for f in $FACTORS; do
+    long=$(simulate "long$f" "$f") || exit 1
+    b=$(measure "long$f" "$long")
+    echo "$b"
+    python3 -c "import sys; a, b = float(sys.argv[1]), float(sys.argv[2]); print(f'ratio long${f}/demo {b / a:.2f} (goal for 10x: <= 1.3)')" \
+        "$(echo "$a" | cut -d' ' -f4)" "$(echo "$b" | cut -d' ' -f4)"
+done
