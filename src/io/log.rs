@@ -784,6 +784,13 @@ enum Pixels {
 enum Decoded {
     Keyframe(Box<std::result::Result<DecodedKeyframe, WireError>>),
     Graph(std::result::Result<Vec<(i32, [f64; 7])>, WireError>),
+    /// A live frame (a keyframe message with `isKeyframe` false): its time and
+    /// `camToWorld`, all that is read of one, unboxed (a log holds one per
+    /// camera frame).
+    Frame {
+        time: f64,
+        cam_to_world: [f64; 7],
+    },
     /// A checked, normalised pose sample.
     Pose(decode::PoseSample),
     Tf(Vec<StampedPose>),
@@ -825,25 +832,31 @@ fn decode_message(
         // The point cloud goes from the (decompressed) message bytes straight
         // into the keyframe's arrays, or into the spill: no copy of the
         // message is kept.
-        Some(K::Keyframe) => Decoded::Keyframe(Box::new(decode::keyframe_ros1(m.data).map(|k| {
-            let arrays = k.is_keyframe.then(|| match spill {
-                None => {
-                    let (d, v, c) = decode::split_pointcloud(k.pointcloud);
-                    Pixels::Arrays(d, v, c)
-                }
-                Some(s) => match s.put(k.pointcloud) {
-                    Ok(at) => Pixels::Spilled(at),
-                    Err(e) => Pixels::Failed(e),
-                },
-            });
-            (
-                KeyframeMsg {
-                    pointcloud: &[],
-                    ..k
-                },
-                arrays,
-            )
-        }))),
+        Some(K::Keyframe) => match decode::keyframe_ros1(m.data) {
+            Ok(k) if !k.is_keyframe => Decoded::Frame {
+                time: k.time,
+                cam_to_world: k.cam_to_world,
+            },
+            r => Decoded::Keyframe(Box::new(r.map(|k| {
+                let arrays = match spill {
+                    None => {
+                        let (d, v, c) = decode::split_pointcloud(k.pointcloud);
+                        Pixels::Arrays(d, v, c)
+                    }
+                    Some(s) => match s.put(k.pointcloud) {
+                        Ok(at) => Pixels::Spilled(at),
+                        Err(e) => Pixels::Failed(e),
+                    },
+                };
+                (
+                    KeyframeMsg {
+                        pointcloud: &[],
+                        ..k
+                    },
+                    Some(arrays),
+                )
+            }))),
+        },
         Some(K::KeyframeGraph) => Decoded::Graph(decode::graph_ros1(m.data)),
         Some(K::Tf) => match decode::poses(K::Tf, enc, m.data) {
             Ok(v) => Decoded::Tf(v),
@@ -912,6 +925,8 @@ fn read_keyframes(
                     Ok((msg, arrays)) => (msg, arrays),
                     Err(e) => return Err(fail(e.clone())),
                 },
+                // A live frame: no pixels, no keyframe.
+                Decoded::Frame { .. } => continue,
                 _ => return Err(fail(WireError::schema("not a keyframe message"))),
             };
             // Moved out: each version's arrays are used once (the latest wins).
@@ -1021,28 +1036,29 @@ fn read_live(path: &Path, messages: &[Mapped], c: &ChannelInfo) -> Result<Option
     let mut rows: Vec<(f64, Vector3<f64>, UnitQuaternion<f64>)> = Vec::new();
     for (i, m) in messages.iter().filter(|m| m.channel_id == c.id).enumerate() {
         let fail = |e: WireError| at(path, &c.topic, i, m.log_time, e);
-        let msg = match &m.value {
+        let (time, cam_to_world) = match &m.value {
+            Decoded::Frame { time, cam_to_world } => (*time, cam_to_world),
             Decoded::Keyframe(r) => match r.as_ref() {
-                Ok((msg, _)) => msg,
+                Ok((msg, _)) => (msg.time, &msg.cam_to_world),
                 Err(e) => return Err(fail(e.clone())),
             },
             _ => return Err(fail(WireError::schema("not a keyframe message"))),
         };
-        let pose = Sim3::from_lsd_slam(&msg.cam_to_world).map_err(|e| {
+        let pose = Sim3::from_lsd_slam(cam_to_world).map_err(|e| {
             samples_err(
                 path,
                 &c.topic,
-                format!("frame {i}: camToWorld {:?}: {e}", msg.cam_to_world),
+                format!("frame {i}: camToWorld {cam_to_world:?}: {e}"),
             )
         })?;
-        if !msg.time.is_finite() {
+        if !time.is_finite() {
             return Err(samples_err(
                 path,
                 &c.topic,
-                format!("frame {i}: time {} is not finite", msg.time),
+                format!("frame {i}: time {time} is not finite"),
             ));
         }
-        rows.push((msg.time, pose.translation, pose.rotation));
+        rows.push((time, pose.translation, pose.rotation));
     }
     if rows.is_empty() {
         return Ok(None);
