@@ -727,8 +727,6 @@ pub(super) fn walk_chunk<'a>(
     Ok(())
 }
 
-/// Splits one record off the front of `buf`: (opcode, body, bytes consumed).
-/// `None` when the buffer ends inside the record.
 /// The message records of a decompressed chunk, counted from the record
 /// frames alone (a damaged frame ends the count: [`walk_chunk`] reports it).
 pub(super) fn count_messages(buf: &[u8]) -> usize {
@@ -740,6 +738,8 @@ pub(super) fn count_messages(buf: &[u8]) -> usize {
     n
 }
 
+/// Splits one record off the front of `buf`: (opcode, body, bytes consumed).
+/// `None` when the buffer ends inside the record.
 pub(super) fn frame(buf: &[u8]) -> Option<(u8, &[u8], usize)> {
     let opcode = *buf.first()?;
     let len_bytes: [u8; 8] = buf.get(1..9)?.try_into().ok()?;
