@@ -73,7 +73,7 @@ impl PathData {
     /// (the smallest stride that keeps `max` or fewer before the last).
     pub fn decimated(t: &Trajectory, max: usize) -> Self {
         let n = t.len();
-        let stride = n.div_ceil(max.max(1)).max(1);
+        let stride = stride_for(n, max);
         let mut keep: Vec<usize> = (0..n).step_by(stride).collect();
         if n > 0 && keep.last() != Some(&(n - 1)) {
             keep.push(n - 1);
@@ -346,10 +346,15 @@ fn center_of(cloud: CloudRef<'_>, path: &PathData) -> Result<[f64; 3]> {
     }))
 }
 
+/// The stride that keeps at most `max` of `n` items: `⌈n / max⌉`, at least 1.
+fn stride_for(n: usize, max: usize) -> usize {
+    n.div_ceil(max.max(1)).max(1)
+}
+
 /// Every `stride`-th point (`stride = ⌈n / max⌉`), as offsets from `origin`.
 fn decimate(cloud: CloudRef<'_>, origin: [f64; 3], max: usize) -> Result<CloudData> {
     let n_total = cloud.len();
-    let stride = n_total.div_ceil(max.max(1)).max(1);
+    let stride = stride_for(n_total, max);
     let mut xyz = Vec::new();
     let mut rgb = cloud.has_colors().then(Vec::new);
     let mut first = 0usize;
