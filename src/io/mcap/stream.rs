@@ -258,14 +258,15 @@ impl McapFile {
         // Parts wait for the merge: each holds exactly its messages (no
         // guessed spare capacity adding up over a long log, no regrowth
         // leaving freed copies behind).
+        let chunk_err =
+            |offset: usize, what: String| self.err(format!("chunk at offset {offset}: {what}"));
         let expected = match &item {
             Item::Chunk {
                 offset,
                 header,
                 data,
             } => {
-                expand_chunk(header, data, buf)
-                    .map_err(|what| self.err(format!("chunk at offset {offset}: {what}")))?;
+                expand_chunk(header, data, buf).map_err(|what| chunk_err(*offset, what))?;
                 count_messages(buf)
             }
             Item::Message(_) => 1,
@@ -310,7 +311,7 @@ impl McapFile {
                 push(raw, &local);
             }
             Item::Chunk { offset, data, .. } => {
-                let at = |what: String| self.err(format!("chunk at offset {offset}: {what}"));
+                let at = |what: String| chunk_err(offset, what);
                 walk_chunk(buf, |item| {
                     match item {
                         ChunkItem::Message(_, raw) => push(raw, &local),
