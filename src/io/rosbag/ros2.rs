@@ -483,6 +483,11 @@ fn open_db(path: &Path, label: &Path) -> Result<Connection> {
         OpenFlags::SQLITE_OPEN_READ_ONLY | OpenFlags::SQLITE_OPEN_NO_MUTEX,
     )
     .map_err(at)?;
+    // Pages read from a map of the file rather than copied by `pread` into
+    // SQLite's page cache (SQLite caps the size at its compile-time limit,
+    // 2 GiB; past it, pages are read as before).
+    db.pragma_update(None, "mmap_size", 1i64 << 40)
+        .map_err(at)?;
     let tables: Vec<String> = {
         let mut stmt = db
             .prepare("SELECT name FROM sqlite_master WHERE type = 'table' ORDER BY name")
@@ -624,11 +629,16 @@ fn sqlite_scan<T: Send + Default>(
     if wanted.is_empty() && visit == Rows::Wanted {
         return Ok(Vec::new());
     }
-    let span: (Option<i64>, Option<i64>) = db
-        .query_row("SELECT min(id), max(id) FROM messages", [], |r| {
-            Ok((r.get(0)?, r.get(1)?))
-        })
-        .map_err(|e| at(e.into()))?;
+    // Two queries: SQLite answers a lone `min(id)` or `max(id)` from the
+    // rowid b-tree's ends, but `SELECT min(id), max(id)` visits every row.
+    let end = |sql: &str| -> Result<Option<i64>> {
+        db.query_row(sql, [], |r| r.get(0))
+            .map_err(|e| at(e.into()))
+    };
+    let span = (
+        end("SELECT min(id) FROM messages")?,
+        end("SELECT max(id) FROM messages")?,
+    );
     drop(db);
     let (Some(lo), Some(hi)) = span else {
         return Ok(Vec::new());
@@ -655,6 +665,9 @@ fn sqlite_scan<T: Send + Default>(
              WHERE id BETWEEN ?1 AND ?2 ORDER BY id",
             if wanted.is_empty() {
                 "NULL".to_string()
+            } else if wanted.len() == ids.len() {
+                // Every topic wanted: no test per row.
+                "data".to_string()
             } else {
                 format!("CASE WHEN topic_id IN ({list}) THEN data END")
             }
@@ -673,6 +686,12 @@ fn sqlite_scan<T: Send + Default>(
         // Within [lo, hi]: the casts are exact.
         .map(|a| (a as i64, (a + step - 1).min(hi_w) as i64))
         .collect();
+    // The first range's vector is reserved for the whole file's rows (at most
+    // one per rowid, and one per 16 bytes of file): the others are appended
+    // to it without a reallocation. Pages never written are not resident,
+    // and the spare capacity is given back after the merge.
+    let file_rows = std::fs::metadata(plain).map_or(0, |m| m.len() / 16);
+    let first_reserve = usize::try_from(span.min(i128::from(file_rows))).unwrap_or(0);
     let channels = &table.channels;
     let ids = &ids;
     let sql = sql.as_str();
@@ -680,11 +699,12 @@ fn sqlite_scan<T: Send + Default>(
         .par_iter()
         .map(|&range| {
             let db = open_db(plain, label)?;
-            sqlite_range(&db, sql, range, ids, channels, zstd_messages, map).map_err(at)
+            let reserve = if range.0 == lo { first_reserve } else { 0 };
+            sqlite_range(&db, sql, range, reserve, ids, channels, zstd_messages, map).map_err(at)
         })
         .collect();
     let mut out: Vec<MappedMessage<T>> = Vec::new();
-    for part in scanned {
+    for (k, part) in scanned.into_iter().enumerate() {
         let (got, counts) = part.map_err(|mut e| {
             // The index among the wanted messages of the whole file.
             if let Error::Bag {
@@ -702,12 +722,13 @@ fn sqlite_scan<T: Send + Default>(
             s.1 = s.1.min(first);
             s.2 = s.2.max(last);
         }
-        if out.is_empty() {
+        if k == 0 {
             out = got;
         } else {
             out.extend(got);
         }
     }
+    out.shrink_to_fit();
     Ok(out)
 }
 
@@ -718,6 +739,7 @@ fn sqlite_range<T: Send + Default>(
     db: &Connection,
     sql: &str,
     (a, b): (i64, i64),
+    reserve: usize,
     ids: &HashMap<i64, (u16, bool)>,
     channels: &BTreeMap<u16, ChannelInfo>,
     zstd_messages: bool,
@@ -726,27 +748,37 @@ fn sqlite_range<T: Send + Default>(
     let mut stmt = db.prepare(sql)?;
     let mut rows = stmt.query([a, b])?;
     let mut out = Vec::new();
-    let mut stats = Stats::new();
-    // The last row's topic: rows of one topic come in runs.
-    let mut last: Option<(i64, u16, bool)> = None;
+    // A failed reservation only means appends that reallocate.
+    let _ = out.try_reserve(reserve);
+    // Count, first and last stamp per channel, in the order first seen.
+    let mut seen: Vec<(u16, (u64, u64, u64))> = Vec::new();
+    // The last row's topic and its slot in `seen`: rows of one topic come in
+    // runs.
+    let mut last: Option<(i64, u16, bool, usize)> = None;
     while let Some(row) = rows.next()? {
-        let row_id: i64 = row.get(0)?;
         let topic_id: i64 = row.get(1)?;
         let time = row.get::<_, i64>(2)?.max(0) as u64;
-        let (id, keep) = match last {
-            Some((t, id, keep)) if t == topic_id => (id, keep),
+        let (id, keep, slot) = match last {
+            Some((t, id, keep, slot)) if t == topic_id => (id, keep, slot),
             _ => {
                 let Some(&(id, keep)) = ids.get(&topic_id) else {
                     return Err(BagError::UnknownTopic {
                         topic_id,
-                        row: row_id,
+                        row: row.get(0)?,
                     });
                 };
-                last = Some((topic_id, id, keep));
-                (id, keep)
+                let slot = match seen.iter().position(|(c, _)| *c == id) {
+                    Some(k) => k,
+                    None => {
+                        seen.push((id, (0, u64::MAX, 0)));
+                        seen.len() - 1
+                    }
+                };
+                last = Some((topic_id, id, keep, slot));
+                (id, keep, slot)
             }
         };
-        let s = stats.entry(id).or_insert((0, u64::MAX, 0));
+        let s = &mut seen[slot].1;
         s.0 += 1;
         s.1 = s.1.min(time);
         s.2 = s.2.max(time);
@@ -780,7 +812,7 @@ fn sqlite_range<T: Send + Default>(
             value,
         });
     }
-    Ok((out, stats))
+    Ok((out, seen.into_iter().collect()))
 }
 
 /// What the map of an `.mcap` in `MESSAGE` mode gives: the value, or why the
