@@ -721,10 +721,28 @@ fn log_of_scan(
         picks.gnss,
     ]
     .map(|c| c.map(|c| c.id));
-    let keep_from = |messages: &mut Vec<Mapped>, step: usize| {
+    // The channels the messages may hold (the counted ones, then those of the
+    // steps left): a step that drops none of them leaves the messages as they
+    // are, one that drops all frees them without a look at each (a 1e6-pose
+    // log's scan is 100 MB).
+    let mut held: Vec<u16> = counts
+        .iter()
+        .filter(|(_, n)| **n > 0)
+        .map(|(id, _)| *id)
+        .collect();
+    let mut keep_from = |messages: &mut Vec<Mapped>, step: usize| {
         let later = &steps[step..];
+        let kept = |id: &u16| later.contains(&Some(*id));
+        if held.iter().all(kept) {
+            return;
+        }
         let before = messages.len();
-        messages.retain(|m| later.contains(&Some(m.channel_id)));
+        if held.iter().any(kept) {
+            messages.retain(|m| kept(&m.channel_id));
+        } else {
+            *messages = Vec::new();
+        }
+        held = later.iter().flatten().copied().collect();
         if messages.len() < before {
             messages.shrink_to_fit();
             crate::buffer::release_free_memory();
@@ -1094,9 +1112,10 @@ fn read_poses(
 ) -> Result<Trajectory> {
     let mine = messages.iter().filter(|m| m.channel_id == c.id);
     if kind_of(c) != Some(MessageKind::Tf) {
-        let mut times: Vec<f64> = Vec::new();
-        let mut positions: Vec<Vector3<f64>> = Vec::new();
-        let mut orientations: Vec<UnitQuaternion<f64>> = Vec::new();
+        let n = mine.clone().count();
+        let mut times: Vec<f64> = Vec::with_capacity(n);
+        let mut positions: Vec<Vector3<f64>> = Vec::with_capacity(n);
+        let mut orientations: Vec<UnitQuaternion<f64>> = Vec::with_capacity(n);
         for (i, m) in mine.enumerate() {
             match &m.value {
                 Decoded::Pose((t, p, [x, y, z, w])) => {
