@@ -338,9 +338,8 @@ pub fn pose_sample(kind: MessageKind, encoding: &str, data: &[u8]) -> WireResult
 }
 
 fn pose_fields<'a, R: RosReader<'a>>(r: &mut R) -> WireResult<([f64; 3], [f64; 4])> {
-    let p = [r.f64()?, r.f64()?, r.f64()?];
-    let q = [r.f64()?, r.f64()?, r.f64()?, r.f64()?];
-    Ok((p, q))
+    let [x, y, z, qx, qy, qz, qw] = r.f64s::<7>()?;
+    Ok(([x, y, z], [qx, qy, qz, qw]))
 }
 
 fn ros_pose<'a, R: RosReader<'a>>(kind: MessageKind, r: &mut R) -> WireResult<Vec<StampedPose>> {

@@ -20,6 +20,7 @@ struct Cursor<'a> {
 
 impl<'a> Cursor<'a> {
     /// The next `n` bytes, or where the message was short.
+    #[inline]
     fn bytes(&mut self, n: usize) -> WireResult<&'a [u8]> {
         let end = self.pos.checked_add(n).filter(|&e| e <= self.buf.len());
         match end {
@@ -36,6 +37,7 @@ impl<'a> Cursor<'a> {
         }
     }
 
+    #[inline]
     fn array<const N: usize>(&mut self) -> WireResult<[u8; N]> {
         let b = self.bytes(N)?;
         let mut a = [0u8; N];
@@ -94,6 +96,9 @@ pub trait RosReader<'a> {
     fn f64(&mut self) -> WireResult<f64> {
         Ok(f64::from_le_bytes(self.primitive()?))
     }
+    /// `float64[N]` read as `N` consecutive `float64` fields (a pose's
+    /// position and orientation): one bounds check for all of them.
+    fn f64s<const N: usize>(&mut self) -> WireResult<[f64; N]>;
     /// Skips a `string` (u32 length, then that many bytes).
     fn skip_string(&mut self) -> WireResult<()> {
         let n = self.u32()? as usize;
@@ -129,6 +134,13 @@ impl<'a> Ros1<'a> {
 }
 
 impl<'a> RosReader<'a> for Ros1<'a> {
+    fn f64s<const N: usize>(&mut self) -> WireResult<[f64; N]> {
+        let b = self.0.bytes(8 * N)?;
+        Ok(std::array::from_fn(|k| {
+            f64::from_le_bytes(b[8 * k..8 * k + 8].try_into().unwrap_or_default())
+        }))
+    }
+
     /// Packed, little-endian.
     fn primitive<const N: usize>(&mut self) -> WireResult<[u8; N]> {
         self.0.array()
@@ -205,6 +217,24 @@ impl<'a> Cdr<'a> {
 }
 
 impl<'a> RosReader<'a> for Cdr<'a> {
+    /// The first aligned to 8; the others follow it unpadded.
+    fn f64s<const N: usize>(&mut self) -> WireResult<[f64; N]> {
+        let r = self.cursor.pos % 8;
+        if r != 0 {
+            self.cursor.pos += 8 - r;
+        }
+        let b = self.cursor.bytes(8 * N)?;
+        let little = self.little;
+        Ok(std::array::from_fn(|k| {
+            let a: [u8; 8] = b[8 * k..8 * k + 8].try_into().unwrap_or_default();
+            if little {
+                f64::from_le_bytes(a)
+            } else {
+                f64::from_be_bytes(a)
+            }
+        }))
+    }
+
     /// Aligned to `N` from the end of the encapsulation header, swapped to
     /// little-endian from a big-endian message.
     fn primitive<const N: usize>(&mut self) -> WireResult<[u8; N]> {
