@@ -733,8 +733,10 @@ fn sqlite_scan<T: Send + Default>(
 }
 
 /// The rows of one rowid range `(a, b)` of `sql`, counted and (the wanted
-/// topics', whose data is not NULL) mapped; a message that does not
-/// decompress stops the range (its index counted within the range).
+/// topics', whose data is not NULL) mapped into a vector of `reserve`
+/// reserved elements; a message that does not decompress stops the range
+/// (its index counted within the range).
+#[allow(clippy::too_many_arguments)]
 fn sqlite_range<T: Send + Default>(
     db: &Connection,
     sql: &str,
