@@ -135,10 +135,7 @@ impl<'a> Ros1<'a> {
 
 impl<'a> RosReader<'a> for Ros1<'a> {
     fn f64s<const N: usize>(&mut self) -> WireResult<[f64; N]> {
-        let b = self.0.bytes(8 * N)?;
-        Ok(std::array::from_fn(|k| {
-            f64::from_le_bytes(b[8 * k..8 * k + 8].try_into().unwrap_or_default())
-        }))
+        Ok(f64s_of(self.0.bytes(8 * N)?, true))
     }
 
     /// Packed, little-endian.
@@ -216,32 +213,39 @@ impl<'a> Cdr<'a> {
     }
 }
 
+impl Cdr<'_> {
+    /// Skips the padding before a primitive of `n` bytes.
+    fn align(&mut self, n: usize) {
+        let r = self.cursor.pos % n;
+        if r != 0 {
+            self.cursor.pos += n - r;
+        }
+    }
+}
+
+/// The `N` `float64` of `8 * N` bytes, in either byte order.
+fn f64s_of<const N: usize>(b: &[u8], little: bool) -> [f64; N] {
+    std::array::from_fn(|k| {
+        let a: [u8; 8] = b[8 * k..8 * k + 8].try_into().unwrap_or_default();
+        if little {
+            f64::from_le_bytes(a)
+        } else {
+            f64::from_be_bytes(a)
+        }
+    })
+}
+
 impl<'a> RosReader<'a> for Cdr<'a> {
     /// The first aligned to 8; the others follow it unpadded.
     fn f64s<const N: usize>(&mut self) -> WireResult<[f64; N]> {
-        let r = self.cursor.pos % 8;
-        if r != 0 {
-            self.cursor.pos += 8 - r;
-        }
-        let b = self.cursor.bytes(8 * N)?;
-        let little = self.little;
-        Ok(std::array::from_fn(|k| {
-            let a: [u8; 8] = b[8 * k..8 * k + 8].try_into().unwrap_or_default();
-            if little {
-                f64::from_le_bytes(a)
-            } else {
-                f64::from_be_bytes(a)
-            }
-        }))
+        self.align(8);
+        Ok(f64s_of(self.cursor.bytes(8 * N)?, self.little))
     }
 
     /// Aligned to `N` from the end of the encapsulation header, swapped to
     /// little-endian from a big-endian message.
     fn primitive<const N: usize>(&mut self) -> WireResult<[u8; N]> {
-        let r = self.cursor.pos % N;
-        if r != 0 {
-            self.cursor.pos += N - r;
-        }
+        self.align(N);
         let mut a = self.cursor.array::<N>()?;
         if !self.little {
             a.reverse();
@@ -487,6 +491,41 @@ impl PbWriter {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn f64s_reads_what_f64_reads_field_by_field() {
+        let v: [f64; 7] = [1.5, -2.25, 3.0e-9, 0.5, -0.5, 0.25, 1e300];
+        // ROS 1: a u8 then the packed fields; CDR: the encapsulation, a u8,
+        // padding to 8, the fields, in both byte orders.
+        let mut ros1 = vec![7u8];
+        ros1.extend(v.iter().flat_map(|x| x.to_le_bytes()));
+        for little in [true, false] {
+            let mut cdr = vec![0, u8::from(little), 0, 0, 7, 0, 0, 0, 0, 0, 0, 0];
+            cdr.extend(v.iter().flat_map(|x| {
+                if little {
+                    x.to_le_bytes()
+                } else {
+                    x.to_be_bytes()
+                }
+            }));
+            let mut a = Cdr::new(&cdr).unwrap();
+            let mut b = Cdr::new(&cdr).unwrap();
+            assert_eq!(a.u8().unwrap(), b.u8().unwrap());
+            let one: Vec<f64> = (0..7).map(|_| b.f64().unwrap()).collect();
+            assert_eq!(a.f64s::<7>().unwrap().to_vec(), one);
+            assert_eq!(one, v);
+            // One byte short: an error, not a partial read.
+            let mut short = Cdr::new(&cdr[..cdr.len() - 1]).unwrap();
+            short.u8().unwrap();
+            assert!(short.f64s::<7>().is_err());
+        }
+        let mut r = Ros1::new(&ros1);
+        r.u8().unwrap();
+        assert_eq!(r.f64s::<7>().unwrap(), v);
+        let mut short = Ros1::new(&ros1[..ros1.len() - 1]);
+        short.u8().unwrap();
+        assert!(short.f64s::<7>().is_err());
+    }
 
     #[test]
     fn protobuf_round_trip() {
