@@ -113,7 +113,7 @@ fn convert_reports_the_cut_the_inliers_and_the_windowed_comparison() {
     .unwrap();
     let log = Recording {
         keyframes: sim.keyframes.clone(),
-        reference: Some(sim.reference.clone()),
+        reference: Some(sim.reference.clone().into()),
         ..Default::default()
     };
     let opts = ConvertOptions {
@@ -155,7 +155,7 @@ fn convert_with_the_windowed_cloud_follows_the_drift() {
     .unwrap();
     let log = Recording {
         keyframes: sim.keyframes.clone(),
-        reference: Some(sim.reference.clone()),
+        reference: Some(sim.reference.clone().into()),
         ..Default::default()
     };
     let rmse = |points: &[f32]| {

@@ -226,7 +226,7 @@ impl FigureData {
         if let Some(p) = c.world.poses() {
             let offset = p.alignment.offset;
             f.estimate.t.iter_mut().for_each(|t| *t += offset);
-            f.add_pairs(&c.slam_frame, c.reference.as_ref(), &p.alignment);
+            f.add_pairs(&c.slam_frame, c.reference.as_deref(), &p.alignment);
         }
         let cloud = c.cloud_ref();
         f.origin = center_of(cloud, &f.estimate)?;

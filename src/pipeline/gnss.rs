@@ -23,6 +23,7 @@
 //!   ([`GnssFixes::to_enu`]); fixes without a fix are dropped and counted.
 
 use std::path::PathBuf;
+use std::sync::Arc;
 
 use nalgebra::{UnitQuaternion, Vector3};
 
@@ -221,8 +222,8 @@ pub struct GnssReference {
     /// The ENU frame (the world frame of the conversion).
     pub frame: EnuFrame,
     /// Reference positions in ENU (metres), at the SLAM stamps where
-    /// interpolated, else at the fixes' stamps.
-    pub trajectory: Trajectory,
+    /// interpolated, else at the fixes' stamps; shared with the conversion.
+    pub trajectory: Arc<Trajectory>,
     /// Weight per reference position (1/m²), when the fixes have covariances
     /// and weights are asked for.
     pub weights: Option<Vec<f64>>,
@@ -355,7 +356,7 @@ pub fn reference(
         .sqrt();
     Ok(GnssReference {
         frame: track.frame,
-        trajectory,
+        trajectory: Arc::new(trajectory),
         weights,
         antenna_from_cam,
         noise,

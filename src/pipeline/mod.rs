@@ -42,6 +42,7 @@ pub mod startup;
 
 use std::collections::BTreeMap;
 use std::path::Path;
+use std::sync::Arc;
 use std::time::Instant;
 
 use crate::align::trajectories::SkipInit;
@@ -112,8 +113,9 @@ pub struct Conversion {
     /// The same poses in the SLAM frame (`T_slam_cam`), the rows the fit's
     /// pairs index.
     pub slam_frame: Trajectory,
-    /// The reference trajectory (`T_world_body`), when there is one.
-    pub reference: Option<Trajectory>,
+    /// The reference trajectory (`T_world_body`), when there is one: the
+    /// recording's own (shared), or the one made of its GNSS fixes.
+    pub reference: Option<Arc<Trajectory>>,
     /// The report.
     pub report: Report,
     /// The occupancy octree of the world cloud (world frame), when asked for.
@@ -629,7 +631,7 @@ pub fn convert(rec: &Recording, opts: &ConvertOptions) -> Result<Conversion> {
         graph_topic: rec.source.graph_topic.clone(),
         reference_topic: world.poses().and(rec.source.reference_topic.clone()),
         keyframes: slam.len(),
-        reference_poses: reference.map_or(0, Trajectory::len),
+        reference_poses: reference.map_or(0, |r| r.len()),
         frames_used: used.iter().filter(|u| **u).count(),
         frames_dropped,
         pairs_fitted,

@@ -28,6 +28,7 @@ use std::borrow::Cow;
 use std::collections::{BTreeMap, HashMap};
 use std::io::Read;
 use std::path::{Path, PathBuf};
+use std::sync::Arc;
 
 use nalgebra::Vector3;
 
@@ -636,12 +637,12 @@ pub fn attach_reference(rec: &mut Recording, spec: &ReferenceSpec) -> Result<()>
                     ));
                 }
             }
-            rec.reference = Some(t);
+            rec.reference = Some(Arc::new(t));
         }
         Reference::Names(named) => {
             rebuild_for_names(rec)?;
             let (t, names) = paired_by_name(rec, &named, &spec.path)?;
-            rec.reference = Some(t);
+            rec.reference = Some(Arc::new(t));
             info.names = Some(names);
         }
     }

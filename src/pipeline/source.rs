@@ -37,6 +37,7 @@
 
 use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
+use std::sync::Arc;
 
 use nalgebra::Vector3;
 
@@ -108,8 +109,9 @@ pub struct Recording {
     pub frames: Option<Trajectory>,
     /// Points in the SLAM frame that come without their camera rays.
     pub cloud: Option<PointCloud>,
-    /// Reference poses `T_world_body`, sorted by time.
-    pub reference: Option<Trajectory>,
+    /// Reference poses `T_world_body`, sorted by time; shared, not copied,
+    /// with the conversion and the Python objects that show it.
+    pub reference: Option<Arc<Trajectory>>,
     /// Raw IMU samples, sorted by time.
     pub imu: Option<ImuSamples>,
     /// GNSS fixes (WGS84), the reference when present: the world frame is
@@ -160,7 +162,7 @@ impl From<Log> for Recording {
             keyframes: log.keyframes,
             frames: log.frames,
             cloud: None,
-            reference: log.reference,
+            reference: log.reference.map(Arc::new),
             imu: log.imu,
             gnss: log.gnss,
             ..Recording::default()
@@ -224,7 +226,7 @@ impl Source for TrajectoryFiles {
     fn read(&self) -> Result<Recording> {
         let frames = self.slam_format.read(&self.slam)?;
         let reference = match &self.reference {
-            Some((p, f)) => Some(f.read(p)?),
+            Some((p, f)) => Some(Arc::new(f.read(p)?)),
             None => None,
         };
         let cloud = match &self.cloud {

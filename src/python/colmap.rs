@@ -287,7 +287,7 @@ impl PyColmapModel {
     /// (nanosecond or seconds stamps, as EuRoC and TUM name images).
     fn trajectory(&self) -> PyResult<PyTrajectory> {
         Ok(PyTrajectory {
-            inner: self.inner.trajectory_by_name_time()?,
+            inner: self.inner.trajectory_by_name_time()?.into(),
         })
     }
 

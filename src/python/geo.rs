@@ -334,7 +334,7 @@ impl PyGnssFixes {
         let o = t.frame.origin();
         Ok((
             PyTrajectory {
-                inner: t.trajectory,
+                inner: t.trajectory.into(),
             },
             t.weights.map(|w| w.into_pyarray(py)),
             (o.lat, o.lon, o.alt),

@@ -41,10 +41,9 @@ impl PyLog {
     /// SLAM poses without depth (`T_slam_cam`) from `est_topic`, or None.
     #[getter]
     fn frames(&self) -> Option<PyTrajectory> {
-        self.log
-            .frames
-            .as_ref()
-            .map(|f| PyTrajectory { inner: f.clone() })
+        self.log.frames.as_ref().map(|f| PyTrajectory {
+            inner: f.clone().into(),
+        })
     }
     /// Topic of the SLAM poses without depth, or None.
     #[getter]

@@ -116,7 +116,7 @@ impl PyConversion {
     #[getter]
     fn slam_trajectory(&self) -> PyTrajectory {
         PyTrajectory {
-            inner: self.inner.slam_trajectory.clone(),
+            inner: self.inner.slam_trajectory.clone().into(),
         }
     }
     /// The report (as `report.json` holds it) as a dict, made on first access;

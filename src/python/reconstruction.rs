@@ -114,10 +114,9 @@ impl PyReconstruction {
     /// has keyframes instead).
     #[getter]
     fn frames(&self) -> Option<PyTrajectory> {
-        self.rec
-            .frames
-            .as_ref()
-            .map(|t| PyTrajectory { inner: t.clone() })
+        self.rec.frames.as_ref().map(|t| PyTrajectory {
+            inner: t.clone().into(),
+        })
     }
     /// The image name of each frame, or None.
     #[getter]

@@ -115,7 +115,7 @@ impl PySimulation {
     #[getter]
     fn keyframe_trajectory(&self) -> PyResult<PyTrajectory> {
         Ok(PyTrajectory {
-            inner: self.inner.keyframe_trajectory()?,
+            inner: self.inner.keyframe_trajectory()?.into(),
         })
     }
 
@@ -123,7 +123,7 @@ impl PySimulation {
     #[getter]
     fn slam_trajectory(&self) -> PyTrajectory {
         PyTrajectory {
-            inner: self.inner.slam_frames.clone(),
+            inner: self.inner.slam_frames.clone().into(),
         }
     }
 
@@ -131,7 +131,7 @@ impl PySimulation {
     #[getter]
     fn reference(&self) -> PyTrajectory {
         PyTrajectory {
-            inner: self.inner.reference.clone(),
+            inner: self.inner.reference.clone().into(),
         }
     }
 
@@ -139,7 +139,7 @@ impl PySimulation {
     #[getter]
     fn true_trajectory(&self) -> PyTrajectory {
         PyTrajectory {
-            inner: self.inner.truth.camera.clone(),
+            inner: self.inner.truth.camera.clone().into(),
         }
     }
 

@@ -73,7 +73,7 @@ fn read_trajectory_py(
 ) -> PyResult<(PyTrajectory, PyTextInfo)> {
     let unit = time_unit.map(TimeUnit::parse).transpose()?;
     let (t, info) = py.detach(|| read_trajectory(&path, unit))?;
-    Ok((PyTrajectory { inner: t }, PyTextInfo { inner: info }))
+    Ok((PyTrajectory { inner: t.into() }, PyTextInfo { inner: info }))
 }
 
 pub fn register(m: &Bound<'_, PyModule>) -> PyResult<()> {

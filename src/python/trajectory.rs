@@ -2,6 +2,7 @@
 //! files), `associate`, `scale_factors`.
 
 use std::path::PathBuf;
+use std::sync::Arc;
 
 use nalgebra::UnitQuaternion;
 use numpy::{IntoPyArray, PyArray1, PyArray2, ToPyArray};
@@ -18,7 +19,9 @@ use crate::trajectory::{associate, scale_factors, Trajectory};
 /// Timestamped positions (seconds, metres) with optional orientations `(x, y, z, w)`.
 #[pyclass(name = "Trajectory", module = "slam2world._slam2world", frozen)]
 pub struct PyTrajectory {
-    pub inner: Trajectory,
+    /// Shared with the `Log` (or conversion) it came from: reading
+    /// `log.reference` copies no poses.
+    pub inner: Arc<Trajectory>,
 }
 
 #[pymethods]
@@ -48,7 +51,7 @@ impl PyTrajectory {
             }
         };
         Ok(PyTrajectory {
-            inner: Trajectory::try_new(t, p, o)?,
+            inner: Trajectory::try_new(t, p, o)?.into(),
         })
     }
 
@@ -56,14 +59,18 @@ impl PyTrajectory {
     #[staticmethod]
     fn read_tum(py: Python<'_>, path: PathBuf) -> PyResult<Self> {
         let inner = py.detach(|| text::read_tum(&path))?;
-        Ok(PyTrajectory { inner })
+        Ok(PyTrajectory {
+            inner: inner.into(),
+        })
     }
 
     /// Reads EuRoC ground truth CSV (ns, x, y, z, qw, qx, qy, qz, …).
     #[staticmethod]
     fn read_euroc(py: Python<'_>, path: PathBuf) -> PyResult<Self> {
         let inner = py.detach(|| text::read_euroc(&path))?;
-        Ok(PyTrajectory { inner })
+        Ok(PyTrajectory {
+            inner: inner.into(),
+        })
     }
 
     /// Writes a TUM file (atomically: a temporary file renamed into place).
@@ -104,7 +111,7 @@ impl PyTrajectory {
     fn interpolate(&self, times: &Bound<'_, PyAny>, max_gap: f64) -> PyResult<Self> {
         let t = vec_f64(times, "times", None)?;
         Ok(PyTrajectory {
-            inner: self.inner.interpolate(&t, max_gap)?,
+            inner: self.inner.interpolate(&t, max_gap)?.into(),
         })
     }
 
@@ -124,7 +131,7 @@ impl PyTrajectory {
         let traj = Bound::new(
             py,
             PyTrajectory {
-                inner: r.trajectory,
+                inner: r.trajectory.into(),
             },
         )?;
         PyTuple::new(
@@ -140,7 +147,7 @@ impl PyTrajectory {
     /// Poses mapped by `transform` (`T_world_slam · T_slam_cam`).
     fn transformed(&self, transform: PyRef<'_, PySim3>) -> Self {
         PyTrajectory {
-            inner: self.inner.transformed(&transform.inner),
+            inner: self.inner.transformed(&transform.inner).into(),
         }
     }
 
