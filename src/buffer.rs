@@ -134,6 +134,120 @@ pub fn try_with_capacity<T>(what: &str, n: usize) -> crate::Result<Vec<T>> {
     Ok(v)
 }
 
+/// One region of a vector filled by [`par_fill_regions`]: the values pushed,
+/// in order, go into the region's reserved slots of the shared allocation,
+/// then (past them) into an overflow of its own.
+pub struct Region<'a, T> {
+    slots: &'a mut [MaybeUninit<T>],
+    filled: usize,
+    overflow: Vec<T>,
+}
+
+impl<T> Region<'_, T> {
+    /// Appends `value` to the region.
+    #[inline]
+    pub fn push(&mut self, value: T) {
+        match self.slots.get_mut(self.filled) {
+            Some(slot) => {
+                slot.write(value);
+                self.filled += 1;
+            }
+            None => self.overflow.push(value),
+        }
+    }
+
+    /// The values pushed so far.
+    pub fn len(&self) -> usize {
+        self.filled + self.overflow.len()
+    }
+
+    /// Whether nothing was pushed.
+    pub fn is_empty(&self) -> bool {
+        self.len() == 0
+    }
+}
+
+/// Runs `fill(k, region)` for each region `k` of `lens` in parallel and gives
+/// the values pushed, concatenated in region order in one vector, and each
+/// region's result and count.
+///
+/// Region `k` is `lens[k]` slots of one allocation (advised to use huge
+/// pages); pushes past them go to an overflow, as do all pushes when that
+/// allocation cannot be had. The values are written where they stay: when
+/// every region but the last is filled exactly (rowid ranges of a table
+/// without gaps), the concatenation moves nothing; otherwise the regions are
+/// moved down to close the gaps, and overflows are inserted where they
+/// belong. When `fill` panics, the values written are leaked, never read.
+pub fn par_fill_regions<T: Send, S: Send>(
+    lens: &[usize],
+    fill: impl Fn(usize, &mut Region<'_, T>) -> S + Sync,
+) -> (Vec<T>, Vec<(S, usize)>) {
+    use rayon::prelude::*;
+    let total = lens
+        .iter()
+        .try_fold(0usize, |a, &n| a.checked_add(n))
+        .unwrap_or(usize::MAX);
+    let mut out: Vec<T> = Vec::new();
+    let reserved = out.try_reserve_exact(total).is_ok();
+    let lens: Vec<usize> = if reserved {
+        advise_huge_pages(&mut out.spare_capacity_mut()[..total]);
+        lens.to_vec()
+    } else {
+        vec![0; lens.len()]
+    };
+    let done: Vec<(S, usize, Vec<T>)> = {
+        let mut rest = &mut out.spare_capacity_mut()[..lens.iter().sum::<usize>()];
+        let mut regions = Vec::with_capacity(lens.len());
+        for &n in &lens {
+            let (slots, after) = std::mem::take(&mut rest).split_at_mut(n);
+            regions.push(Region {
+                slots,
+                filled: 0,
+                overflow: Vec::new(),
+            });
+            rest = after;
+        }
+        regions
+            .into_par_iter()
+            .enumerate()
+            .map(|(k, mut r)| {
+                let s = fill(k, &mut r);
+                (s, r.filled, r.overflow)
+            })
+            .collect()
+    };
+    // Close the gaps: region k's `filled` values, at its offset, moved down
+    // to follow the earlier regions' (never up: `len <= offset`).
+    let base = out.as_mut_ptr();
+    let (mut len, mut offset) = (0usize, 0usize);
+    for ((_, filled, _), n) in done.iter().zip(&lens) {
+        if offset != len {
+            // SAFETY: [offset, offset + filled) was written by the region's
+            // pushes and lies inside the allocation; ptr::copy allows the
+            // overlap, and the source is not read again.
+            unsafe { std::ptr::copy(base.add(offset), base.add(len), *filled) };
+        }
+        len += filled;
+        offset += n;
+    }
+    // SAFETY: the first `len` elements were written (moved above).
+    unsafe { out.set_len(len) };
+    // The overflows after their region's slots, the last region first so
+    // that the earlier positions stay where they were.
+    let mut end = len;
+    let mut results = Vec::with_capacity(done.len());
+    for (s, filled, overflow) in done.into_iter().rev() {
+        let count = filled + overflow.len();
+        if !overflow.is_empty() {
+            out.splice(end..end, overflow);
+        }
+        end -= filled;
+        results.push((s, count));
+    }
+    results.reverse();
+    (out, results)
+}
+
 /// A copy of `src` in a buffer advised to use huge pages.
 pub fn copy_advised<T: Copy>(src: &[T]) -> Vec<T> {
     let mut v = with_capacity_advised(src.len());
@@ -168,5 +282,36 @@ mod tests {
         assert_eq!(v.len(), n);
         assert_eq!(v[n - 1], 2 * (n as u32 - 1));
         assert_eq!(filled_with_advised(5, 9u8), vec![9u8; 5]);
+    }
+
+    #[test]
+    fn regions_concatenate_in_order_with_gaps_and_overflows() {
+        // Region k pushes `pushes[k]` values (k, i): exactly its slots, fewer
+        // (a gap to close), more (an overflow), none.
+        let lens = [4, 5, 3, 0, 2];
+        let pushes = [4, 2, 6, 3, 2];
+        let (v, counts) = par_fill_regions(&lens, |k, r| {
+            for i in 0..pushes[k] {
+                r.push((k, i, format!("{k}.{i}")));
+            }
+            k * 10
+        });
+        let want: Vec<(usize, usize, String)> = (0..lens.len())
+            .flat_map(|k| (0..pushes[k]).map(move |i| (k, i, format!("{k}.{i}"))))
+            .collect();
+        assert_eq!(v, want);
+        let got: Vec<(usize, usize)> = counts;
+        assert_eq!(got, vec![(0, 4), (10, 2), (20, 6), (30, 3), (40, 2)]);
+    }
+
+    #[test]
+    fn regions_overflow_whole_when_the_allocation_fails() {
+        // usize::MAX slots cannot be had: every push goes to the overflows.
+        let (v, counts) = par_fill_regions(&[usize::MAX / 2, usize::MAX / 2], |k, r| {
+            r.push(k as u64);
+            r.push(k as u64 + 10);
+        });
+        assert_eq!(v, vec![0, 10, 1, 11]);
+        assert_eq!(counts, vec![((), 2), ((), 2)]);
     }
 }

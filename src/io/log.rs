@@ -759,7 +759,7 @@ fn log_of_scan(
     }
     keep_from(&mut messages, 3);
     if let Some(c) = picks.est {
-        log.frames = Some(read_poses(path, &messages, c, (&None, &None))?);
+        log.frames = Some(read_poses(path, &messages, c, &counts, (&None, &None))?);
     }
     keep_from(&mut messages, 4);
     if let Some(c) = picks.pose {
@@ -767,6 +767,7 @@ fn log_of_scan(
             path,
             &messages,
             c,
+            &counts,
             (&options.tf_parent, &options.tf_child),
         )?);
     }
@@ -1104,15 +1105,21 @@ fn samples_err(path: &Path, topic: &str, what: String) -> Error {
 
 /// The pose samples of a pose channel, with TF narrowed to one frame pair
 /// (`tf`: the parent and child asked for; the most frequent pair that fits).
+/// `counts` (messages per channel) sizes the arrays.
 fn read_poses(
     path: &Path,
     messages: &[Mapped],
     c: &ChannelInfo,
+    counts: &HashMap<u16, u64>,
     tf: (&Option<String>, &Option<String>),
 ) -> Result<Trajectory> {
     let mine = messages.iter().filter(|m| m.channel_id == c.id);
     if kind_of(c) != Some(MessageKind::Tf) {
-        let n = mine.clone().count();
+        // A hint only, never past the messages there are.
+        let n = counts
+            .get(&c.id)
+            .map_or(0, |&n| usize::try_from(n).unwrap_or(usize::MAX))
+            .min(messages.len());
         let mut times: Vec<f64> = Vec::with_capacity(n);
         let mut positions: Vec<Vector3<f64>> = Vec::with_capacity(n);
         let mut orientations: Vec<UnitQuaternion<f64>> = Vec::with_capacity(n);

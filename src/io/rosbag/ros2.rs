@@ -22,11 +22,11 @@ use std::collections::{BTreeMap, HashMap};
 use std::io::Read;
 use std::path::{Path, PathBuf};
 
-use rayon::prelude::*;
 use rusqlite::{Connection, OpenFlags};
 use serde::Deserialize;
 
 use super::{sort_by_time, BagError};
+use crate::buffer::Region;
 use crate::error::{Error, Result};
 use crate::io::container::{classify, folder_of, Container};
 use crate::io::mcap::reader::McapFile;
@@ -674,7 +674,8 @@ fn sqlite_scan<T: Send + Default>(
         ),
     };
     // One range per thread, each read by its own connection into its own
-    // vector; the first becomes the file's, the others are appended.
+    // region of the file's vector: region k has a slot per rowid of range k,
+    // so that a table without gaps is read in place, nothing moved after.
     // In i128: rowids may span the whole i64 range.
     let span = i128::from(hi) - i128::from(lo) + 1;
     let parts = (rayon::current_num_threads() as i128).clamp(1, span / MIN_RANGE_ROWS + 1);
@@ -686,46 +687,58 @@ fn sqlite_scan<T: Send + Default>(
         // Within [lo, hi]: the casts are exact.
         .map(|a| (a as i64, (a + step - 1).min(hi_w) as i64))
         .collect();
-    // The first range's vector is reserved for the whole file's rows (at most
-    // one per rowid, and one per 16 bytes of file): the others are appended
-    // to it without a reallocation. Pages never written are not resident,
-    // and the spare capacity is given back after the merge.
+    // Slots only while the rowids are as many as the file could hold rows
+    // (one per 16 bytes): past that (rowids far apart) the regions grow as
+    // they are pushed. Pages never written are not resident, and the spare
+    // capacity is given back after the merge.
     let file_rows = std::fs::metadata(plain).map_or(0, |m| m.len() / 16);
-    let first_reserve = usize::try_from(span.min(i128::from(file_rows))).unwrap_or(0);
+    let lens: Vec<usize> = ranges
+        .iter()
+        .map(|&(a, b)| {
+            if span <= i128::from(file_rows) {
+                // At most `file_rows`: fits a usize.
+                (i128::from(b) - i128::from(a) + 1) as usize
+            } else {
+                0
+            }
+        })
+        .collect();
     let channels = &table.channels;
     let ids = &ids;
     let sql = sql.as_str();
-    let scanned: Vec<Result<(Vec<MappedMessage<T>>, Stats)>> = ranges
-        .par_iter()
-        .map(|&range| {
-            let db = open_db(plain, label)?;
-            let reserve = if range.0 == lo { first_reserve } else { 0 };
-            sqlite_range(&db, sql, range, reserve, ids, channels, zstd_messages, map).map_err(at)
-        })
-        .collect();
-    let mut out: Vec<MappedMessage<T>> = Vec::new();
-    for (k, part) in scanned.into_iter().enumerate() {
-        let (got, counts) = part.map_err(|mut e| {
+    let (mut out, done) = crate::buffer::par_fill_regions(&lens, |k, region| {
+        let db = open_db(plain, label)?;
+        sqlite_range(
+            &db,
+            sql,
+            ranges[k],
+            region,
+            ids,
+            channels,
+            zstd_messages,
+            map,
+        )
+        .map_err(at)
+    });
+    let mut before = 0u64;
+    for (part, count) in done {
+        let counts = part.map_err(|mut e| {
             // The index among the wanted messages of the whole file.
             if let Error::Bag {
                 reason: BagError::MessageData { index, .. },
                 ..
             } = &mut e
             {
-                *index += out.len() as u64;
+                *index += before;
             }
             e
         })?;
+        before += count as u64;
         for (id, (n, first, last)) in counts {
             let s = stats.entry(id).or_insert((0, u64::MAX, 0));
             s.0 += n;
             s.1 = s.1.min(first);
             s.2 = s.2.max(last);
-        }
-        if k == 0 {
-            out = got;
-        } else {
-            out.extend(got);
         }
     }
     out.shrink_to_fit();
@@ -733,25 +746,21 @@ fn sqlite_scan<T: Send + Default>(
 }
 
 /// The rows of one rowid range `(a, b)` of `sql`, counted and (the wanted
-/// topics', whose data is not NULL) mapped into a vector of `reserve`
-/// reserved elements; a message that does not decompress stops the range
-/// (its index counted within the range).
+/// topics', whose data is not NULL) mapped into `out`; a message that does
+/// not decompress stops the range (its index counted within the range).
 #[allow(clippy::too_many_arguments)]
 fn sqlite_range<T: Send + Default>(
     db: &Connection,
     sql: &str,
     (a, b): (i64, i64),
-    reserve: usize,
+    out: &mut Region<'_, MappedMessage<T>>,
     ids: &HashMap<i64, (u16, bool)>,
     channels: &BTreeMap<u16, ChannelInfo>,
     zstd_messages: bool,
     map: &(impl Fn(&ChannelInfo, &RawMessage<'_>) -> T + Sync),
-) -> std::result::Result<(Vec<MappedMessage<T>>, Stats), BagError> {
+) -> std::result::Result<Stats, BagError> {
     let mut stmt = db.prepare(sql)?;
     let mut rows = stmt.query([a, b])?;
-    let mut out = Vec::new();
-    // A failed reservation only means appends that reallocate.
-    let _ = out.try_reserve(reserve);
     // Count, first and last stamp per channel, in the order first seen.
     let mut seen: Vec<(u16, (u64, u64, u64))> = Vec::new();
     // The last row's topic and its slot in `seen`: rows of one topic come in
@@ -814,7 +823,7 @@ fn sqlite_range<T: Send + Default>(
             value,
         });
     }
-    Ok((out, seen.into_iter().collect()))
+    Ok(seen.into_iter().collect())
 }
 
 /// What the map of an `.mcap` in `MESSAGE` mode gives: the value, or why the
