@@ -15,6 +15,7 @@ pub mod droid;
 pub mod gnss;
 pub mod las;
 pub mod log;
+pub(crate) mod lz4_frame;
 pub mod mapped;
 pub mod mcap;
 pub mod messages;

@@ -608,13 +608,9 @@ pub(super) fn decompress_into(
             d.decompress_to_buffer(data, out)
                 .map_err(|e| format!("zstd: {e}"))?;
         }
-        "lz4" => {
-            use std::io::Read;
-            let mut d = lz4::Decoder::new(data).map_err(|e| format!("lz4: {e}"))?;
-            // Never read past the announced size (a damaged frame could go on).
-            let mut limited = (&mut d).take(size as u64 + 1);
-            limited.read_to_end(out).map_err(|e| format!("lz4: {e}"))?;
-        }
+        // Never past the announced size (a damaged frame could go on).
+        "lz4" => crate::io::lz4_frame::decompress_into(data, size, size + 1, out)
+            .map_err(|e| format!("lz4: {e}"))?,
         other => return Err(format!("unsupported compression {other:?}")),
     }
     if out.len() != size {

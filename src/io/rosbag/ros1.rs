@@ -11,7 +11,7 @@
 //! read. A bag that was not closed (`index_pos` 0, the index cut off or
 //! unreadable: what `rosbag reindex` would repair) is read record by record
 //! from the start. Either way chunks are decompressed in parallel (rayon), each
-//! into a per-thread buffer that the next chunk reuses, and every declared
+//! into a buffer of the scan's pool that the next chunk reuses, and every declared
 //! length is checked against the bytes that remain before anything is read or
 //! allocated.
 //!
@@ -585,14 +585,16 @@ impl Ros1Bag {
             ReadMode::Linear => (rayon::current_num_threads() * 4).max(4),
         };
         let mut messages: Vec<MappedMessage<T>> = Vec::new();
+        let pool = crate::buffer::BufferPool::default();
         for batch in chunks.chunks(wave) {
             let parts: Vec<Res<Part<T>>> = {
                 let table = table_of(&known, &want);
                 batch
                     .par_iter()
-                    .map_init(Vec::new, |buf, &(pos, hint)| {
-                        self.map_chunk(pos, hint, &table, buf, &want, &map)
-                    })
+                    .map_init(
+                        || pool.lend(),
+                        |buf, &(pos, hint)| self.map_chunk(pos, hint, &table, buf, &want, &map),
+                    )
                     .collect()
             };
             let mut deferred = Vec::new();
@@ -913,9 +915,10 @@ fn bag_header(map: &[u8]) -> Res<BagHeader> {
 }
 
 /// Decompresses a chunk's records into `buf` (cleared first) and returns them;
-/// an uncompressed chunk is returned as it is. Decoding stops one byte past the
-/// declared size, and memory is reserved ahead only as far as the compressed
-/// size makes plausible (lz4 expands at most about 255 times).
+/// an uncompressed chunk is returned as it is.
+/// Decoding stops one byte past the declared size, and memory is reserved
+/// ahead only as far as the compressed size makes plausible (lz4 expands at
+/// most about 255 times).
 pub(crate) fn decompress<'a>(
     compression: &[u8],
     data: &'a [u8],
@@ -946,60 +949,41 @@ pub(crate) fn decompress<'a>(
             })
         }
     };
-    buf.clear();
     let ahead = size.min((data.len() as u64).saturating_mul(ratio).saturating_add(64));
-    buf.try_reserve_exact(ahead as usize + 1)
-        .map_err(|_| BagError::ChunkTooLarge {
-            size,
-            limit: MAX_CHUNK,
-        })?;
+    let too_large = |_| BagError::ChunkTooLarge {
+        size,
+        limit: MAX_CHUNK,
+    };
     let failed = |e: std::io::Error| BagError::Decompress {
         compression: name,
         message: e.to_string(),
     };
-    match name {
+    let filled = match name {
         "bz2" => {
+            buf.clear();
+            buf.try_reserve_exact(ahead as usize + 1)
+                .map_err(too_large)?;
             bzip2::bufread::BzDecoder::new(data)
                 .take(size + 1)
                 .read_to_end(buf)
                 .map_err(failed)?;
+            buf.len()
         }
         _ => {
-            // Reads into the whole free part of the buffer, so that the frame
-            // decoder writes each block straight into it (a small `read_to_end`
-            // step makes it decode into its own block buffer and copy out).
-            let mut d = lz4::Decoder::new(data).map_err(failed)?;
-            let limit = size as usize + 1;
-            buf.resize(ahead as usize + 1, 0);
-            let mut filled = 0;
-            loop {
-                if filled == buf.len() {
-                    if buf.len() >= limit {
-                        break;
-                    }
-                    let grown = (buf.len() * 2).min(limit);
-                    buf.try_reserve_exact(grown - buf.len()).map_err(|_| {
-                        BagError::ChunkTooLarge {
-                            size,
-                            limit: MAX_CHUNK,
-                        }
-                    })?;
-                    buf.resize(grown, 0);
-                }
-                match d.read(&mut buf[filled..]) {
-                    Ok(0) => break,
-                    Ok(n) => filled += n,
-                    Err(e) if e.kind() == std::io::ErrorKind::Interrupted => {}
-                    Err(e) => return Err(failed(e)),
-                }
-            }
-            buf.truncate(filled);
+            // One call of liblz4's frame decoder, in place (no zero fill, no
+            // copy of the input or of the history).
+            crate::io::lz4_frame::decompress_into(data, ahead as usize + 1, size as usize + 1, buf)
+                .map_err(|message| BagError::Decompress {
+                    compression: name,
+                    message,
+                })?;
+            buf.len()
         }
-    }
-    if buf.len() as u64 != size {
+    };
+    if filled as u64 != size {
         return Err(BagError::ChunkSize {
             declared: size,
-            found: buf.len() as u64,
+            found: filled as u64,
         });
     }
     Ok(buf)
