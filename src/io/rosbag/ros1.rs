@@ -585,10 +585,11 @@ impl Ros1Bag {
             ReadMode::Linear => (rayon::current_num_threads() * 4).max(4),
         };
         let mut messages: Vec<MappedMessage<T>> = Vec::new();
-        let pool = crate::buffer::BufferPool::default();
         for batch in chunks.chunks(wave) {
             let parts: Vec<Res<Part<T>>> = {
                 let table = table_of(&known, &want);
+                // Freed before the merge, as the buffers of the tasks were.
+                let pool = crate::buffer::BufferPool::default();
                 batch
                     .par_iter()
                     .map_init(
