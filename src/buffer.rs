@@ -134,57 +134,6 @@ pub fn try_with_capacity<T>(what: &str, n: usize) -> crate::Result<Vec<T>> {
     Ok(v)
 }
 
-/// Byte buffers lent to parallel tasks and given back when a task's job ends:
-/// the chunk decompressions of one scan reuse as many buffers as run at once
-/// (their pages faulted and written once), where a buffer per rayon job
-/// (about eight per thread, whatever the chunks) would each be faulted in
-/// and zeroed anew. The buffers are freed with the pool.
-#[derive(Debug, Default)]
-pub struct BufferPool {
-    free: std::sync::Mutex<Vec<Vec<u8>>>,
-}
-
-impl BufferPool {
-    /// A buffer of the pool (with what its last user left in it), or a new one.
-    pub fn lend(&self) -> Lent<'_> {
-        let buf = self
-            .free
-            .lock()
-            .ok()
-            .and_then(|mut f| f.pop())
-            .unwrap_or_default();
-        Lent { pool: self, buf }
-    }
-}
-
-/// A buffer lent by a [`BufferPool`], given back when dropped.
-#[derive(Debug)]
-pub struct Lent<'a> {
-    pool: &'a BufferPool,
-    buf: Vec<u8>,
-}
-
-impl std::ops::Deref for Lent<'_> {
-    type Target = Vec<u8>;
-    fn deref(&self) -> &Vec<u8> {
-        &self.buf
-    }
-}
-
-impl std::ops::DerefMut for Lent<'_> {
-    fn deref_mut(&mut self) -> &mut Vec<u8> {
-        &mut self.buf
-    }
-}
-
-impl Drop for Lent<'_> {
-    fn drop(&mut self) {
-        if let Ok(mut free) = self.pool.free.lock() {
-            free.push(std::mem::take(&mut self.buf));
-        }
-    }
-}
-
 /// One region of a vector filled by [`par_fill_regions`]: the values pushed,
 /// in order, go into the region's reserved slots of the shared allocation,
 /// then (past them) into an overflow of its own.
@@ -333,23 +282,6 @@ mod tests {
         assert_eq!(v.len(), n);
         assert_eq!(v[n - 1], 2 * (n as u32 - 1));
         assert_eq!(filled_with_advised(5, 9u8), vec![9u8; 5]);
-    }
-
-    #[test]
-    fn pooled_buffers_come_back_to_the_next_borrower() {
-        let pool = BufferPool::default();
-        {
-            let mut a = pool.lend();
-            a.extend_from_slice(b"abc");
-            let b = pool.lend();
-            assert!(
-                b.is_empty(),
-                "a second borrower while the first holds its buffer gets a new one"
-            );
-        }
-        // Both given back; the next borrower gets one with what was left in it.
-        let (x, y) = (pool.lend(), pool.lend());
-        assert!(x.as_slice() == b"abc" || y.as_slice() == b"abc");
     }
 
     #[test]

@@ -149,20 +149,13 @@ impl McapFile {
             }
         }
         let table = table_of(&known, want);
-        let rest: Vec<Result<Part<T>>> = {
-            // Freed before the merge (and the release below).
-            let pool = crate::buffer::BufferPool::default();
-            items
-                .into_par_iter()
-                .map_init(
-                    || pool.lend(),
-                    |buf, item| {
-                        crate::interrupt::check()?;
-                        self.map_item(item, &table, buf, want, map)
-                    },
-                )
-                .collect()
-        };
+        let rest: Vec<Result<Part<T>>> = items
+            .into_par_iter()
+            .map_init(Vec::new, |buf, item| {
+                crate::interrupt::check()?;
+                self.map_item(item, &table, buf, want, map)
+            })
+            .collect();
         parts.extend(rest);
         // Merge in file order (as `scan` does), mapping the deferred messages after.
         let mut channels = if mode == ReadMode::Indexed {

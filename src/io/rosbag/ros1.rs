@@ -11,7 +11,7 @@
 //! read. A bag that was not closed (`index_pos` 0, the index cut off or
 //! unreadable: what `rosbag reindex` would repair) is read record by record
 //! from the start. Either way chunks are decompressed in parallel (rayon), each
-//! into a buffer of the scan's pool that the next chunk reuses, and every declared
+//! into a per-thread buffer that the next chunk reuses, and every declared
 //! length is checked against the bytes that remain before anything is read or
 //! allocated.
 //!
@@ -588,14 +588,11 @@ impl Ros1Bag {
         for batch in chunks.chunks(wave) {
             let parts: Vec<Res<Part<T>>> = {
                 let table = table_of(&known, &want);
-                // Freed before the merge, as the buffers of the tasks were.
-                let pool = crate::buffer::BufferPool::default();
                 batch
                     .par_iter()
-                    .map_init(
-                        || pool.lend(),
-                        |buf, &(pos, hint)| self.map_chunk(pos, hint, &table, buf, &want, &map),
-                    )
+                    .map_init(Vec::new, |buf, &(pos, hint)| {
+                        self.map_chunk(pos, hint, &table, buf, &want, &map)
+                    })
                     .collect()
             };
             let mut deferred = Vec::new();
@@ -916,10 +913,9 @@ fn bag_header(map: &[u8]) -> Res<BagHeader> {
 }
 
 /// Decompresses a chunk's records into `buf` (cleared first) and returns them;
-/// an uncompressed chunk is returned as it is.
-/// Decoding stops one byte past the declared size, and memory is reserved
-/// ahead only as far as the compressed size makes plausible (lz4 expands at
-/// most about 255 times).
+/// an uncompressed chunk is returned as it is. Decoding stops one byte past the
+/// declared size, and memory is reserved ahead only as far as the compressed
+/// size makes plausible (lz4 expands at most about 255 times).
 pub(crate) fn decompress<'a>(
     compression: &[u8],
     data: &'a [u8],
