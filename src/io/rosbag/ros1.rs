@@ -947,24 +947,22 @@ pub(crate) fn decompress<'a>(
         }
     };
     let ahead = size.min((data.len() as u64).saturating_mul(ratio).saturating_add(64));
-    let too_large = |_| BagError::ChunkTooLarge {
-        size,
-        limit: MAX_CHUNK,
-    };
     let failed = |e: std::io::Error| BagError::Decompress {
         compression: name,
         message: e.to_string(),
     };
-    let filled = match name {
+    match name {
         "bz2" => {
             buf.clear();
             buf.try_reserve_exact(ahead as usize + 1)
-                .map_err(too_large)?;
+                .map_err(|_| BagError::ChunkTooLarge {
+                    size,
+                    limit: MAX_CHUNK,
+                })?;
             bzip2::bufread::BzDecoder::new(data)
                 .take(size + 1)
                 .read_to_end(buf)
                 .map_err(failed)?;
-            buf.len()
         }
         _ => {
             // One call of liblz4's frame decoder, in place (no zero fill, no
@@ -974,13 +972,12 @@ pub(crate) fn decompress<'a>(
                     compression: name,
                     message,
                 })?;
-            buf.len()
         }
-    };
-    if filled as u64 != size {
+    }
+    if buf.len() as u64 != size {
         return Err(BagError::ChunkSize {
             declared: size,
-            found: filled as u64,
+            found: buf.len() as u64,
         });
     }
     Ok(buf)

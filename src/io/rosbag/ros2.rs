@@ -692,11 +692,12 @@ fn sqlite_scan<T: Send + Default>(
     // they are pushed. Pages never written are not resident, and the spare
     // capacity is given back after the merge.
     let file_rows = std::fs::metadata(plain).map_or(0, |m| m.len() / 16);
+    let slots = span <= i128::from(file_rows);
     let lens: Vec<usize> = ranges
         .iter()
+        // At most `file_rows` when `slots`: fits a usize.
         .map(|&(a, b)| {
-            if span <= i128::from(file_rows) {
-                // At most `file_rows`: fits a usize.
+            if slots {
                 (i128::from(b) - i128::from(a) + 1) as usize
             } else {
                 0
