@@ -83,12 +83,13 @@ bench:
 compare: install
 	$(PY) benches/compare.py
 
-# cargo-fuzz on the MCAP decoders and reader and the ROS 1 bag reader, FUZZ_SECONDS per target (nightly + cargo-fuzz).
+# cargo-fuzz on the MCAP decoders and reader, the ROS 1 bag reader and the .db3 reader, FUZZ_SECONDS per target (nightly + cargo-fuzz).
 FUZZ_SECONDS ?= 60
 fuzz:
 	cd fuzz && cargo +nightly fuzz run decoders -- -max_total_time=$(FUZZ_SECONDS)
 	cd fuzz && cargo +nightly fuzz run mcap_file -- -max_total_time=$(FUZZ_SECONDS)
 	cd fuzz && mkdir -p corpus/ros1_bag && cargo +nightly fuzz run ros1_bag corpus/ros1_bag ../tests/data/rosbag -- -max_total_time=$(FUZZ_SECONDS)
+	cd fuzz && mkdir -p corpus/ros2_db3 && cargo +nightly fuzz run ros2_db3 corpus/ros2_db3 ../tests/data/rosbag/ros2_sqlite3_none ../tests/data/rosbag/ros2_sqlite3_message -- -max_total_time=$(FUZZ_SECONDS)
 
 # Without nightly or cargo-fuzz: the MCAP reader on seeded random mutations for
 # FUZZ_STABLE_SECONDS (600 by default), each batch in a worker under a 2 GiB

@@ -1,5 +1,6 @@
-//! Seeded mutation tests of every reader: MCAP, ROS 1 bag, PLY, `.bt`, TUM,
-//! EuRoC, IMU CSV, `x y z` text, COLMAP (binary and text), `.npy`.
+//! Seeded mutation tests of every reader: MCAP, ROS 1 bag, rosbag2 `.db3`,
+//! PLY, `.bt`, TUM, EuRoC, IMU CSV, `x y z` text, COLMAP (binary and text),
+//! `.npy`.
 //!
 //! For each reader, a few valid seed files are mutated with a seeded random
 //! generator (bit flips, bytes overwritten, truncations, insertions, copied
@@ -41,9 +42,10 @@ const ADDRESS_SPACE: u64 = 2 << 30;
 /// thread pool, a chunk buffer per thread.
 const FIXED_BYTES: u64 = 160 << 20;
 
-const READERS: [&str; 11] = [
+const READERS: [&str; 12] = [
     "mcap",
     "ros1",
+    "db3",
     "ply",
     "bt",
     "tum",
@@ -153,6 +155,17 @@ fn seeds(reader: &str, dir: &Path) -> Vec<PathBuf> {
                 .map(|n| root.join(n))
                 .filter(|f| f.is_file())
                 .collect()
+        }
+        "db3" => {
+            let root = Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/data/rosbag");
+            [
+                "ros2_sqlite3_none/ros2_sqlite3_none.db3",
+                "ros2_sqlite3_message/ros2_sqlite3_message.db3",
+            ]
+            .iter()
+            .map(|n| root.join(n))
+            .filter(|f| f.is_file())
+            .collect()
         }
         "ply" => {
             let bin = p("bin.ply");
@@ -389,7 +402,7 @@ fn read_case(reader: &str, path: &Path) -> Result<(), String> {
         "mcap" => slam2world::io::read_mcap(path, &Default::default())
             .map(|_| ())
             .and_then(|_| slam2world::io::inspect_mcap(path).map(|_| ())),
-        "ros1" => AnyContainer::open(path).and_then(|c| {
+        "ros1" | "db3" => AnyContainer::open(path).and_then(|c| {
             c.inventory()?;
             c.scan_map(|_| true, |_, m| m.data.len()).map(|_| ())
         }),

@@ -802,6 +802,92 @@ fn mutated_ros1_bags_never_panic() {
     assert!(ok > 100 && refused > 100, "ok {ok}, refused {refused}");
 }
 
+/// A `.db3` of 512-byte pages with a table b-tree three levels deep and rows
+/// whose data spills over chains of overflow pages: more page structure per
+/// byte than rosbags' files for [`mutated_db3_files_never_panic`].
+fn deep_db3(path: &Path) {
+    let c = rusqlite::Connection::open(path).unwrap();
+    c.execute_batch(
+        "PRAGMA page_size = 512;
+         CREATE TABLE topics(id INTEGER PRIMARY KEY, name TEXT NOT NULL, type TEXT NOT NULL, \
+         serialization_format TEXT NOT NULL, offered_qos_profiles TEXT NOT NULL);
+         CREATE TABLE messages(id INTEGER PRIMARY KEY, topic_id INTEGER NOT NULL, \
+         timestamp INTEGER NOT NULL, data BLOB NOT NULL);
+         INSERT INTO topics VALUES (1, '/a', 'std_msgs/msg/String', 'cdr', '');
+         BEGIN;",
+    )
+    .unwrap();
+    for k in 0..1500i64 {
+        let len = if k % 40 == 0 { 1300 } else { 8 + k % 20 } as usize;
+        c.execute(
+            "INSERT INTO messages VALUES (?1, 1, ?2, ?3)",
+            rusqlite::params![k + 1, k * 1000, vec![k as u8; len]],
+        )
+        .unwrap();
+    }
+    c.execute_batch("COMMIT").unwrap();
+}
+
+#[test]
+fn mutated_db3_files_never_panic() {
+    let dir = tempfile::tempdir().unwrap();
+    let deep = dir.path().join("deep.db3");
+    deep_db3(&deep);
+    let sources: Vec<Vec<u8>> = [
+        fixture("ros2_sqlite3_none/ros2_sqlite3_none.db3"),
+        fixture("ros2_sqlite3_message/ros2_sqlite3_message.db3"),
+        deep,
+    ]
+    .iter()
+    .map(|p| std::fs::read(p).unwrap())
+    .collect();
+    let mut rng = ChaCha8Rng::seed_from_u64(20);
+    let (mut ok, mut refused, mut panics) = (0, 0, Vec::new());
+    for i in 0..1500 {
+        let src = &sources[i % sources.len()];
+        let b = if rng.random_bool(0.5) {
+            mutate(&mut rng, src)
+        } else {
+            // A big-endian field of a page header (type, cell count, cell
+            // offsets, right-most child) or of a cell pointer set to an
+            // extreme value: where SQLite keeps its lengths and page numbers.
+            let mut b = src.clone();
+            let page_size = usize::from(u16::from_be_bytes([b[16], b[17]]));
+            let page = rng.random_range(0..b.len() / page_size);
+            let head = if page == 0 { 100 } else { 0 };
+            let at = page * page_size + head + rng.random_range(0..24);
+            let v: u32 = match rng.random_range(0..4) {
+                0 => 0,
+                1 => u32::MAX,
+                2 => rng.random_range(0..(b.len() / page_size) as u32 + 2),
+                _ => rng.random(),
+            };
+            let n = if rng.random_bool(0.5) { 2 } else { 4 };
+            b[at..at + n].copy_from_slice(&v.to_be_bytes()[4 - n..]);
+            b
+        };
+        let p = write_tmp(&dir, "m.db3", &b);
+        let outcome = std::panic::catch_unwind(|| -> slam2world::Result<usize> {
+            let bag = Ros2Bag::open(&p)?;
+            let n = bag.scan_map(|_| true, |_, m| m.data.len())?.messages.len();
+            bag.inventory()?;
+            Ok(n)
+        });
+        match outcome {
+            Ok(Ok(n)) => {
+                assert!(n <= b.len());
+                ok += 1;
+            }
+            Ok(Err(Error::Bag { .. } | Error::Container { .. })) => refused += 1,
+            Ok(Err(other)) => panic!("mutant {i}: not a bag error: {other:?}"),
+            Err(_) => panics.push(i),
+        }
+    }
+    eprintln!("1500 mutants: {ok} read, {refused} refused");
+    assert!(panics.is_empty(), "mutants that panicked: {panics:?}");
+    assert!(ok > 100 && refused > 100, "ok {ok}, refused {refused}");
+}
+
 // --- real bags in ../shared/data -------------------------------------------------
 
 fn topic_counts(source: &impl MessageSource) -> BTreeMap<String, (String, u64)> {

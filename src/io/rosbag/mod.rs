@@ -4,7 +4,8 @@
 //! - [`ros1`]: [`Ros1Bag`], over a memory map, indexed or linear, chunks
 //!   (none / bz2 / lz4) decompressed in parallel;
 //! - [`ros2`]: [`Ros2Bag`], SQLite (`.db3`) or MCAP storage, zstd per file or
-//!   per message;
+//!   per message; a `.db3`'s messages table read from its pages
+//!   (`sqlite_pages`), in parallel;
 //! - [`BagError`]: what can be wrong, the `reason` of [`crate::Error::Bag`].
 //!
 //! Both readers have the MCAP reader's `scan_map` (see
@@ -14,6 +15,7 @@
 
 pub mod ros1;
 pub mod ros2;
+mod sqlite_pages;
 
 pub use crate::error::BagError;
 pub use ros1::{BagHeader, Ros1Bag};

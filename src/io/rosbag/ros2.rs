@@ -6,10 +6,14 @@
 //!   (`FILE`: each file is `*.db3.zstd` / `*.mcap.zstd`, decompressed to a
 //!   temporary file while it is read) or zstd per message (`MESSAGE`: each
 //!   message's bytes are one zstd frame). Offered QoS profiles are ignored.
-//! - A `.db3` is read through SQLite: `topics(id, name, type,
+//! - A `.db3` is a SQLite database: `topics(id, name, type,
 //!   serialization_format, …)` and `messages(id, topic_id, timestamp, data)`.
-//!   It has type names but no definitions: channels get `schema_encoding`
-//!   `ros2msg` and empty `schema_data`.
+//!   SQLite opens it, checks the tables and reads `topics`; the rows of
+//!   `messages` are read from a map of the file's pages
+//!   ([`sqlite_pages`](super::sqlite_pages)), through SQLite where that
+//!   reader gives way (WAL mode, a hot journal, another table layout, a page
+//!   it does not parse). It has type names but no definitions: channels get
+//!   `schema_encoding` `ros2msg` and empty `schema_data`.
 //! - An `.mcap` is read with [`McapFile`] (its channels keep their schemas).
 //!
 //! Channel ids are the `topics.id` of a `.db3` (the MCAP channel ids of an
@@ -25,6 +29,7 @@ use std::path::{Path, PathBuf};
 use rusqlite::{Connection, OpenFlags};
 use serde::Deserialize;
 
+use super::sqlite_pages::{Pages, Stop};
 use super::{sort_by_time, BagError};
 use crate::buffer::Region;
 use crate::error::{Error, Result};
@@ -305,13 +310,13 @@ impl Ros2Bag {
             let got = match self.storage {
                 Ros2Storage::Sqlite3 => {
                     let mut counts = HashMap::new();
-                    let visit = Rows::Wanted;
                     sqlite_scan(
                         plain,
                         label,
                         &mut table,
                         zstd_messages,
-                        visit,
+                        Rows::Wanted,
+                        Via::Pages,
                         &want,
                         &map,
                         &mut counts,
@@ -399,6 +404,7 @@ impl Ros2Bag {
                 &mut table,
                 zstd_messages,
                 Rows::All,
+                Via::Pages,
                 &want,
                 &map,
                 &mut stats,
@@ -598,6 +604,17 @@ enum Rows {
     All,
 }
 
+/// How a `.db3` scan reads the rows.
+#[derive(Clone, Copy, PartialEq, Eq, Debug)]
+enum Via {
+    /// From a map of the file's pages, through SQLite where that reader
+    /// gives way.
+    Pages,
+    /// Through SQLite only: what the tests hold the page reader to.
+    #[cfg_attr(not(test), allow(dead_code))]
+    Sql,
+}
+
 /// Count, first and last stamp (ns) per channel id.
 type Stats = HashMap<u16, (u64, u64, u64)>;
 
@@ -612,6 +629,7 @@ fn sqlite_scan<T: Send + Default>(
     table: &mut ChannelTable,
     zstd_messages: bool,
     visit: Rows,
+    via: Via,
     want: &(impl Fn(&ChannelInfo) -> bool + Sync),
     map: &(impl Fn(&ChannelInfo, &RawMessage<'_>) -> T + Sync),
     stats: &mut Stats,
@@ -628,6 +646,35 @@ fn sqlite_scan<T: Send + Default>(
     wanted.sort_unstable();
     if wanted.is_empty() && visit == Rows::Wanted {
         return Ok(Vec::new());
+    }
+    // The pages are read inside a read transaction: SQLite's shared lock,
+    // held until the connection closes, keeps any writer from changing the
+    // file meanwhile (a writer needs the exclusive lock to write to it). A
+    // file SQLite cannot lock now is read through SQL, which says why.
+    let locked = via == Via::Pages
+        && db
+            .execute_batch("BEGIN")
+            .and_then(|()| {
+                db.query_row(
+                    "SELECT count(*) FROM (SELECT 1 FROM messages LIMIT 1)",
+                    [],
+                    |r| r.get::<_, i64>(0),
+                )
+            })
+            .is_ok();
+    if locked {
+        if let Some(out) = page_scan(
+            plain,
+            label,
+            &ids,
+            &table.channels,
+            zstd_messages,
+            visit,
+            map,
+            stats,
+        )? {
+            return Ok(out);
+        }
     }
     // Two queries: SQLite answers a lone `min(id)` or `max(id)` from the
     // rowid b-tree's ends, but `SELECT min(id), max(id)` visits every row.
@@ -709,98 +756,140 @@ fn sqlite_scan<T: Send + Default>(
     let sql = sql.as_str();
     let (mut out, done) = crate::buffer::par_fill_regions(&lens, |k, region| {
         let db = open_db(plain, label)?;
-        sqlite_range(
-            &db,
-            sql,
-            ranges[k],
-            region,
-            ids,
-            channels,
-            zstd_messages,
-            map,
-        )
-        .map_err(at)
+        let sink = RowSink::new(visit, ids, channels, zstd_messages, map);
+        sqlite_range(&db, sql, ranges[k], region, sink).map_err(at)
     });
-    let mut before = 0u64;
-    for (part, count) in done {
-        let counts = part.map_err(|mut e| {
-            // The index among the wanted messages of the whole file.
-            if let Error::Bag {
-                reason: BagError::MessageData { index, .. },
-                ..
-            } = &mut e
-            {
-                *index += before;
-            }
-            e
-        })?;
-        before += count as u64;
-        for (id, (n, first, last)) in counts {
-            let s = stats.entry(id).or_insert((0, u64::MAX, 0));
-            s.0 += n;
-            s.1 = s.1.min(first);
-            s.2 = s.2.max(last);
-        }
+    let parts = in_order(done, |e| match e {
+        Error::Bag {
+            reason: BagError::MessageData { index, .. },
+            ..
+        } => Some(index),
+        _ => None,
+    })?;
+    for counts in parts {
+        merge_stats(stats, counts);
     }
     out.shrink_to_fit();
     Ok(out)
 }
 
-/// The rows of one rowid range `(a, b)` of `sql`, counted and (the wanted
-/// topics', whose data is not NULL) mapped into `out`; a message that does
-/// not decompress stops the range (its index counted within the range).
-#[allow(clippy::too_many_arguments)]
-fn sqlite_range<T: Send + Default>(
-    db: &Connection,
-    sql: &str,
-    (a, b): (i64, i64),
-    out: &mut Region<'_, MappedMessage<T>>,
-    ids: &HashMap<i64, (u16, bool)>,
-    channels: &BTreeMap<u16, ChannelInfo>,
+/// The parts' counts in file order, or the first failed part's error, with
+/// the index of a message that did not decompress (`index_of`, counted within
+/// its part) made the index among the wanted messages of the whole file.
+fn in_order<E>(
+    done: Vec<(std::result::Result<Stats, E>, usize)>,
+    index_of: impl Fn(&mut E) -> Option<&mut u64>,
+) -> std::result::Result<Vec<Stats>, E> {
+    let mut before = 0u64;
+    let mut parts = Vec::with_capacity(done.len());
+    for (part, count) in done {
+        match part {
+            Ok(counts) => parts.push(counts),
+            Err(mut e) => {
+                if let Some(index) = index_of(&mut e) {
+                    *index += before;
+                }
+                return Err(e);
+            }
+        }
+        before += count as u64;
+    }
+    Ok(parts)
+}
+
+/// What a `.db3` scan does with each row it visits, whether read through
+/// SQLite or from the file's pages: counts it (per channel, in the order
+/// first seen) and maps the wanted topics' messages into a region.
+struct RowSink<'s, M> {
+    visit: Rows,
+    ids: &'s HashMap<i64, (u16, bool)>,
+    channels: &'s BTreeMap<u16, ChannelInfo>,
     zstd_messages: bool,
-    map: &(impl Fn(&ChannelInfo, &RawMessage<'_>) -> T + Sync),
-) -> std::result::Result<Stats, BagError> {
-    let mut stmt = db.prepare(sql)?;
-    let mut rows = stmt.query([a, b])?;
-    // Count, first and last stamp per channel, in the order first seen.
-    let mut seen: Vec<(u16, (u64, u64, u64))> = Vec::new();
-    // The last row's topic and its slot in `seen`: rows of one topic come in
-    // runs.
-    let mut last: Option<(i64, u16, bool, usize)> = None;
-    while let Some(row) = rows.next()? {
-        let topic_id: i64 = row.get(1)?;
-        let time = row.get::<_, i64>(2)?.max(0) as u64;
-        let (id, keep, slot) = match last {
+    map: &'s M,
+    /// Count, first and last stamp per channel, in the order first seen.
+    seen: Vec<(u16, (u64, u64, u64))>,
+    /// The last row's topic, its channel, whether kept, and its slot in
+    /// `seen`: rows of one topic come in runs.
+    last: Option<(i64, u16, bool, usize)>,
+}
+
+impl<'s, M> RowSink<'s, M> {
+    fn new(
+        visit: Rows,
+        ids: &'s HashMap<i64, (u16, bool)>,
+        channels: &'s BTreeMap<u16, ChannelInfo>,
+        zstd_messages: bool,
+        map: &'s M,
+    ) -> Self {
+        RowSink {
+            visit,
+            ids,
+            channels,
+            zstd_messages,
+            map,
+            seen: Vec::new(),
+            last: None,
+        }
+    }
+
+    /// Counts a row of `topic_id` at `time` (ns): the channel id when its
+    /// data is wanted. With [`Rows::Wanted`], rows of the other topics (known
+    /// or not) are passed over, uncounted, as `WHERE topic_id IN (…)` does;
+    /// with [`Rows::All`] a topic the topics table does not list is an error
+    /// naming the row (`rowid`, asked for only then).
+    fn count(
+        &mut self,
+        topic_id: i64,
+        time: u64,
+        rowid: impl FnOnce() -> std::result::Result<i64, BagError>,
+    ) -> std::result::Result<Option<u16>, BagError> {
+        let (id, keep, slot) = match self.last {
             Some((t, id, keep, slot)) if t == topic_id => (id, keep, slot),
             _ => {
-                let Some(&(id, keep)) = ids.get(&topic_id) else {
+                let known = self.ids.get(&topic_id).copied();
+                let Some((id, keep)) = known.filter(|k| k.1 || self.visit == Rows::All) else {
+                    if self.visit == Rows::Wanted {
+                        return Ok(None);
+                    }
                     return Err(BagError::UnknownTopic {
                         topic_id,
-                        row: row.get(0)?,
+                        row: rowid()?,
                     });
                 };
-                let slot = match seen.iter().position(|(c, _)| *c == id) {
+                let slot = match self.seen.iter().position(|(c, _)| *c == id) {
                     Some(k) => k,
                     None => {
-                        seen.push((id, (0, u64::MAX, 0)));
-                        seen.len() - 1
+                        self.seen.push((id, (0, u64::MAX, 0)));
+                        self.seen.len() - 1
                     }
                 };
-                last = Some((topic_id, id, keep, slot));
+                self.last = Some((topic_id, id, keep, slot));
                 (id, keep, slot)
             }
         };
-        let s = &mut seen[slot].1;
+        let s = &mut self.seen[slot].1;
         s.0 += 1;
         s.1 = s.1.min(time);
         s.2 = s.2.max(time);
-        if !keep {
-            continue;
-        }
-        let data = row.get_ref(3)?.as_blob().map_err(rusqlite::Error::from)?;
-        let c = &channels[&id];
-        let value = with_bytes(data, zstd_messages, |data| {
-            map(
+        Ok(keep.then_some(id))
+    }
+
+    /// Maps a wanted row's `data` (zstd-decompressed first in `MESSAGE` mode)
+    /// into `out`; a message that does not decompress is an error naming its
+    /// index within the region.
+    fn push<T>(
+        &self,
+        id: u16,
+        time: u64,
+        data: &[u8],
+        out: &mut Region<'_, MappedMessage<T>>,
+    ) -> std::result::Result<(), BagError>
+    where
+        M: Fn(&ChannelInfo, &RawMessage<'_>) -> T,
+    {
+        let c = &self.channels[&id];
+        let value = with_bytes(data, self.zstd_messages, |data| {
+            (self.map)(
                 c,
                 &RawMessage {
                     channel_id: id,
@@ -823,8 +912,141 @@ fn sqlite_range<T: Send + Default>(
             publish_time: time,
             value,
         });
+        Ok(())
     }
-    Ok(seen.into_iter().collect())
+
+    fn stats(self) -> Stats {
+        self.seen.into_iter().collect()
+    }
+}
+
+/// The rows of one rowid range `(a, b)` of `sql`, counted and (the wanted
+/// topics', whose data is not NULL) mapped into `out`; a message that does
+/// not decompress stops the range (its index counted within the range).
+fn sqlite_range<T: Send + Default>(
+    db: &Connection,
+    sql: &str,
+    (a, b): (i64, i64),
+    out: &mut Region<'_, MappedMessage<T>>,
+    mut sink: RowSink<'_, impl Fn(&ChannelInfo, &RawMessage<'_>) -> T + Sync>,
+) -> std::result::Result<Stats, BagError> {
+    let mut stmt = db.prepare(sql)?;
+    let mut rows = stmt.query([a, b])?;
+    while let Some(row) = rows.next()? {
+        let topic_id: i64 = row.get(1)?;
+        let time = row.get::<_, i64>(2)?.max(0) as u64;
+        let Some(id) = sink.count(topic_id, time, || Ok(row.get(0)?))? else {
+            continue;
+        };
+        let data = row.get_ref(3)?.as_blob().map_err(rusqlite::Error::from)?;
+        sink.push(id, time, data, out)?;
+    }
+    Ok(sink.stats())
+}
+
+/// The leaf pages of one part of a page scan, counted and mapped into `out`
+/// like [`sqlite_range`]'s rows; [`Stop::Fallback`] when a page or row is
+/// not one this reader reads.
+fn page_range<T: Send + Default>(
+    pages: &Pages<'_>,
+    leaves: &[(u32, usize)],
+    out: &mut Region<'_, MappedMessage<T>>,
+    mut sink: RowSink<'_, impl Fn(&ChannelInfo, &RawMessage<'_>) -> T + Sync>,
+) -> std::result::Result<Stats, Stop<BagError>> {
+    let mut scratch = Vec::new();
+    for &(leaf, _) in leaves {
+        pages.rows(leaf, |row| {
+            let time = row.timestamp.max(0) as u64;
+            let Some(id) = sink
+                .count(row.topic_id, time, || Ok(row.rowid))
+                .map_err(Stop::Error)?
+            else {
+                return Ok(());
+            };
+            let data = row.data(&mut scratch).ok_or(Stop::Fallback)?;
+            sink.push(id, time, data, out).map_err(Stop::Error)
+        })?;
+    }
+    Ok(sink.stats())
+}
+
+/// The wanted messages of one `.db3` read from a map of its pages
+/// ([`sqlite_pages`](super::sqlite_pages)), the leaves cut into one part per
+/// thread; `Ok(None)` when that reader gives way to SQLite (the file in WAL
+/// mode or with a hot journal, a table or page it does not read).
+#[allow(clippy::too_many_arguments)]
+fn page_scan<T: Send + Default>(
+    plain: &Path,
+    label: &Path,
+    ids: &HashMap<i64, (u16, bool)>,
+    channels: &BTreeMap<u16, ChannelInfo>,
+    zstd_messages: bool,
+    visit: Rows,
+    map: &(impl Fn(&ChannelInfo, &RawMessage<'_>) -> T + Sync),
+    stats: &mut Stats,
+) -> Result<Option<Vec<MappedMessage<T>>>> {
+    // A journal beside the file (a writer's uncommitted or interrupted
+    // transaction) is SQLite's to roll back or read.
+    for side in ["-journal", "-wal"] {
+        let mut p = plain.as_os_str().to_owned();
+        p.push(side);
+        if std::fs::metadata(&p).is_ok_and(|m| m.len() > 0) {
+            return Ok(None);
+        }
+    }
+    let file = std::fs::File::open(plain).map_err(|e| Error::io(plain, e))?;
+    let map_ = crate::io::mapped::Mapped::map(file, plain)?;
+    let Some(pages) = Pages::open(&map_) else {
+        return Ok(None);
+    };
+    let Some(leaves) = pages.messages_root().and_then(|root| pages.leaves(root)) else {
+        return Ok(None);
+    };
+    // One part per thread, of about equal rows; region k has a slot per row of
+    // part k, so that the rows are read in place.
+    let rows: usize = leaves.iter().map(|l| l.1).sum();
+    let parts = rayon::current_num_threads().clamp(1, rows / MIN_RANGE_ROWS as usize + 1);
+    let mut cuts = vec![0usize];
+    let mut acc = 0usize;
+    for (k, leaf) in leaves.iter().enumerate() {
+        acc += leaf.1;
+        if acc * parts >= rows * cuts.len() && cuts.len() < parts && k + 1 < leaves.len() {
+            cuts.push(k + 1);
+        }
+    }
+    cuts.push(leaves.len());
+    let parts: Vec<&[(u32, usize)]> = cuts.windows(2).map(|w| &leaves[w[0]..w[1]]).collect();
+    let lens: Vec<usize> = parts.iter().map(|p| p.iter().map(|l| l.1).sum()).collect();
+    let pages = &pages;
+    let (mut out, done) = crate::buffer::par_fill_regions(&lens, |k, region| {
+        let sink = RowSink::new(visit, ids, channels, zstd_messages, map);
+        page_range(pages, parts[k], region, sink)
+    });
+    let found = match in_order(done, |e| match e {
+        Stop::Error(BagError::MessageData { index, .. }) => Some(index),
+        _ => None,
+    }) {
+        Ok(found) => found,
+        Err(Stop::Fallback) => return Ok(None),
+        Err(Stop::Error(reason)) => return Err(bag_err(label, reason)),
+    };
+    // A file cut short while it was read gave zero pages: an error, not rows.
+    map_.check()?;
+    for counts in found {
+        merge_stats(stats, counts);
+    }
+    out.shrink_to_fit();
+    Ok(Some(out))
+}
+
+/// Adds one part's counts and time ranges to a file's.
+fn merge_stats(stats: &mut Stats, part: Stats) {
+    for (id, (n, first, last)) in part {
+        let s = stats.entry(id).or_insert((0, u64::MAX, 0));
+        s.0 += n;
+        s.1 = s.1.min(first);
+        s.2 = s.2.max(last);
+    }
 }
 
 /// What the map of an `.mcap` in `MESSAGE` mode gives: the value, or why the
@@ -973,5 +1195,211 @@ mod tests {
         assert_eq!(with_bytes(&frame, true, |d| d.to_vec()).unwrap(), b"hello");
         assert!(with_bytes(b"garbage!", true, |d| d.len()).is_err());
         assert_eq!(with_bytes(b"raw", false, |d| d.len()).unwrap(), 3);
+    }
+
+    /// A `.db3` written through SQL with `page_size` and `journal` mode: the
+    /// rows `(id, topic, stamp, data)`, rosbag2's tables (topics 1 to
+    /// `topics`), then `sql` run on it.
+    fn db3(path: &Path, page_size: u32, journal: &str, topics: i64, rows: &[Db3Row], sql: &str) {
+        let c = rusqlite::Connection::open(path).unwrap();
+        c.execute_batch(&format!(
+            "PRAGMA page_size = {page_size}; PRAGMA journal_mode = {journal};
+             CREATE TABLE topics(id INTEGER PRIMARY KEY, name TEXT NOT NULL, type TEXT NOT NULL, \
+             serialization_format TEXT NOT NULL, offered_qos_profiles TEXT NOT NULL);
+             CREATE TABLE messages(id INTEGER PRIMARY KEY, topic_id INTEGER NOT NULL, \
+             timestamp INTEGER NOT NULL, data BLOB NOT NULL);
+             CREATE INDEX timestamp_idx ON messages (timestamp ASC);"
+        ))
+        .unwrap();
+        for t in 1..=topics {
+            c.execute(
+                "INSERT INTO topics VALUES (?1, ?2, 'std_msgs/msg/String', 'cdr', '')",
+                rusqlite::params![t, format!("/t{t}")],
+            )
+            .unwrap();
+        }
+        c.execute_batch("BEGIN").unwrap();
+        {
+            let mut ins = c
+                .prepare("INSERT INTO messages VALUES (?1, ?2, ?3, ?4)")
+                .unwrap();
+            for (id, topic, stamp, data) in rows {
+                ins.execute(rusqlite::params![id, topic, stamp, data])
+                    .unwrap();
+            }
+        }
+        c.execute_batch("COMMIT").unwrap();
+        c.execute_batch(sql).unwrap();
+    }
+
+    type Db3Row = (i64, i64, i64, Vec<u8>);
+
+    /// `n` rows on topics 1 to 3 with rowid gaps and stamps out of order;
+    /// every 50th row's data spills over several pages of `page_size`, every
+    /// 50th after it lies about the size where a cell starts to spill.
+    fn db3_rows(n: i64, page_size: usize) -> Vec<Db3Row> {
+        (0..n)
+            .map(|k| {
+                let len = match k % 50 {
+                    0 => (3 * page_size).min(20_000) + (k % 97) as usize,
+                    1 => page_size - 37 + (k % 5) as usize,
+                    _ => 8 + (k % 33) as usize,
+                };
+                let data = (0..len).map(|j| (k as usize * 31 + j) as u8).collect();
+                let stamp = if k % 1000 == 999 { k - 500 } else { k } * 1000;
+                (k + k / 7 + 1, 1 + (k / 3) % 3, stamp, data)
+            })
+            .collect()
+    }
+
+    type Scanned = (Vec<(u16, u64, Vec<u8>)>, Stats);
+
+    /// The messages (channel, stamp, data) of the topics `want` names, and
+    /// the counts, read `via` pages or SQL.
+    fn scan(path: &Path, visit: Rows, via: Via, want: &[&str]) -> Result<Scanned> {
+        let mut table = ChannelTable::default();
+        let mut stats = Stats::new();
+        let got = sqlite_scan(
+            path,
+            path,
+            &mut table,
+            false,
+            visit,
+            via,
+            &|c: &ChannelInfo| want.contains(&c.topic.as_str()),
+            &|_: &ChannelInfo, m: &RawMessage<'_>| m.data.to_vec(),
+            &mut stats,
+        )?;
+        let got = got
+            .into_iter()
+            .map(|m| (m.channel_id, m.log_time, m.value))
+            .collect();
+        Ok((got, stats))
+    }
+
+    /// True when the file's pages are read without giving way to SQLite.
+    fn read_from_pages(path: &Path, visit: Rows) -> bool {
+        let db = open_db(path, path).unwrap();
+        let listed = topics(&db).unwrap();
+        let ids: HashMap<i64, (u16, bool)> =
+            listed.iter().map(|(t, c)| (*t, (c.id, true))).collect();
+        let channels = listed.into_iter().map(|(_, c)| (c.id, c)).collect();
+        let map = |_: &ChannelInfo, m: &RawMessage<'_>| m.data.len();
+        let mut stats = Stats::new();
+        page_scan(path, path, &ids, &channels, false, visit, &map, &mut stats)
+            .unwrap()
+            .is_some()
+    }
+
+    #[test]
+    fn db3_pages_read_what_sqlite_reads() {
+        let dir = tempfile::tempdir().unwrap();
+        for page_size in [512u32, 4096, 65536] {
+            let path = dir.path().join(format!("p{page_size}.db3"));
+            let rows = db3_rows(20_000, page_size as usize);
+            // Rows deleted and grown after the insert: freed pages, cells
+            // moved, new overflow chains.
+            let after = "DELETE FROM messages WHERE id % 11 = 0; \
+                         UPDATE messages SET data = CAST(zeroblob(1500) || data AS BLOB) WHERE id % 13 = 0;";
+            db3(&path, page_size, "DELETE", 3, &rows, after);
+            for visit in [Rows::Wanted, Rows::All] {
+                assert!(read_from_pages(&path, visit), "page size {page_size}");
+                for want in [&["/t1", "/t3"][..], &["/t2"], &[]] {
+                    let pages = scan(&path, visit, Via::Pages, want).unwrap();
+                    let sql = scan(&path, visit, Via::Sql, want).unwrap();
+                    assert_eq!(pages.1, sql.1, "counts, page size {page_size}");
+                    assert!(
+                        pages.0 == sql.0,
+                        "messages, page size {page_size}, {want:?}"
+                    );
+                    if visit == Rows::All {
+                        assert_eq!(pages.1.values().map(|s| s.0).sum::<u64>(), 18_182);
+                    }
+                }
+            }
+        }
+    }
+
+    #[test]
+    fn db3_pages_give_way_to_sqlite_where_it_knows_better() {
+        let dir = tempfile::tempdir().unwrap();
+        let rows = db3_rows(3000, 4096);
+        let same = |path: &Path| {
+            for visit in [Rows::Wanted, Rows::All] {
+                let pages = scan(path, visit, Via::Pages, &["/t1", "/t2"]);
+                let sql = scan(path, visit, Via::Sql, &["/t1", "/t2"]);
+                match (pages, sql) {
+                    (Ok(p), Ok(s)) => assert!(p == s),
+                    (Err(p), Err(s)) => assert_eq!(p.to_string(), s.to_string()),
+                    (p, s) => panic!("pages {:?}, sql {:?}", p.is_ok(), s.is_ok()),
+                }
+            }
+        };
+        // WAL mode: the header says so, whether or not a -wal file is left.
+        let wal = dir.path().join("wal.db3");
+        db3(&wal, 4096, "WAL", 3, &rows, "");
+        assert!(!read_from_pages(&wal, Rows::All));
+        same(&wal);
+        // Columns in another order than rosbag2's.
+        let other = dir.path().join("other.db3");
+        db3(
+            &other,
+            4096,
+            "DELETE",
+            3,
+            &rows,
+            "ALTER TABLE messages RENAME TO old; \
+             CREATE TABLE messages(id INTEGER PRIMARY KEY, timestamp INTEGER, topic_id INTEGER, data BLOB); \
+             INSERT INTO messages SELECT id, timestamp, topic_id, data FROM old; DROP TABLE old;",
+        );
+        assert!(!read_from_pages(&other, Rows::All));
+        same(&other);
+        // A row whose data is text: SQLite names the error.
+        let text = dir.path().join("text.db3");
+        db3(
+            &text,
+            4096,
+            "DELETE",
+            3,
+            &rows,
+            "UPDATE messages SET data = 'x' WHERE id = 2;",
+        );
+        assert!(!read_from_pages(&text, Rows::All));
+        same(&text);
+        assert!(scan(&text, Rows::All, Via::Pages, &["/t1"]).is_err());
+        // Not an error where the row's data is not read (another topic's).
+        assert_eq!(
+            scan(&text, Rows::All, Via::Pages, &["/t2"]).unwrap(),
+            scan(&text, Rows::All, Via::Sql, &["/t2"]).unwrap()
+        );
+        // A topic the topics table does not list: the same error, the same row.
+        let unknown = dir.path().join("unknown.db3");
+        db3(&unknown, 4096, "DELETE", 2, &rows, "");
+        same(&unknown);
+        let e = scan(&unknown, Rows::All, Via::Pages, &["/t1"]).unwrap_err();
+        assert!(
+            matches!(
+                e,
+                Error::Bag {
+                    reason: BagError::UnknownTopic {
+                        topic_id: 3,
+                        row: 7
+                    },
+                    ..
+                }
+            ),
+            "{e}"
+        );
+        // Without the unlisted topic's rows, only the wanted are read.
+        assert_eq!(
+            scan(&unknown, Rows::Wanted, Via::Pages, &["/t1"])
+                .unwrap()
+                .0
+                .len(),
+            scan(&unknown, Rows::Wanted, Via::Sql, &["/t1"])
+                .unwrap()
+                .0
+                .len()
+        );
     }
 }
