@@ -5,6 +5,7 @@
 //! return them without a copy, and `transformed` shares the colours and ids.
 
 use std::path::PathBuf;
+use std::sync::Arc;
 
 use numpy::ndarray::{Array1, Array2, Array3};
 use numpy::{
@@ -20,6 +21,7 @@ use crate::error::Error;
 use crate::geometry::{PinholeCamera, Sim3};
 use crate::io::ply;
 use crate::keyframe::Keyframe;
+use crate::pipeline::Recording;
 
 fn shape_err(what: &str, expected: String, got: String) -> PyErr {
     Error::ShapeMismatch {
@@ -113,7 +115,33 @@ impl PyPinholeCamera {
 /// variance (H, W) and colour (H, W) or (H, W, 3) uint8.
 #[pyclass(name = "Keyframe", module = "slam2world._slam2world", frozen)]
 pub struct PyKeyframe {
-    pub inner: Keyframe,
+    pub inner: SharedKeyframe,
+}
+
+/// The keyframe of a [`PyKeyframe`]: its own, or one of a log's, shared with
+/// the log rather than copied (megabytes a keyframe); either reads as a
+/// [`Keyframe`]. A shared one keeps the log's recording alive.
+pub enum SharedKeyframe {
+    /// A keyframe of its own.
+    Own(Keyframe),
+    /// Keyframe `k` of a log's recording.
+    InLog(Arc<Recording>, usize),
+}
+
+impl From<Keyframe> for SharedKeyframe {
+    fn from(k: Keyframe) -> Self {
+        SharedKeyframe::Own(k)
+    }
+}
+
+impl std::ops::Deref for SharedKeyframe {
+    type Target = Keyframe;
+    fn deref(&self) -> &Keyframe {
+        match self {
+            SharedKeyframe::Own(k) => k,
+            SharedKeyframe::InLog(r, k) => &r.keyframes[*k],
+        }
+    }
 }
 
 /// An (H, W) image as a row-major float32 vector.
@@ -177,7 +205,8 @@ impl PyKeyframe {
             .transpose()?;
         let color = color.map(|c| image_rgb(c, h, w)).transpose()?;
         Ok(PyKeyframe {
-            inner: Keyframe::try_new(id, timestamp, pose.inner, camera.inner, idepth, var, color)?,
+            inner: Keyframe::try_new(id, timestamp, pose.inner, camera.inner, idepth, var, color)?
+                .into(),
         })
     }
 
@@ -573,7 +602,7 @@ fn backproject_py(
         })?;
         bound.push(kf.clone());
     }
-    let refs: Vec<&Keyframe> = bound.iter().map(|b| &b.get().inner).collect();
+    let refs: Vec<&Keyframe> = bound.iter().map(|b| &*b.get().inner).collect();
     let filter = filter.map(|f| f.inner).unwrap_or_default();
     let cloud = match (transform, transforms) {
         (Some(_), Some(_)) => {

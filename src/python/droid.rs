@@ -37,7 +37,9 @@ impl PyDroidReconstruction {
     fn keyframes(&self) -> Vec<PyKeyframe> {
         self.keyframes
             .iter()
-            .map(|k| PyKeyframe { inner: k.clone() })
+            .map(|k| PyKeyframe {
+                inner: k.clone().into(),
+            })
             .collect()
     }
 
@@ -136,7 +138,10 @@ fn filter_consistent_py(
     let kfs = keyframes_arg(keyframes)?;
     let f = filter_arg(threshold, min_count, min_disparity_ratio, neighbours);
     let out = py.detach(|| filter_consistent(&kfs, &f))?;
-    Ok(out.into_iter().map(|inner| PyKeyframe { inner }).collect())
+    Ok(out
+        .into_iter()
+        .map(|k| PyKeyframe { inner: k.into() })
+        .collect())
 }
 
 pub fn register(m: &Bound<'_, PyModule>) -> PyResult<()> {

@@ -2,26 +2,25 @@
 //! `write_world_mcap(...)`.
 
 use std::path::PathBuf;
+use std::sync::Arc;
 
 use numpy::PyUntypedArrayMethods;
 use pyo3::prelude::*;
 use pyo3::sync::PyOnceLock;
-use rayon::prelude::*;
 
-use super::cloud::PyKeyframe;
+use super::cloud::{PyKeyframe, SharedKeyframe};
 use super::geometry::PySim3;
 use super::imu::PyImuSamples;
 use super::trajectory::PyTrajectory;
 use crate::geometry::Sim3;
 use crate::io::log::{read_log, ReadOptions};
 use crate::io::mcap::{self as io_mcap, WorldFlavor, WorldScene};
-use crate::keyframe::Keyframe;
 use crate::pipeline::Recording;
 
 /// A log read by `read_log` or `read_mcap`: the recording a conversion reads.
 #[pyclass(name = "Log", module = "slam2world._slam2world", frozen)]
 pub struct PyLog {
-    pub(crate) log: Recording,
+    pub(crate) log: Arc<Recording>,
     /// The Python objects of the keyframes, made on first access.
     keyframes: PyOnceLock<Vec<Py<PyKeyframe>>>,
 }
@@ -54,12 +53,13 @@ impl PyLog {
     #[getter]
     fn keyframes(&self, py: Python<'_>) -> PyResult<Vec<Py<PyKeyframe>>> {
         let list = self.keyframes.get_or_try_init(py, || {
-            // The copies (megabytes a keyframe) are made in parallel, without the GIL.
-            let copies: Vec<Keyframe> =
-                py.detach(|| self.log.keyframes.par_iter().cloned().collect());
-            copies
-                .into_iter()
-                .map(|inner| Py::new(py, PyKeyframe { inner }))
+            // Shared with the log, not copied: a keyframe's arrays are copied
+            // only when asked for as numpy arrays.
+            (0..self.log.keyframes.len())
+                .map(|k| {
+                    let inner = SharedKeyframe::InLog(self.log.clone(), k);
+                    Py::new(py, PyKeyframe { inner })
+                })
                 .collect::<PyResult<Vec<_>>>()
         })?;
         Ok(list.iter().map(|k| k.clone_ref(py)).collect())
@@ -170,7 +170,7 @@ fn read_mcap_py(
     };
     let log = py.detach(|| crate::io::read_mcap(&path, &options))?;
     Ok(PyLog {
-        log: Recording::from(log),
+        log: Arc::new(Recording::from(log)),
         keyframes: PyOnceLock::new(),
     })
 }
@@ -205,7 +205,7 @@ fn read_log_py(
     };
     let log = py.detach(|| read_log(&path, &options))?;
     Ok(PyLog {
-        log: Recording::from(log),
+        log: Arc::new(Recording::from(log)),
         keyframes: PyOnceLock::new(),
     })
 }

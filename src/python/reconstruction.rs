@@ -148,7 +148,14 @@ impl PyReconstruction {
             self.rec
                 .keyframes
                 .iter()
-                .map(|k| Py::new(py, PyKeyframe { inner: k.clone() }))
+                .map(|k| {
+                    Py::new(
+                        py,
+                        PyKeyframe {
+                            inner: k.clone().into(),
+                        },
+                    )
+                })
                 .collect::<PyResult<Vec<_>>>()
         })?;
         Ok(list.iter().map(|k| k.clone_ref(py)).collect())

@@ -107,7 +107,9 @@ impl PySimulation {
         self.inner
             .keyframes
             .iter()
-            .map(|k| PyKeyframe { inner: k.clone() })
+            .map(|k| PyKeyframe {
+                inner: k.clone().into(),
+            })
             .collect()
     }
 

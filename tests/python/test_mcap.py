@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import gc
 import json
 from pathlib import Path
 from typing import Any
@@ -208,6 +209,16 @@ def test_lsd_slam_log_written_by_python_decodes(tmp_path: Path) -> None:
         c2w = exp["graph"].get(k.id, c2w)
         want = s2w.Sim3.from_lsd_slam(np.array(c2w, dtype=np.float32).astype(np.float64))
         np.testing.assert_allclose(k.pose.matrix(), want.matrix(), atol=1e-9)
+    # The keyframes share the log's arrays: they outlive the log, and their
+    # numpy arrays are copies a caller may write to.
+    kept = log.keyframes[1]
+    del log
+    gc.collect()
+    np.testing.assert_array_equal(kept.idepth, exp["kf"][1][2])
+    a = kept.idepth
+    a[:] = -1.0
+    np.testing.assert_array_equal(kept.idepth, exp["kf"][1][2])
+    log = s2w.read_mcap(path)
     ref = log.reference
     assert ref is not None
     ts, pos = exp["ref"]
