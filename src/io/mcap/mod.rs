@@ -9,12 +9,16 @@
 //!   the log assembly's, over every container: `io::read_mcap`, `io::read_log`;
 //! - [`write`]: `world.mcap` ([`write_world_mcap`]) and the SLAM-side log
 //!   ([`write_slam_log`]);
+//! - [`piecewise`]: the writer of `world.mcap`, whose messages go into the
+//!   file a piece at a time (the `mcap` crate's writer, which takes each
+//!   message whole, writes the SLAM-side logs);
 //! - [`grid_msgs`]: the 2-D grid as `nav_msgs/OccupancyGrid` and `foxglove.Grid`.
 //!
 //! MCAP times are `u64` nanoseconds; everything else is seconds and metres.
 
 pub mod gnss_decode;
 pub mod grid_msgs;
+pub mod piecewise;
 pub mod reader;
 pub mod schemas;
 pub mod stream;

@@ -7,6 +7,7 @@ use std::collections::BTreeMap;
 use std::io::{BufWriter, Write};
 use std::path::Path;
 
+use super::piecewise::{Channel, PiecewiseWriter};
 use super::schemas;
 use crate::error::{Error, Result};
 use crate::geometry::Sim3;
@@ -52,8 +53,11 @@ pub struct WorldScene<'a> {
 }
 
 /// The most points one cloud message of `world.mcap` holds (64 MiB of
-/// Foxglove points): a larger cloud is split into several, so that no
-/// message of a long log needs the whole cloud in memory.
+/// Foxglove points): a larger cloud is split into several, so that a viewer,
+/// which loads a message whole, never needs more than that at once. The
+/// writer itself holds none of them whole: each goes from the cloud (in
+/// memory or on disk) into the file a piece at a time
+/// ([`super::piecewise::PiecewiseWriter`]).
 pub const CLOUD_MESSAGE_POINTS: usize = 1 << 22;
 
 /// Topic names of the world output.
@@ -240,46 +244,117 @@ pub fn foxglove_point_cloud(
     points: &[f32],
     colors: Option<&[u8]>,
 ) -> Vec<u8> {
-    let mut all = |f: Piece<'_>| {
-        f(points, colors);
-        Ok(())
-    };
-    // Slices in memory: the count is the slices' own.
-    foxglove_cloud_message(stamp, frame, points.len() / 3, &mut all).unwrap_or_default()
+    let msg = CloudMessage::foxglove(stamp, frame, points.len() / 3);
+    msg.in_memory(points, colors)
 }
 
-/// The `foxglove.PointCloud` message of `n` points given by `pieces`.
-fn foxglove_cloud_message(
-    stamp: f64,
-    frame: &str,
+/// A cloud message of `n` points in its parts: the bytes before the points,
+/// their packing (16 bytes a point), the bytes after; written a piece of the
+/// cloud at a time ([`CloudMessage::write`]) or whole in memory.
+struct CloudMessage {
+    head: Vec<u8>,
     n: usize,
-    pieces: Pieces<'_>,
-) -> Result<Vec<u8>> {
-    let mut m = PbWriter::new();
-    m.message(1, &pb_time(stamp));
-    m.bytes(2, frame.as_bytes());
-    m.message(3, &pb_pose([0.0; 3], [0.0, 0.0, 0.0, 1.0]));
-    m.fixed32(4, 16);
-    for (name, offset, ty) in [
-        ("x", 0u32, FOXGLOVE_FLOAT32),
-        ("y", 4, FOXGLOVE_FLOAT32),
-        ("z", 8, FOXGLOVE_FLOAT32),
-        ("red", 12, FOXGLOVE_UINT8),
-        ("green", 13, FOXGLOVE_UINT8),
-        ("blue", 14, FOXGLOVE_UINT8),
-        ("alpha", 15, FOXGLOVE_UINT8),
-    ] {
-        let mut f = PbWriter::new();
-        f.bytes(1, name.as_bytes());
-        f.fixed32(2, offset);
-        f.int(3, ty);
-        m.message(5, &f);
+    pack: fn(&mut Vec<u8>, &[f32], Option<&[u8]>),
+    tail: Vec<u8>,
+}
+
+impl CloudMessage {
+    /// `foxglove.PointCloud`: the points are the last field, `data`.
+    fn foxglove(stamp: f64, frame: &str, n: usize) -> Self {
+        let mut m = PbWriter::new();
+        m.message(1, &pb_time(stamp));
+        m.bytes(2, frame.as_bytes());
+        m.message(3, &pb_pose([0.0; 3], [0.0, 0.0, 0.0, 1.0]));
+        m.fixed32(4, 16);
+        for (name, offset, ty) in [
+            ("x", 0u32, FOXGLOVE_FLOAT32),
+            ("y", 4, FOXGLOVE_FLOAT32),
+            ("z", 8, FOXGLOVE_FLOAT32),
+            ("red", 12, FOXGLOVE_UINT8),
+            ("green", 13, FOXGLOVE_UINT8),
+            ("blue", 14, FOXGLOVE_UINT8),
+            ("alpha", 15, FOXGLOVE_UINT8),
+        ] {
+            let mut f = PbWriter::new();
+            f.bytes(1, name.as_bytes());
+            f.fixed32(2, offset);
+            f.int(3, ty);
+            m.message(5, &f);
+        }
+        m.bytes_head(6, 16 * n);
+        CloudMessage {
+            head: m.buf,
+            n,
+            pack: pack_foxglove,
+            tail: Vec::new(),
+        }
     }
-    let got = m.bytes_with(6, 16 * n, |buf| {
-        pieces(&mut |p, c| pack_foxglove(buf, p, c))
-    })?;
-    check_filled(16 * n, got)?;
-    Ok(m.buf)
+
+    /// `sensor_msgs/PointCloud2` (CDR): `is_dense` after the points.
+    fn ros2(stamp: f64, frame: &str, n: usize) -> Self {
+        let mut w = CdrWriter::new();
+        w.header(stamp, frame);
+        w.u32(1); // height
+        w.u32(n as u32); // width
+        w.u32(4);
+        for (name, offset) in [("x", 0u32), ("y", 4), ("z", 8), ("rgb", 12)] {
+            w.string(name);
+            w.u32(offset);
+            w.u8(7); // PointField.FLOAT32
+            w.u32(1);
+        }
+        w.u8(0); // is_bigendian
+        w.u32(16);
+        w.u32(16 * n as u32);
+        w.u32(16 * n as u32);
+        CloudMessage {
+            head: w.buf,
+            n,
+            pack: pack_pcl,
+            tail: vec![1], // is_dense
+        }
+    }
+
+    /// The message's length in bytes.
+    fn len(&self) -> usize {
+        self.head.len() + 16 * self.n + self.tail.len()
+    }
+
+    /// Writes the message to `out`, its points packed a piece at a time as
+    /// `pieces` gives them; an error when they are not the `n` points
+    /// declared (a cloud that changed while it was written).
+    fn write(&self, out: &mut dyn Write, pieces: Pieces<'_>, path: &Path) -> Result<()> {
+        let io = |e| Error::io(path, e);
+        out.write_all(&self.head).map_err(io)?;
+        let mut buf = Vec::new();
+        let mut got = 0;
+        let mut failed = None;
+        pieces(&mut |p, c| {
+            if failed.is_some() {
+                return;
+            }
+            buf.clear();
+            (self.pack)(&mut buf, p, c);
+            got += buf.len();
+            if let Err(e) = out.write_all(&buf) {
+                failed = Some(e);
+            }
+        })?;
+        if let Some(e) = failed {
+            return Err(io(e));
+        }
+        check_filled(16 * self.n, got)?;
+        out.write_all(&self.tail).map_err(io)
+    }
+
+    /// The whole message of `points` in memory.
+    fn in_memory(&self, points: &[f32], colors: Option<&[u8]>) -> Vec<u8> {
+        let mut out = Vec::with_capacity(self.len());
+        out.extend_from_slice(&self.head);
+        (self.pack)(&mut out, points, colors);
+        out.extend_from_slice(&self.tail);
+        out
+    }
 }
 
 /// A cloud message whose point data came out at another length than it
@@ -370,37 +445,7 @@ impl CdrWriter {
 }
 
 fn ros2_point_cloud(stamp: f64, frame: &str, points: &[f32], colors: Option<&[u8]>) -> Vec<u8> {
-    let mut all = |f: Piece<'_>| {
-        f(points, colors);
-        Ok(())
-    };
-    // Slices in memory: the count is the slices' own.
-    ros2_cloud_message(stamp, frame, points.len() / 3, &mut all).unwrap_or_default()
-}
-
-/// The `sensor_msgs/PointCloud2` (CDR) of `n` points given by `pieces`.
-fn ros2_cloud_message(stamp: f64, frame: &str, n: usize, pieces: Pieces<'_>) -> Result<Vec<u8>> {
-    let mut w = CdrWriter::new();
-    w.header(stamp, frame);
-    w.u32(1); // height
-    w.u32(n as u32); // width
-    w.u32(4);
-    for (name, offset) in [("x", 0u32), ("y", 4), ("z", 8), ("rgb", 12)] {
-        w.string(name);
-        w.u32(offset);
-        w.u8(7); // PointField.FLOAT32
-        w.u32(1);
-    }
-    w.u8(0); // is_bigendian
-    w.u32(16);
-    w.u32(16 * n as u32);
-    w.u32(16 * n as u32);
-    let start = w.buf.len();
-    w.buf.reserve(16 * n);
-    pieces(&mut |p, c| pack_pcl(&mut w.buf, p, c))?;
-    check_filled(16 * n, w.buf.len() - start)?;
-    w.u8(1); // is_dense
-    Ok(w.buf)
+    CloudMessage::ros2(stamp, frame, points.len() / 3).in_memory(points, colors)
 }
 
 fn ros2_tf(stamp: f64, parent: &str, child: &str, t: &Sim3) -> Vec<u8> {
@@ -563,8 +608,9 @@ pub fn write_world_mcap(
     set.commit().map(|_| ())
 }
 
-/// Points per piece read from a cloud on disk into a cloud message.
-const MESSAGE_PIECE: usize = 1 << 18;
+/// Points per piece read from a cloud on disk into a cloud message (about
+/// 1 MiB packed).
+const MESSAGE_PIECE: usize = 1 << 16;
 
 /// Calls `f` with each cloud message's point count and a filler of its
 /// points: messages of at most [`CLOUD_MESSAGE_POINTS`], one empty message
@@ -606,112 +652,91 @@ fn write_world_impl(
         crate::io::ply::check_shapes(points, colors)?;
     }
     let t = nanos(path, "stamp", scene.stamp)?;
-    // Single-threaded zstd: the multithreaded encoder holds a job buffer per
-    // worker (about 75 MiB with a 64 MiB cloud message), more than the rest
-    // of a long log's conversion.
-    let options = mcap::WriteOptions::new()
-        .compression(Some(mcap::Compression::Zstd))
-        .compression_threads(0)
-        .profile(match flavor {
-            WorldFlavor::Foxglove => "",
-            WorldFlavor::Ros2 => "ros2",
-        })
-        .library(concat!("slam2world ", env!("CARGO_PKG_VERSION")));
-    write_atomic(set, path, options, |w| {
+    let profile = match flavor {
+        WorldFlavor::Foxglove => "",
+        WorldFlavor::Ros2 => "ros2",
+    };
+    set.write(path, |file| {
+        // The cloud's messages go a piece at a time from the cloud into the
+        // file (PiecewiseWriter): none is ever whole in memory.
+        let mut w = PiecewiseWriter::new(
+            BufWriter::new(file),
+            path,
+            profile,
+            concat!("slam2world ", env!("CARGO_PKG_VERSION")),
+        )?;
+        let put = |w: &mut PiecewiseWriter<_>, ch: &mut Channel, data: &[u8]| {
+            crate::interrupt::check()?;
+            w.message(ch, t, data)
+        };
+        let clouds = |w: &mut PiecewiseWriter<_>, ch: &mut Channel, ros2: bool| {
+            cloud_messages(scene.cloud, CLOUD_MESSAGE_POINTS, |n, pieces| {
+                crate::interrupt::check()?;
+                let msg = if ros2 {
+                    CloudMessage::ros2(scene.stamp, scene.world_frame, n)
+                } else {
+                    CloudMessage::foxglove(scene.stamp, scene.world_frame, n)
+                };
+                w.message_with(ch, t, msg.len() as u64, |out| msg.write(out, pieces, path))
+            })
+        };
         match flavor {
             WorldFlavor::Foxglove => {
-                let mut cloud = add_channel(
-                    w,
-                    path,
-                    topics::CLOUD,
-                    schemas::FOXGLOVE_POINT_CLOUD,
-                    "protobuf",
-                )?;
-                let mut tf = add_channel(
-                    w,
-                    path,
-                    topics::TF,
-                    schemas::FOXGLOVE_FRAME_TRANSFORM,
-                    "protobuf",
-                )?;
+                let mut cloud =
+                    w.add_channel(topics::CLOUD, schemas::FOXGLOVE_POINT_CLOUD, "protobuf")?;
+                let mut tf =
+                    w.add_channel(topics::TF, schemas::FOXGLOVE_FRAME_TRANSFORM, "protobuf")?;
                 let msg = foxglove_frame_transform(
                     scene.stamp,
                     scene.world_frame,
                     scene.slam_frame,
                     &scene.t_world_slam,
                 );
-                put(w, path, &mut tf, t, &msg)?;
-                cloud_messages(scene.cloud, CLOUD_MESSAGE_POINTS, |n, pieces| {
-                    let msg = foxglove_cloud_message(scene.stamp, scene.world_frame, n, pieces)?;
-                    put(w, path, &mut cloud, t, &msg)
-                })?;
+                put(&mut w, &mut tf, &msg)?;
+                clouds(&mut w, &mut cloud, false)?;
                 for (topic, traj) in [
                     (topics::SLAM_TRAJECTORY, scene.slam_trajectory),
                     (topics::REFERENCE, scene.reference),
                 ] {
                     if let Some(traj) = traj {
-                        let mut ch = add_channel(
-                            w,
-                            path,
-                            topic,
-                            schemas::FOXGLOVE_POSES_IN_FRAME,
-                            "protobuf",
-                        )?;
-                        put(
-                            w,
-                            path,
-                            &mut ch,
-                            t,
-                            &foxglove_poses(scene.stamp, scene.world_frame, traj),
-                        )?;
+                        let mut ch =
+                            w.add_channel(topic, schemas::FOXGLOVE_POSES_IN_FRAME, "protobuf")?;
+                        let msg = foxglove_poses(scene.stamp, scene.world_frame, traj);
+                        put(&mut w, &mut ch, &msg)?;
                     }
                 }
                 if let Some(leaves) = octomap {
-                    let mut ch = add_channel(
-                        w,
-                        path,
-                        topics::OCTOMAP,
-                        schemas::FOXGLOVE_SCENE_UPDATE,
-                        "protobuf",
-                    )?;
+                    let mut ch =
+                        w.add_channel(topics::OCTOMAP, schemas::FOXGLOVE_SCENE_UPDATE, "protobuf")?;
                     let msg = foxglove_scene_update_cubes(scene.stamp, scene.world_frame, leaves);
-                    put(w, path, &mut ch, t, &msg)?;
+                    put(&mut w, &mut ch, &msg)?;
                 }
             }
             WorldFlavor::Ros2 => {
-                let mut tf = add_channel(w, path, topics::TF, schemas::ROS2_TF_MESSAGE, "cdr")?;
-                let mut cloud =
-                    add_channel(w, path, topics::CLOUD, schemas::ROS2_POINT_CLOUD2, "cdr")?;
-                put(
-                    w,
-                    path,
-                    &mut tf,
-                    t,
-                    &ros2_tf(
-                        scene.stamp,
-                        scene.world_frame,
-                        scene.slam_frame,
-                        &scene.t_world_slam,
-                    ),
-                )?;
-                cloud_messages(scene.cloud, CLOUD_MESSAGE_POINTS, |n, pieces| {
-                    let msg = ros2_cloud_message(scene.stamp, scene.world_frame, n, pieces)?;
-                    put(w, path, &mut cloud, t, &msg)
-                })?;
+                let mut tf = w.add_channel(topics::TF, schemas::ROS2_TF_MESSAGE, "cdr")?;
+                let mut cloud = w.add_channel(topics::CLOUD, schemas::ROS2_POINT_CLOUD2, "cdr")?;
+                let msg = ros2_tf(
+                    scene.stamp,
+                    scene.world_frame,
+                    scene.slam_frame,
+                    &scene.t_world_slam,
+                );
+                put(&mut w, &mut tf, &msg)?;
+                clouds(&mut w, &mut cloud, true)?;
                 if let Some(leaves) = octomap {
                     let mut ch =
-                        add_channel(w, path, topics::OCTOMAP, schemas::ROS2_POINT_CLOUD2, "cdr")?;
+                        w.add_channel(topics::OCTOMAP, schemas::ROS2_POINT_CLOUD2, "cdr")?;
                     let (pts, cols) = leaf_centers_colored(leaves);
                     let msg = ros2_point_cloud(scene.stamp, scene.world_frame, &pts, Some(&cols));
-                    put(w, path, &mut ch, t, &msg)?;
+                    put(&mut w, &mut ch, &msg)?;
                 }
             }
         }
         for x in extra {
-            let mut ch = add_channel(w, path, x.topic, x.schema, x.message_encoding)?;
-            put(w, path, &mut ch, t, x.data)?;
+            let mut ch = w.add_channel(x.topic, x.schema, x.message_encoding)?;
+            put(&mut w, &mut ch, x.data)?;
         }
-        Ok(())
+        w.finish()?.flush().map_err(|e| Error::io(path, e))
     })
 }
 
@@ -1146,13 +1171,20 @@ mod tests {
         let cols: Vec<u8> = (0..3 * n).map(|v| (v % 251) as u8).collect();
         let mut file = crate::io::spill::CloudFile::new(true).unwrap();
         file.push(&pts, Some(&cols)).unwrap();
+        let path = Path::new("world.mcap");
+        // Each message written a piece at a time, as world.mcap's are.
         let split = |cloud: CloudRef<'_>, per: usize| {
             let mut out = Vec::new();
             cloud_messages(cloud, per, |n, pieces| {
-                out.push((
-                    foxglove_cloud_message(1.0, "world", n, &mut *pieces)?,
-                    ros2_cloud_message(1.0, "world", n, pieces)?,
-                ));
+                let (fox, ros) = (
+                    CloudMessage::foxglove(1.0, "world", n),
+                    CloudMessage::ros2(1.0, "world", n),
+                );
+                let (mut a, mut b) = (Vec::new(), Vec::new());
+                fox.write(&mut a, &mut *pieces, path)?;
+                ros.write(&mut b, pieces, path)?;
+                assert_eq!((a.len(), b.len()), (fox.len(), ros.len()));
+                out.push((a, b));
                 Ok(())
             })
             .unwrap();
@@ -1162,19 +1194,45 @@ mod tests {
             let mem = split(CloudRef::Memory(&pts, Some(&cols)), per);
             assert_eq!(mem.len(), n.div_ceil(per));
             assert_eq!(mem, split(CloudRef::File(&file), per));
-            // Each message as the one-slice writers make it.
             let mut at = 0;
             for (fox, ros) in &mem {
                 let k = per.min(n - at);
                 let (p, c) = (&pts[3 * at..3 * (at + k)], &cols[3 * at..3 * (at + k)]);
+                // As the one-slice writers make it.
                 assert_eq!(fox, &foxglove_point_cloud(1.0, "world", p, Some(c)));
                 assert_eq!(ros, &ros2_point_cloud(1.0, "world", p, Some(c)));
+                // Field 6 (data) holds the points, x y z r g b 255 each,
+                // and is the message's last field.
+                let fields: Vec<_> = pb_fields(fox)
+                    .collect::<std::result::Result<_, _>>()
+                    .unwrap();
+                let data = fields.iter().find(|(f, _)| *f == 6).unwrap();
+                let mut expect = Vec::new();
+                for i in 0..k {
+                    for v in &p[3 * i..3 * i + 3] {
+                        expect.extend_from_slice(&v.to_le_bytes());
+                    }
+                    expect.extend_from_slice(&[c[3 * i], c[3 * i + 1], c[3 * i + 2], 255]);
+                }
+                assert!(matches!(&data.1, PbValue::Bytes(b) if *b == &expect[..]));
+                assert!(fox.ends_with(&expect));
+                // PointCloud2: the points, then is_dense.
+                assert_eq!(ros.last(), Some(&1));
                 at += k;
             }
         }
         assert_eq!(split(CloudRef::Memory(&[], None), 10).len(), 1);
+        // A cloud that gives fewer points than the message declared.
+        let mut short = |f: Piece<'_>| {
+            f(&pts[..30], None);
+            Ok(())
+        };
+        let e = CloudMessage::foxglove(1.0, "world", 11)
+            .write(&mut Vec::new(), &mut short, path)
+            .unwrap_err();
+        assert!(e.to_string().contains("declared 176 bytes"), "{e}");
     }
-    use crate::io::messages::wire::pb_fields;
+    use crate::io::messages::wire::{pb_fields, PbValue};
 
     #[test]
     fn height_colors_run_from_blue_to_red() {

@@ -465,22 +465,12 @@ impl PbWriter {
         self.varint(v.len() as u64);
         self.buf.extend_from_slice(v);
     }
-    /// A `bytes` field of `len` bytes that `fill` appends to [`PbWriter::buf`]
-    /// (a large payload written in place, not copied). Returns how many
-    /// bytes `fill` appended: the message is well formed only when that is
-    /// `len`, which the caller checks.
-    pub fn bytes_with<E>(
-        &mut self,
-        field: u32,
-        len: usize,
-        fill: impl FnOnce(&mut Vec<u8>) -> Result<(), E>,
-    ) -> Result<usize, E> {
+    /// The key and length of a `bytes` field of `len` bytes whose content
+    /// the caller writes after [`PbWriter::buf`] (the message's last field,
+    /// streamed rather than copied into the message).
+    pub fn bytes_head(&mut self, field: u32, len: usize) {
         self.key(field, 2);
         self.varint(len as u64);
-        self.buf.reserve(len);
-        let start = self.buf.len();
-        fill(&mut self.buf)?;
-        Ok(self.buf.len() - start)
     }
     /// A sub-message field.
     pub fn message(&mut self, field: u32, m: &PbWriter) {
