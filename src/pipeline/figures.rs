@@ -313,7 +313,7 @@ impl FigureData {
 }
 
 /// Points per piece when the figures read a cloud.
-const PIECE: usize = 1 << 20;
+const PIECE: usize = 1 << 16;
 
 /// The middle of the bounding box of the cloud and the path (the origin of
 /// the page's `f32` offsets).

@@ -22,7 +22,7 @@ use crate::io::pcd::write_pcd_cloud_into;
 use crate::map::{OccupancyMap, VoxelState};
 
 use super::figures::{FigureData, FigureOptions};
-use super::html::{render, Page, Summary};
+use super::html::{write_html_into, Page, Summary};
 use super::native::NativeModel;
 use super::report::{to_json_bytes, DemoReport, GeoOutputReport, Report};
 use super::Conversion;
@@ -215,28 +215,28 @@ impl Conversion {
         opts: &HtmlOptions<'_>,
     ) -> Result<()> {
         let mut set = OutputSet::new().with_inputs([&self.report.input]);
-        set.write_bytes(
-            path.as_ref(),
-            self.page(&self.report, octree, opts)?.as_bytes(),
-        )?;
+        self.page_into(&mut set, path.as_ref(), &self.report, octree, opts)?;
         set.commit().map(|_| ())
     }
 
-    /// The text of `report.html` summarising `report`.
-    fn page(
+    /// Writes `report.html` summarising `report` to `path`, one output of `set`.
+    fn page_into(
         &self,
+        set: &mut OutputSet,
+        path: &Path,
         report: &Report,
         octree: Option<&OccupancyMap>,
         opts: &HtmlOptions<'_>,
-    ) -> Result<String> {
+    ) -> Result<()> {
         let figures = FigureData::of_conversion(self, octree, &opts.figures)?;
         let title = report.input.display().to_string();
-        render(&Page {
+        let page = Page {
             title: &title,
             summary: Summary::Convert(report),
             demo: opts.demo,
             figures: &figures,
-        })
+        };
+        write_html_into(set, path, &page)
     }
 
     /// Writes the SLAM poses in the world frame (`T_world_cam`, the frames'
@@ -354,7 +354,7 @@ impl Conversion {
         let mut report = self.report.clone();
         self.geo_clouds_into(set, &mut report)?;
         report.timing.write_s = t.elapsed().as_secs_f64();
-        set.write_bytes(&page, self.page(&report, octree, html)?.as_bytes())?;
+        self.page_into(set, &page, &report, octree, html)?;
         set.write_bytes(&json, &to_json_bytes(&report)?)
     }
 }

@@ -722,6 +722,37 @@ fn align_cards(r: &AlignReport, figures: &FigureData) -> Vec<Card> {
 
 /// The page as HTML text.
 pub fn render(page: &Page<'_>) -> Result<String> {
+    let mut out = Vec::new();
+    render_into(&mut out, page).map_err(|e| Error::invalid("report page", e.to_string()))?;
+    String::from_utf8(out).map_err(|e| Error::invalid("report page", e.to_string()))
+}
+
+/// Inside `<script>`, `<` only occurs in JSON strings, where `\u003c` means
+/// the same: the JSON passes through this on its way into the page, so the
+/// page is written without a copy of the JSON text.
+struct EscapeLt<'w>(&'w mut dyn std::io::Write);
+
+impl std::io::Write for EscapeLt<'_> {
+    fn write(&mut self, buf: &[u8]) -> std::io::Result<usize> {
+        let mut rest = buf;
+        while let Some(i) = rest.iter().position(|&b| b == b'<') {
+            self.0.write_all(&rest[..i])?;
+            self.0.write_all(b"\\u003c")?;
+            rest = &rest[i + 1..];
+        }
+        self.0.write_all(rest)?;
+        Ok(buf.len())
+    }
+    fn flush(&mut self) -> std::io::Result<()> {
+        self.0.flush()
+    }
+}
+
+/// Writes the page to `out` as it is made: the figures' JSON goes straight
+/// from the data into the page (a page of several MB is never held whole,
+/// nor its JSON).
+pub fn render_into(out: &mut dyn std::io::Write, page: &Page<'_>) -> std::io::Result<()> {
+    use std::io::Write as _;
     let cards = match page.summary {
         Summary::Convert(r) => convert_cards(r, page.figures),
         Summary::Align(r) => align_cards(r, page.figures),
@@ -732,11 +763,7 @@ pub fn render(page: &Page<'_>) -> Result<String> {
         demo: page.demo,
         figures: page.figures,
     };
-    let json =
-        serde_json::to_string(&data).map_err(|e| Error::invalid("report page", e.to_string()))?;
-    // Inside <script>, `<` only occurs in JSON strings, where `\u003c` means the same.
-    let json = json.replace('<', "\\u003c");
-    let mut html = String::with_capacity(json.len() + PAGE_JS.len() + 64 * 1024);
+    let mut html = String::with_capacity(64 * 1024);
     let title = esc(page.title);
     let _ = write!(
         html,
@@ -765,10 +792,18 @@ pub fn render(page: &Page<'_>) -> Result<String> {
         html,
         "</main>\n<footer>Written by slam2world {}; opens offline (everything it draws is in this file). \
          Units: metres, seconds; world frame z up.</footer>\n\
-         <script id=\"s2w-data\" type=\"application/json\">{json}</script>\n<script>\n{PAGE_JS}</script>\n</body>\n</html>\n",
+         <script id=\"s2w-data\" type=\"application/json\">",
         env!("CARGO_PKG_VERSION")
     );
-    Ok(html)
+    out.write_all(html.as_bytes())?;
+    let mut json = std::io::BufWriter::with_capacity(64 * 1024, EscapeLt(out));
+    serde_json::to_writer(&mut json, &data)?;
+    json.flush()?;
+    drop(json);
+    write!(
+        out,
+        "</script>\n<script>\n{PAGE_JS}</script>\n</body>\n</html>\n"
+    )
 }
 
 /// The figure sections (filled by `page.js`).
@@ -802,7 +837,24 @@ const FIGURES_HTML: &str = r#"<section class="figure" id="paths-section">
 
 /// Writes the page to `path` (through a temporary file, renamed).
 pub fn write_html(path: &Path, page: &Page<'_>) -> Result<()> {
-    crate::io::atomic::write_bytes_atomic(path, render(page)?.as_bytes())
+    let mut set = crate::io::atomic::OutputSet::new();
+    write_html_into(&mut set, path, page)?;
+    set.commit().map(|_| ())
+}
+
+/// Writes the page to `path` as one output of `set`, as it is made.
+pub fn write_html_into(
+    set: &mut crate::io::atomic::OutputSet,
+    path: &Path,
+    page: &Page<'_>,
+) -> Result<()> {
+    use std::io::Write as _;
+    set.write(path, |file| {
+        let mut w = std::io::BufWriter::new(file);
+        render_into(&mut w, page)
+            .and_then(|_| w.flush())
+            .map_err(|e| Error::io(path, e))
+    })
 }
 
 #[cfg(test)]
