@@ -28,7 +28,7 @@ pub fn release_free_memory() {
 }
 
 /// Freed bytes between two [`release_free_memory`] calls of a [`Releaser`].
-pub const RELEASE_EVERY: usize = 16 << 20;
+pub const RELEASE_EVERY: usize = 2 << 20;
 
 /// Gives memory back while a loop frees it: a scan's per-chunk parts merged
 /// into one vector are freed one by one, and without this their pages stay
