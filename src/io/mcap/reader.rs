@@ -415,6 +415,9 @@ impl McapFile {
         }
     }
 
+    /// Bytes of the map walked by [`Self::linear_items`] between two releases.
+    const WALK_RELEASE: usize = 8 << 20;
+
     /// Walks the top-level records from the start to the footer.
     pub(super) fn linear_items(&self) -> Result<(Vec<Item<'_>>, BTreeMap<u16, ChannelInfo>)> {
         let map: &[u8] = &self.map;
@@ -422,6 +425,7 @@ impl McapFile {
         let mut items = Vec::new();
         let channels = BTreeMap::new();
         let mut footer = false;
+        let mut released = 0;
         while pos < map.len() {
             let Some((opcode, body, next)) = frame(&map[pos..]) else {
                 return Err(self.err(format!(
@@ -467,7 +471,16 @@ impl McapFile {
                 _ => {}
             }
             pos += next;
+            // The walk faults in a page of every record it looks at, and the
+            // kernel's fault-around pages beside it (most of a long log's
+            // map): they go back as it goes, and each chunk task maps its
+            // own chunk again.
+            if pos - released >= Self::WALK_RELEASE {
+                self.release(&map[released..pos.min(map.len())]);
+                released = pos;
+            }
         }
+        self.release(&map[released..pos.min(map.len())]);
         if !footer {
             return Err(self.err(format!("truncated: no footer record ({} bytes)", map.len())));
         }
