@@ -7,6 +7,12 @@
 //!   (decompressed bytes/s), beside plain single-threaded zstd decompression of
 //!   the same chunks (the peer, the limit).
 //!
+//! - `world`: `world.mcap` of a cloud of `S2W_BENCH_WORLD_POINTS` points
+//!   (default 4,194,304: one full cloud message, 64 MiB), written a piece at a
+//!   time by slam2world's writer, beside the `mcap` crate's writer given the
+//!   same message built whole in memory (the peer: what `world.mcap` was
+//!   written with before; same zstd level, one thread).
+//!
 //! Sizes: poses 1e3 … `S2W_BENCH_POSES` (default 1e6) and `S2W_BENCH_KEYFRAMES` (default 16);
 //! `cargo test` runs each once on small sizes.
 
@@ -16,7 +22,11 @@ use std::time::Duration;
 
 use criterion::{criterion_group, criterion_main, BenchmarkId, Criterion, Throughput};
 use nalgebra::{UnitQuaternion, Vector3};
-use slam2world::io::mcap::{write_slam_log, SlamLogOptions};
+use slam2world::io::mcap::write::foxglove_point_cloud;
+use slam2world::io::mcap::{
+    write_slam_log, write_world_mcap, SlamLogOptions, WorldFlavor, WorldScene,
+};
+use slam2world::io::spill::CloudRef;
 use slam2world::io::{read_mcap, ReadOptions};
 use slam2world::{Keyframe, PinholeCamera, Sim3, Trajectory};
 
@@ -154,6 +164,55 @@ fn bench(c: &mut Criterion) {
                 sum += out.len();
             }
             black_box(sum)
+        })
+    });
+    g.finish();
+
+    let n = env_usize("S2W_BENCH_WORLD_POINTS", 1 << 22);
+    let points: Vec<f32> = (0..3 * n).map(|i| (i as f32 * 0.37).sin() * 20.0).collect();
+    let colors: Vec<u8> = (0..3 * n).map(|i| (i * 7 % 256) as u8).collect();
+    let scene = WorldScene {
+        cloud: CloudRef::Memory(&points, Some(&colors)),
+        t_world_slam: Sim3::identity(),
+        slam_trajectory: None,
+        reference: None,
+        stamp: 10.0,
+        world_frame: "world",
+        slam_frame: "slam",
+    };
+    let world = dir.path().join("world.mcap");
+    let peer = dir.path().join("peer.mcap");
+    let mut g = c.benchmark_group("mcap_world");
+    g.sample_size(10).measurement_time(Duration::from_secs(4));
+    g.throughput(Throughput::Elements(n as u64));
+    g.bench_function(format!("write_world_mcap_{n}_points_piecewise"), |b| {
+        b.iter(|| {
+            write_world_mcap(black_box(&world), &scene, WorldFlavor::Foxglove).expect("write")
+        })
+    });
+    g.bench_function("peer_mcap_crate_writer_message_built_whole", |b| {
+        b.iter(|| {
+            let msg = foxglove_point_cloud(10.0, "world", black_box(&points), Some(&colors));
+            let file = std::io::BufWriter::new(std::fs::File::create(&peer).expect("create"));
+            let mut w = mcap::WriteOptions::new()
+                .compression(Some(mcap::Compression::Zstd))
+                .compression_threads(0)
+                .create(file)
+                .expect("writer");
+            let schema = w
+                .add_schema("foxglove.PointCloud", "protobuf", b"")
+                .expect("schema");
+            let ch = w
+                .add_channel(schema, "/world/cloud", "protobuf", &Default::default())
+                .expect("channel");
+            let header = mcap::records::MessageHeader {
+                channel_id: ch,
+                sequence: 0,
+                log_time: 10_000_000_000,
+                publish_time: 10_000_000_000,
+            };
+            w.write_to_known_channel(&header, &msg).expect("message");
+            w.finish().expect("finish");
         })
     });
     g.finish();
