@@ -63,6 +63,12 @@ pub fn special_kind(_meta: &std::fs::Metadata) -> &'static str {
     "special file"
 }
 
+/// Bytes on each side of a slice given back with it: a fault maps the file
+/// pages around the one it needs (64 KiB of fault-around with small pages;
+/// the whole folio, up to 2 MiB, with the large page-cache folios of current
+/// kernels), and those that fall in a neighbour given back before would stay.
+pub const RELEASE_MARGIN: usize = 2 << 20;
+
 /// A read-only map of a whole file.
 pub struct Mapped {
     map: memmap2::Mmap,
@@ -98,7 +104,8 @@ impl Mapped {
         })
     }
 
-    /// Gives back this process's pages of `bytes` (a slice of the map) once a
+    /// Gives back this process's pages of `bytes` (a slice of the map, and
+    /// [`RELEASE_MARGIN`] beside it) once a
     /// reader is done with them (a chunk decompressed): the memory they held
     /// no longer counts as the process's, and a later read of them maps them
     /// again from the page cache. A reader that walks a long log chunk by
@@ -116,11 +123,19 @@ impl Mapped {
             let page = usize::try_from(unsafe { libc::sysconf(libc::_SC_PAGESIZE) })
                 .unwrap_or(4096)
                 .max(1);
-            // Whole pages inside the slice: those of a neighbour stay.
-            let a = start.div_ceil(page) * page;
-            let b = (start + len) / page * page;
+            // Every page the slice touches, and those the kernel mapped
+            // beside it when it faulted them in (RELEASE_MARGIN): a
+            // neighbour given back before would otherwise keep them, up to
+            // a folio for each chunk of a long log. A reader still on a
+            // neighbour only faults its pages in again.
+            let base_page = base.div_ceil(page) * page;
+            let end = base + self.map.len();
+            let a = (start.saturating_sub(RELEASE_MARGIN) / page * page).max(base_page);
+            let b = ((start + len + RELEASE_MARGIN).div_ceil(page) * page)
+                .min(end.div_ceil(page) * page);
             if b > a {
-                // SAFETY: [a, b) lies inside this read-only file map, which
+                // SAFETY: [a, b) lies inside this read-only file map (the map
+                // starts on a page and covers its last page whole), which
                 // stays mapped: MADV_DONTNEED only drops the page-table
                 // entries, and a later access faults the same file pages in
                 // again (the map is never written, so nothing is lost).
@@ -333,5 +348,62 @@ mod tests {
         assert!(sum >= 7 * 4096 && sum < 7 * n as u64, "{sum}");
         let e = m.check().unwrap_err();
         assert!(e.to_string().contains("shrank"), "{e}");
+    }
+
+    /// Resident KiB of the map of `path` in this process (`/proc/self/smaps`).
+    #[cfg(target_os = "linux")]
+    fn resident_kib(path: &Path) -> u64 {
+        let smaps = std::fs::read_to_string("/proc/self/smaps").unwrap();
+        let name = path.to_string_lossy();
+        let mut lines = smaps.lines();
+        while let Some(l) = lines.next() {
+            if l.ends_with(&*name) {
+                for l in lines.by_ref() {
+                    if let Some(v) = l.strip_prefix("Rss:") {
+                        return v.trim().trim_end_matches("kB").trim().parse().unwrap();
+                    }
+                }
+            }
+        }
+        panic!("no map of {name}");
+    }
+
+    #[cfg(target_os = "linux")]
+    #[test]
+    fn released_slices_leave_no_page_behind_and_read_the_same_again() {
+        let dir = tempfile::tempdir().unwrap();
+        let path = dir.path().join("chunks.bin");
+        let n = 4 << 20;
+        let bytes: Vec<u8> = (0..n).map(|i| (i % 251) as u8).collect();
+        std::fs::write(&path, &bytes).unwrap();
+        let m = Mapped::map(File::open(&path).unwrap(), &path).unwrap();
+        // Pages of 4 KiB, not the 2 MiB folios a page cache may map whole
+        // (and give back whole), so that every page left behind shows.
+        // SAFETY: advice on this test's own read-only map.
+        unsafe {
+            libc::madvise(m.as_ptr() as *mut libc::c_void, n, libc::MADV_NOHUGEPAGE);
+        }
+        let sum = |s: &[u8]| s.iter().map(|&b| u64::from(b)).sum::<u64>();
+        let whole = sum(&m);
+        assert_eq!(resident_kib(&path), (n / 1024) as u64);
+        // Slices that start and end inside pages, as a log's chunks do,
+        // given back one after another in an order that leaves neighbours
+        // faulted in after their own release: nothing stays.
+        let cuts = [0, 5000, 300_001, 1_000_003, 2_500_000, 4_000_001, n];
+        for w in cuts.windows(2).rev() {
+            let chunk = &m[w[0]..w[1]];
+            assert_eq!(sum(chunk), sum(&bytes[w[0]..w[1]]));
+            m.release(chunk);
+        }
+        assert_eq!(resident_kib(&path), 0);
+        // A slice inside the map drops its pages and RELEASE_MARGIN beside
+        // them; what is read again is the file.
+        assert_eq!(sum(&m), whole);
+        m.release(&m[3_000_003..3_000_010]);
+        let (a, b) = (3_000_003 - RELEASE_MARGIN, 3_000_010 + RELEASE_MARGIN);
+        let pages = (b.div_ceil(4096).min(n / 4096) - a / 4096) as u64;
+        assert_eq!((n / 1024) as u64 - resident_kib(&path), 4 * pages);
+        assert_eq!(sum(&m), whole);
+        assert!(m.check().is_ok());
     }
 }
