@@ -18,25 +18,10 @@ use std::collections::BTreeMap;
 use std::io::{self, Seek, SeekFrom, Write};
 use std::path::{Path, PathBuf};
 
+use mcap::records::op;
+use mcap::MAGIC;
+
 use crate::error::{Error, Result};
-
-/// MCAP's magic, at the start and the end of a file.
-const MAGIC: &[u8; 8] = b"\x89MCAP0\r\n";
-
-/// Record opcodes of the MCAP specification.
-mod op {
-    pub const HEADER: u8 = 0x01;
-    pub const FOOTER: u8 = 0x02;
-    pub const SCHEMA: u8 = 0x03;
-    pub const CHANNEL: u8 = 0x04;
-    pub const MESSAGE: u8 = 0x05;
-    pub const CHUNK: u8 = 0x06;
-    pub const MESSAGE_INDEX: u8 = 0x07;
-    pub const CHUNK_INDEX: u8 = 0x08;
-    pub const STATISTICS: u8 = 0x0B;
-    pub const SUMMARY_OFFSET: u8 = 0x0E;
-    pub const DATA_END: u8 = 0x0F;
-}
 
 /// A chunk is closed once its uncompressed records pass this size (a larger
 /// message still goes whole into one chunk).
@@ -312,32 +297,37 @@ impl<W: Write + Seek> PiecewiseWriter<W> {
     /// The open chunk as a writer (opened now if none is: its header
     /// written with placeholders where the file can seek back to patch it).
     fn open_chunk(&mut self) -> io::Result<Compress<'_, W>> {
-        if self.chunk.is_none() {
-            let start = self.pos;
-            let memory = if self.seekable {
-                self.w.write_all(&[0; CHUNK_HEAD as usize])?;
-                self.pos += CHUNK_HEAD;
-                None
-            } else {
-                Some(Vec::new())
-            };
-            self.chunk = Some(OpenChunk {
-                start,
-                memory,
-                uncompressed: 0,
-                crc: crc32fast::Hasher::new(),
-                compressed: 0,
-                times: None,
-                index: BTreeMap::new(),
-                encoder: zstd::stream::write::Encoder::new(Vec::new(), ZSTD_LEVEL)?,
-            });
-        }
-        let PiecewiseWriter { w, pos, chunk, .. } = self;
-        Ok(Compress {
-            chunk: chunk.as_mut().expect("opened above"),
+        let PiecewiseWriter {
             w,
             pos,
-        })
+            seekable,
+            chunk,
+            ..
+        } = self;
+        let chunk = match chunk {
+            Some(c) => c,
+            None => {
+                let start = *pos;
+                let memory = if *seekable {
+                    w.write_all(&[0; CHUNK_HEAD as usize])?;
+                    *pos += CHUNK_HEAD;
+                    None
+                } else {
+                    Some(Vec::new())
+                };
+                chunk.insert(OpenChunk {
+                    start,
+                    memory,
+                    uncompressed: 0,
+                    crc: crc32fast::Hasher::new(),
+                    compressed: 0,
+                    times: None,
+                    index: BTreeMap::new(),
+                    encoder: zstd::stream::write::Encoder::new(Vec::new(), ZSTD_LEVEL)?,
+                })
+            }
+        };
+        Ok(Compress { chunk, w, pos })
     }
 
     /// Ends the open chunk, if any: the encoder flushed, the header patched
