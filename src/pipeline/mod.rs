@@ -40,6 +40,7 @@ pub mod session;
 pub mod source;
 pub mod startup;
 
+use std::borrow::Cow;
 use std::collections::BTreeMap;
 use std::path::Path;
 use std::sync::Arc;
@@ -54,7 +55,7 @@ use crate::cloud::{
 };
 use crate::error::{Error, Result};
 use crate::geometry::Sim3;
-use crate::imu::ImuAlignment;
+use crate::imu::{ImuAlignment, ImuSamples};
 use crate::io::spill::{CloudFile, SpilledKeyframes};
 use crate::keyframe::Keyframe;
 use crate::map::{Grid2d, GridParams, MapParams, OccupancyMap, VoxelState};
@@ -407,6 +408,25 @@ pub fn project_grid(map: &OccupancyMap, params: &GridParams) -> Result<(Grid2d, 
 /// reference pose (naming the file and topics); the fit's own errors (fewer
 /// than 3 pairs, degenerate motion); an octree for a cloud without keyframes.
 pub fn convert(rec: &Recording, opts: &ConvertOptions) -> Result<Conversion> {
+    let motion = Motion {
+        imu: rec.imu.as_ref().map(Cow::Borrowed),
+        live: rec.live.as_ref().map(Cow::Borrowed),
+    };
+    convert_with(rec, motion, opts)
+}
+
+/// The recording's raw IMU and live frames, which only the fit and its
+/// checks read: borrowed from the recording by [`convert`], owned in a
+/// bounded conversion, which frees them before the keyframes are streamed
+/// (on a long log they are most of what the conversion holds).
+struct Motion<'a> {
+    imu: Option<Cow<'a, ImuSamples>>,
+    live: Option<Cow<'a, Trajectory>>,
+}
+
+/// [`convert`] with the recording's IMU and live frames given apart
+/// (`rec.imu` and `rec.live` are not read).
+fn convert_with(rec: &Recording, motion: Motion<'_>, opts: &ConvertOptions) -> Result<Conversion> {
     opts.check()?;
     let effective = reconstruction::effective_options(rec, opts)?;
     let opts: &ConvertOptions = &effective;
@@ -440,17 +460,19 @@ pub fn convert(rec: &Recording, opts: &ConvertOptions) -> Result<Conversion> {
         }
         None => (rec.reference.as_ref(), None, opts),
     };
-    let world = match (reference, &rec.imu) {
+    let live_frames = motion.live.as_deref();
+    let world = match (reference, motion.imu.as_deref()) {
         (Some(r), _) => {
             // Against fixes, the live frames are paired with the fixes
             // interpolated at their own stamps (the online session's rule).
-            let live = match (&rec.gnss, &rec.live, opts.align.skip_init) {
+            let live = match (&rec.gnss, live_frames, opts.align.skip_init) {
                 (Some(f), Some(live), SkipInit::Auto) if opts.align.estimate_offset.is_none() => {
                     Some(gnss::live_cut(f, live, &opts.gnss, opts.align.offset)?)
                 }
                 _ => None,
             };
-            WorldFrame::Poses(Box::new(poses::fit(rec, &slam, r, weights, live, opts)?))
+            let fit = poses::fit(rec, &slam, r, weights, (live_frames, live), opts)?;
+            WorldFrame::Poses(Box::new(fit))
         }
         (None, Some(imu)) => WorldFrame::Imu(Box::new(imu::fit(&slam, imu, opts)?)),
         (None, None) if rec.source.reconstruction.is_some() => {
@@ -472,6 +494,24 @@ pub fn convert(rec: &Recording, opts: &ConvertOptions) -> Result<Conversion> {
     };
     let align_s = secs(t0);
     let t = world.transform();
+    // What reads the IMU and the live frames besides the fit, before they go.
+    let imu_check = match (&world, motion.imu.as_deref()) {
+        (WorldFrame::Poses(_), Some(imu)) => Some(imu::consistency_report(
+            &slam,
+            imu,
+            rec.source.imu_topic.clone(),
+            opts,
+            &t,
+        )),
+        _ => None,
+    };
+    let live_frames = motion.live.as_deref().map_or(0, Trajectory::len);
+    let owned =
+        matches!(motion.imu, Some(Cow::Owned(_))) || matches!(motion.live, Some(Cow::Owned(_)));
+    drop(motion);
+    if owned {
+        crate::buffer::release_free_memory();
+    }
     let ray_origins = rec.keyframes.is_empty() && rec.cloud_origins.is_some();
     if rec.keyframes.is_empty() && ((opts.map.is_some() && !ray_origins) || opts.windowed_cloud) {
         return Err(Error::invalid(
@@ -599,16 +639,13 @@ pub fn convert(rec: &Recording, opts: &ConvertOptions) -> Result<Conversion> {
                     }
                 })
                 .collect();
-            let imu = rec.imu.as_ref().map(|imu| {
-                imu::consistency_report(&slam, imu, rec.source.imu_topic.clone(), opts, &t)
-            });
             (
                 pairs,
                 Some(FitReport::of(a, opts.confidence)),
                 Some(a.alignment.rmse),
                 Some(ApeReport::from(&a.ape)),
                 a.n_fit,
-                imu,
+                imu_check,
             )
         }
         WorldFrame::Imu(a) => {
@@ -662,7 +699,7 @@ pub fn convert(rec: &Recording, opts: &ConvertOptions) -> Result<Conversion> {
             .and_then(|p| p.startup.as_ref())
             .map(|c| report::StartupReport {
                 topic: rec.source.live_topic.clone(),
-                live_frames: rec.live.as_ref().map_or(0, Trajectory::len),
+                live_frames,
                 pairs: c.pairs,
                 converging_time: c.converging_time,
                 stable_time: c.stable_time,
@@ -725,12 +762,16 @@ pub fn convert_path_bounded(path: impl AsRef<Path>, opts: &ConvertOptions) -> Re
 /// ([`Source::read_bounded`]).
 pub fn convert_source_bounded(source: &dyn Source, opts: &ConvertOptions) -> Result<Conversion> {
     let t = Instant::now();
-    let rec = source.read_bounded()?;
+    let mut rec = source.read_bounded()?;
     // The scan's message vectors are freed: give that memory back, so that
     // what follows does not add to it.
     crate::buffer::release_free_memory();
     let read_s = secs(t);
-    let mut c = convert(&rec, opts)?;
+    let motion = Motion {
+        imu: rec.imu.take().map(Cow::Owned),
+        live: rec.live.take().map(Cow::Owned),
+    };
+    let mut c = convert_with(&rec, motion, opts)?;
     c.report.timing.read_s = read_s;
     // The recording (its trajectories and IMU) and the keyframe batches are
     // freed: the writers start from the conversion alone.

@@ -28,9 +28,9 @@ pub struct PoseFit {
 
 /// Fits the recording's SLAM poses (`slam`, sorted by time) to `reference`
 /// (each pose weighing its `weights` entry, when given: a GNSS reference).
-/// With live frames and `skip_init auto`, the start-up cut is `live` when
-/// given (a GNSS reference pairs the live frames itself), else found from
-/// the live frames matched with `reference`.
+/// With live frames (`frames`, the recording's) and `skip_init auto`, the
+/// start-up cut is `live` when given (a GNSS reference pairs the live frames
+/// itself), else found from the live frames matched with `reference`.
 /// A match failure names the file and the topics (for a reconstruction it
 /// stays [`Error::Unmatched`], its time spans followed by the files).
 pub fn fit(
@@ -38,11 +38,11 @@ pub fn fit(
     slam: &Trajectory,
     reference: &Trajectory,
     weights: Option<&[f64]>,
-    live: Option<LiveCut>,
+    (frames, live): (Option<&Trajectory>, Option<LiveCut>),
     opts: &ConvertOptions,
 ) -> Result<PoseFit> {
     // With live frames, `auto` cuts where their scale factors settle.
-    let (align, startup) = match (&rec.live, opts.align.skip_init) {
+    let (align, startup) = match (frames, opts.align.skip_init) {
         (Some(frames), SkipInit::Auto) => {
             let cut = match live {
                 Some(cut) => cut,
