@@ -511,6 +511,62 @@ fn nan_poses_are_refused() {
 }
 
 #[test]
+fn bad_imu_messages_are_refused_by_index() {
+    use slam2world::io::mcap::write::imu_ros1;
+    let dir = tempfile::tempdir().unwrap();
+    let good = |i: u32| imu_ros1(i, f64::from(i), "imu", [0.0; 3], [0.0, 0.0, 9.81]);
+    let nan = imu_ros1(2, 2.0, "imu", [0.0, f64::NAN, 0.0], [0.0, 0.0, 9.81]);
+    let cases: [(&str, Vec<Vec<u8>>, usize, bool); 2] = [
+        // A finite sample after a non-finite one does not hide it.
+        ("nan.mcap", vec![good(0), good(1), nan, good(3)], 2, true),
+        (
+            "short.mcap",
+            vec![good(0), vec![1, 2, 3], good(2)],
+            1,
+            false,
+        ),
+    ];
+    for (name, messages, index, non_finite) in cases {
+        let p = dir.path().join(name);
+        custom_log(
+            &p,
+            slam2world::io::mcap::schemas::ROS1_IMU,
+            "ros1",
+            "/imu0",
+            &messages,
+        );
+        expect_decode_error(
+            read_mcap(&p, &ReadOptions::default()),
+            "/imu0",
+            index,
+            |e| match e {
+                WireError::Value { what } => non_finite && what.contains("non-finite IMU sample"),
+                WireError::Truncated { .. } => !non_finite,
+                _ => false,
+            },
+        );
+    }
+    // Samples out of order are read by time, the first of a repeated stamp kept.
+    let p = dir.path().join("order.mcap");
+    let messages = vec![
+        good(2),
+        good(0),
+        imu_ros1(9, 1.0, "imu", [1.0; 3], [0.0, 0.0, 9.81]),
+        imu_ros1(10, 1.0, "imu", [2.0; 3], [0.0, 0.0, 9.81]),
+    ];
+    custom_log(
+        &p,
+        slam2world::io::mcap::schemas::ROS1_IMU,
+        "ros1",
+        "/imu0",
+        &messages,
+    );
+    let imu = read_mcap(&p, &ReadOptions::default()).unwrap().imu.unwrap();
+    assert_eq!(imu.timestamps, vec![0.0, 1.0, 2.0]);
+    assert_eq!(imu.gyro[1].x, 1.0);
+}
+
+#[test]
 fn short_pose_message_is_refused() {
     let dir = tempfile::tempdir().unwrap();
     let p = dir.path().join("short.mcap");

@@ -28,7 +28,7 @@ use crate::io::messages::decode::{self, KeyframeMsg, MessageKind, StampedPose};
 use crate::io::messages::gnss;
 use crate::io::messages::{
     ChannelCount, ChannelInfo, Inventory, MappedMessage, MappedScan, MessageSource, RawMessage,
-    ReadMode,
+    ReadMode, ScanInfo, ScanSink,
 };
 use crate::io::rosbag::{Ros1Bag, Ros2Bag, Ros2Storage};
 use crate::io::spill::{PixelSpill, SpilledKeyframes, SpilledPixels};
@@ -178,28 +178,37 @@ fn topic_info(c: &ChannelInfo, count: u64, time_range: Option<(u64, u64)>) -> To
 /// `messages` yields `(channel id, log time)`.
 fn topic_inventory(
     channels: &BTreeMap<u16, ChannelInfo>,
-    messages: impl Iterator<Item = (u16, u64)>,
+    stats: &ChannelStats,
 ) -> (Vec<TopicInfo>, HashMap<u16, u64>) {
-    // (count, first, last) per channel id
-    let mut stats = vec![(0u64, u64::MAX, 0u64); 1 << 16];
-    for (id, t) in messages {
-        let s = &mut stats[id as usize];
-        s.0 += 1;
-        s.1 = s.1.min(t);
-        s.2 = s.2.max(t);
-    }
     let topics = channels
         .values()
         .map(|c| {
-            let (count, first, last) = stats[c.id as usize];
+            let (count, first, last) = stats.0[c.id as usize];
             topic_info(c, count, (count > 0).then_some((first, last)))
         })
         .collect();
     let counts = channels
         .keys()
-        .map(|id| (*id, stats[*id as usize].0))
+        .map(|id| (*id, stats.0[*id as usize].0))
         .collect();
     (topics, counts)
+}
+
+/// Messages, first and last log time per channel id, counted as a scan
+/// gives them.
+struct ChannelStats(Vec<(u64, u64, u64)>);
+
+impl ChannelStats {
+    fn new() -> ChannelStats {
+        ChannelStats(vec![(0, u64::MAX, 0); 1 << 16])
+    }
+
+    fn add(&mut self, id: u16, t: u64) {
+        let s = &mut self.0[id as usize];
+        s.0 += 1;
+        s.1 = s.1.min(t);
+        s.2 = s.2.max(t);
+    }
 }
 
 /// The topics and counts of a container's inventory.
@@ -522,6 +531,19 @@ impl MessageSource for AnyContainer {
         }
     }
 
+    fn scan_into<T: Send + Default>(
+        &self,
+        want: impl Fn(&ChannelInfo) -> bool + Sync,
+        map: impl Fn(&ChannelInfo, &RawMessage<'_>) -> T + Sync,
+        sink: &mut dyn ScanSink<T>,
+    ) -> Result<ScanInfo> {
+        match self {
+            AnyContainer::Mcap(f) => MessageSource::scan_into(f, want, map, sink),
+            AnyContainer::Ros1(b) => MessageSource::scan_into(b, want, map, sink),
+            AnyContainer::Ros2(b) => MessageSource::scan_into(b, want, map, sink),
+        }
+    }
+
     fn inventory(&self) -> Result<Inventory> {
         match self {
             AnyContainer::Mcap(f) => f.inventory(),
@@ -585,10 +607,13 @@ fn read_log_with(
                 |c| kinds.get(c).is_some(),
                 |c, m| decode_message(kinds.get(c), c, m, spill),
             )?;
+            let mut gathered = Gathered::new(&kinds);
+            let info = scan.into_sink(&mut gathered);
             let (topics, counts) = inventory_topics(&inv);
             log_of_scan(
                 MessageSource::path(b),
-                scan,
+                info,
+                gathered,
                 topics,
                 counts,
                 container,
@@ -624,6 +649,14 @@ impl KindCache {
             code => KINDS.get(code as usize - 2).copied(),
         }
     }
+
+    /// The kind of channel `id` when [`KindCache::get`] has found it.
+    fn cached(&self, id: u16) -> Option<MessageKind> {
+        match self.0[id as usize].load(Ordering::Relaxed) {
+            0 | 1 => None,
+            code => KINDS.get(code as usize - 2).copied(),
+        }
+    }
 }
 
 /// [`read_log`] over an opened source. With `counts` (the source's
@@ -650,7 +683,8 @@ fn read_log_spilling<S: MessageSource>(
     let path = source.path();
     let kinds = KindCache::new();
     let decode = |c: &ChannelInfo, m: &RawMessage<'_>| decode_message(kinds.get(c), c, m, spill);
-    let (scan, topics, counts) = match counts {
+    let mut gathered = Gathered::new(&kinds);
+    let (info, topics, counts) = match counts {
         Some(inv) => {
             // Choose from the index, then read the chosen channels alone.
             let (topics, counts) = inventory_topics(&inv);
@@ -663,21 +697,18 @@ fn read_log_spilling<S: MessageSource>(
                 .all()
                 .map(|c| c.id)
                 .collect();
-            let scan = source.scan_map(|c| wanted.contains(&c.id), decode)?;
-            (scan, topics, counts)
+            let info = source.scan_into(|c| wanted.contains(&c.id), decode, &mut gathered)?;
+            (info, topics, counts)
         }
         None => {
             // Every message is counted; those of a known type are decoded inside the
             // parallel chunk tasks (decompressed buffers are reused, not kept).
-            let scan = source.scan_map(|_| true, decode)?;
-            let (topics, counts) = topic_inventory(
-                &scan.channels,
-                scan.messages.iter().map(|m| (m.channel_id, m.log_time)),
-            );
-            (scan, topics, counts)
+            let info = source.scan_into(|_| true, decode, &mut gathered)?;
+            let (topics, counts) = topic_inventory(&info.channels, &gathered.stats);
+            (info, topics, counts)
         }
     };
-    log_of_scan(path, scan, topics, counts, container, options)
+    log_of_scan(path, info, gathered, topics, counts, container, options)
 }
 
 /// The log of `path` from a scan of it (the messages of the topics it may
@@ -685,7 +716,8 @@ fn read_log_spilling<S: MessageSource>(
 /// keyframes, live frames, poses, IMU and fixes assembled.
 fn log_of_scan(
     path: &Path,
-    scan: MappedScan<Decoded>,
+    scan: ScanInfo,
+    gathered: Gathered<'_>,
     topics: Vec<TopicInfo>,
     counts: HashMap<u16, u64>,
     container: Option<Container>,
@@ -707,7 +739,14 @@ fn log_of_scan(
         indexed: scan.mode == ReadMode::Indexed,
         ..Log::default()
     };
-    let mut messages = scan.messages;
+    let Gathered {
+        mut messages,
+        mut poses,
+        mut imu,
+        ..
+    } = gathered;
+    // The scan's waves are freed: their memory goes back before the assembly.
+    crate::buffer::release_free_memory();
     // The channels read by each step below, in order: once a step is done, the
     // messages no later step reads are dropped and their memory given back, so
     // that a long log's scan and what is built from it are not held together.
@@ -758,22 +797,34 @@ fn log_of_scan(
         log.live = read_live(path, &messages, c)?;
     }
     keep_from(&mut messages, 3);
+    // The estimate's and the reference's columns (one column when both
+    // name the same topic).
+    let same = picks.est.is_some() && picks.est.map(|c| c.id) == picks.pose.map(|c| c.id);
+    let mut column = |id: u16, again: bool| match (poses.remove(&id), again) {
+        (Some(col), true) => {
+            poses.insert(id, col.clone());
+            col
+        }
+        (col, _) => col.unwrap_or_default(),
+    };
     if let Some(c) = picks.est {
-        log.frames = Some(read_poses(path, &messages, c, &counts, (&None, &None))?);
+        let col = column(c.id, same);
+        log.frames = Some(read_poses(path, &messages, col, c, (&None, &None))?);
     }
     keep_from(&mut messages, 4);
     if let Some(c) = picks.pose {
+        let col = column(c.id, false);
         log.reference = Some(read_poses(
             path,
             &messages,
+            col,
             c,
-            &counts,
             (&options.tf_parent, &options.tf_child),
         )?);
     }
     keep_from(&mut messages, 5);
     if let Some(c) = picks.imu {
-        log.imu = Some(read_imu(path, &messages, c)?);
+        log.imu = Some(read_imu(path, imu.remove(&c.id).unwrap_or_default(), c)?);
     }
     keep_from(&mut messages, 6);
     if let Some(c) = picks.gnss {
@@ -820,6 +871,77 @@ enum Decoded {
     Error(WireError),
     #[default]
     Other,
+}
+
+/// The pose samples of one channel as its messages come (the rows of a
+/// [`Trajectory`], in message order), and the first message that gave none.
+#[derive(Clone, Default)]
+struct PoseColumn {
+    times: Vec<f64>,
+    positions: Vec<Vector3<f64>>,
+    orientations: Vec<UnitQuaternion<f64>>,
+    /// Messages given (the next one's index on its topic).
+    n: usize,
+    /// The first message that is no pose sample: its index, log time and why.
+    error: Option<(usize, u64, WireError)>,
+}
+
+impl PoseColumn {
+    fn push(&mut self, m: Mapped) {
+        let i = self.n;
+        self.n += 1;
+        if self.error.is_some() {
+            return;
+        }
+        match m.value {
+            Decoded::Pose((t, p, [x, y, z, w])) => {
+                self.times.push(t);
+                self.positions.push(Vector3::from(p));
+                self.orientations
+                    .push(UnitQuaternion::new_unchecked(Quaternion::new(w, x, y, z)));
+            }
+            Decoded::Error(e) => self.error = Some((i, m.log_time, e)),
+            _ => self.error = Some((i, m.log_time, WireError::schema("not a pose message"))),
+        }
+    }
+}
+
+/// The IMU samples of one channel as its messages come, and the first
+/// message that gave no finite sample.
+#[derive(Default)]
+struct ImuColumn {
+    times: Vec<f64>,
+    gyro: Vec<Vector3<f64>>,
+    accel: Vec<Vector3<f64>>,
+    /// Messages given (the next one's index on its topic).
+    n: usize,
+    /// The first message that is no finite sample: its index, log time and why.
+    error: Option<(usize, u64, WireError)>,
+}
+
+impl ImuColumn {
+    fn push(&mut self, m: Mapped) {
+        let i = self.n;
+        self.n += 1;
+        if self.error.is_some() {
+            return;
+        }
+        let fail = match m.value {
+            Decoded::Imu(s)
+                if s.time.is_finite()
+                    && s.gyro.iter().chain(s.accel.iter()).all(|v| v.is_finite()) =>
+            {
+                self.times.push(s.time);
+                self.gyro.push(Vector3::from(s.gyro));
+                self.accel.push(Vector3::from(s.accel));
+                return;
+            }
+            Decoded::Imu(s) => WireError::value(format!("non-finite IMU sample {s:?}")),
+            Decoded::Error(e) => e,
+            _ => WireError::schema("not an IMU message"),
+        };
+        self.error = Some((i, m.log_time, fail));
+    }
 }
 
 /// Every kind, for the per-channel cache of [`read_log_from`].
@@ -1103,46 +1225,27 @@ fn samples_err(path: &Path, topic: &str, what: String) -> Error {
     )
 }
 
-/// The pose samples of a pose channel, with TF narrowed to one frame pair
-/// (`tf`: the parent and child asked for; the most frequent pair that fits).
-/// `counts` (messages per channel) sizes the arrays.
+/// The pose samples of a pose channel: its column (gathered as the log was
+/// scanned), or for TF its messages narrowed to one frame pair (`tf`: the
+/// parent and child asked for; the most frequent pair that fits).
 fn read_poses(
     path: &Path,
     messages: &[Mapped],
+    column: PoseColumn,
     c: &ChannelInfo,
-    counts: &HashMap<u16, u64>,
     tf: (&Option<String>, &Option<String>),
 ) -> Result<Trajectory> {
     let mine = messages.iter().filter(|m| m.channel_id == c.id);
     if kind_of(c) != Some(MessageKind::Tf) {
-        // A hint only, never past the messages there are.
-        let n = counts
-            .get(&c.id)
-            .map_or(0, |&n| usize::try_from(n).unwrap_or(usize::MAX))
-            .min(messages.len());
-        let mut times: Vec<f64> = Vec::with_capacity(n);
-        let mut positions: Vec<Vector3<f64>> = Vec::with_capacity(n);
-        let mut orientations: Vec<UnitQuaternion<f64>> = Vec::with_capacity(n);
-        for (i, m) in mine.enumerate() {
-            match &m.value {
-                Decoded::Pose((t, p, [x, y, z, w])) => {
-                    times.push(*t);
-                    positions.push(Vector3::from(*p));
-                    orientations.push(UnitQuaternion::new_unchecked(Quaternion::new(
-                        *w, *x, *y, *z,
-                    )));
-                }
-                Decoded::Error(e) => return Err(at(path, &c.topic, i, m.log_time, e.clone())),
-                _ => {
-                    return Err(at(
-                        path,
-                        &c.topic,
-                        i,
-                        m.log_time,
-                        WireError::schema("not a pose message"),
-                    ))
-                }
-            }
+        let PoseColumn {
+            mut times,
+            mut positions,
+            mut orientations,
+            error,
+            ..
+        } = column;
+        if let Some((i, log_time, e)) = error {
+            return Err(at(path, &c.topic, i, log_time, e));
         }
         if !times.is_sorted_by(|a, b| a <= b) {
             let mut order: Vec<usize> = (0..times.len()).collect();
@@ -1275,46 +1378,78 @@ fn trajectory_of(
         .map_err(|e| samples_err(path, topic, e.to_string()))
 }
 
-fn read_imu(path: &Path, messages: &[Mapped], c: &ChannelInfo) -> Result<ImuSamples> {
-    let mut samples: Vec<&decode::ImuMsg> = Vec::new();
-    for (i, m) in messages.iter().filter(|m| m.channel_id == c.id).enumerate() {
-        match &m.value {
-            Decoded::Imu(s) => {
-                if !s.time.is_finite()
-                    || s.gyro.iter().chain(s.accel.iter()).any(|v| !v.is_finite())
-                {
-                    return Err(at(
-                        path,
-                        &c.topic,
-                        i,
-                        m.log_time,
-                        WireError::value(format!("non-finite IMU sample {s:?}")),
-                    ));
-                }
-                samples.push(s);
-            }
-            Decoded::Error(e) => return Err(at(path, &c.topic, i, m.log_time, e.clone())),
-            _ => {
-                return Err(at(
-                    path,
-                    &c.topic,
-                    i,
-                    m.log_time,
-                    WireError::schema("not an IMU message"),
-                ))
-            }
-        }
+/// The IMU samples of channel `c` from its column, by time (of samples with
+/// the same stamp, the first given).
+fn read_imu(path: &Path, column: ImuColumn, c: &ChannelInfo) -> Result<ImuSamples> {
+    let ImuColumn {
+        mut times,
+        mut gyro,
+        mut accel,
+        error,
+        ..
+    } = column;
+    if let Some((i, log_time, e)) = error {
+        return Err(at(path, &c.topic, i, log_time, e));
     }
-    samples.sort_by(|a, b| a.time.total_cmp(&b.time));
-    samples.dedup_by(|b, a| a.time == b.time);
-    ImuSamples::try_new(
-        samples.iter().map(|s| s.time).collect(),
-        samples.iter().map(|s| Vector3::from(s.gyro)).collect(),
-        samples.iter().map(|s| Vector3::from(s.accel)).collect(),
-    )
-    .map_err(|e| samples_err(path, &c.topic, e.to_string()))
+    if !times.is_sorted_by(|a, b| a < b) {
+        let mut order: Vec<usize> = (0..times.len()).collect();
+        order.sort_by(|&a, &b| times[a].total_cmp(&times[b]));
+        order.dedup_by(|b, a| times[*a] == times[*b]);
+        times = order.iter().map(|&k| times[k]).collect();
+        gyro = order.iter().map(|&k| gyro[k]).collect();
+        accel = order.iter().map(|&k| accel[k]).collect();
+    }
+    ImuSamples::try_new(times, gyro, accel).map_err(|e| samples_err(path, &c.topic, e.to_string()))
 }
 
+/// What a log's scan is gathered into, as the scan gives it: the pose and
+/// IMU samples of each channel straight into columns (a long log's
+/// messages are mostly these: a scan entry is 96 bytes, a column row 64 or
+/// 56), every other message kept as it came.
+struct Gathered<'k> {
+    kinds: &'k KindCache,
+    messages: Vec<Mapped>,
+    poses: HashMap<u16, PoseColumn>,
+    imu: HashMap<u16, ImuColumn>,
+    stats: ChannelStats,
+}
+
+impl<'k> Gathered<'k> {
+    fn new(kinds: &'k KindCache) -> Gathered<'k> {
+        Gathered {
+            kinds,
+            messages: Vec::new(),
+            poses: HashMap::new(),
+            imu: HashMap::new(),
+            stats: ChannelStats::new(),
+        }
+    }
+}
+
+impl ScanSink<Decoded> for Gathered<'_> {
+    fn message(&mut self, m: Mapped) {
+        self.stats.add(m.channel_id, m.log_time);
+        // A decode error goes where the channel's samples go.
+        let kind = match &m.value {
+            Decoded::Error(_) => self.kinds.cached(m.channel_id),
+            _ => None,
+        };
+        match (&m.value, kind) {
+            (Decoded::Imu(_), _) | (_, Some(MessageKind::Imu)) => {
+                self.imu.entry(m.channel_id).or_default().push(m)
+            }
+            (Decoded::Pose(_), _) => self.poses.entry(m.channel_id).or_default().push(m),
+            (_, Some(k)) if k.is_pose() && k != MessageKind::Tf => {
+                self.poses.entry(m.channel_id).or_default().push(m)
+            }
+            _ => self.messages.push(m),
+        }
+    }
+
+    fn restart(&mut self) {
+        *self = Gathered::new(self.kinds);
+    }
+}
 /// The fixes of a GNSS channel, in log order, checked by
 /// [`GnssFixes::from_fixes`] (its index is the message's on the topic).
 fn read_fixes(path: &Path, messages: &[Mapped], c: &ChannelInfo) -> Result<GnssFixes> {

@@ -16,7 +16,7 @@ use rayon::prelude::*;
 
 use crate::error::{Error, Result};
 pub use crate::io::messages::{ChannelInfo, RawMessage, ReadMode};
-use crate::io::messages::{Inventory, MappedScan, MessageSource};
+use crate::io::messages::{Inventory, MappedScan, MessageSource, ScanInfo, ScanSink};
 
 /// The 8 bytes every MCAP file starts and ends with.
 pub const MAGIC: &[u8; 8] = b"\x89MCAP0\r\n";
@@ -916,6 +916,15 @@ impl MessageSource for McapFile {
         map: impl Fn(&ChannelInfo, &RawMessage<'_>) -> T + Sync,
     ) -> Result<MappedScan<T>> {
         McapFile::scan_map(self, want, map)
+    }
+
+    fn scan_into<T: Send + Default>(
+        &self,
+        want: impl Fn(&ChannelInfo) -> bool + Sync,
+        map: impl Fn(&ChannelInfo, &RawMessage<'_>) -> T + Sync,
+        sink: &mut dyn ScanSink<T>,
+    ) -> Result<ScanInfo> {
+        McapFile::scan_into(self, want, map, sink)
     }
 
     fn inventory(&self) -> Result<Inventory> {

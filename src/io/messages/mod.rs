@@ -100,6 +100,81 @@ pub struct MappedScan<T> {
     pub profile: String,
 }
 
+impl<T> MappedScan<T> {
+    /// Gives the messages to `sink` in order, a quarter at a time, each
+    /// quarter's memory freed before the next: the scan and what the sink
+    /// makes of it are not held whole together.
+    pub fn into_sink(self, sink: &mut dyn ScanSink<T>) -> ScanInfo {
+        let MappedScan {
+            channels,
+            mut messages,
+            mode,
+            profile,
+        } = self;
+        let quarter = messages.len().div_ceil(4).max(1);
+        while !messages.is_empty() {
+            let n = quarter.min(messages.len());
+            for m in messages.drain(..n) {
+                sink.message(m);
+            }
+            messages.shrink_to_fit();
+            crate::buffer::release_free_memory();
+        }
+        ScanInfo {
+            channels,
+            mode,
+            profile,
+        }
+    }
+}
+
+/// A scan without its messages: what [`MessageSource::scan_into`] returns
+/// beside the messages it gave.
+#[derive(Debug)]
+pub struct ScanInfo {
+    /// Channels by id.
+    pub channels: BTreeMap<u16, ChannelInfo>,
+    /// Indexed or linear.
+    pub mode: ReadMode,
+    /// The MCAP Header record's profile; `ros1` / `ros2` for bags.
+    pub profile: String,
+}
+
+impl ScanInfo {
+    /// The scan of these messages.
+    pub fn with_messages<T>(self, messages: Vec<MappedMessage<T>>) -> MappedScan<T> {
+        MappedScan {
+            channels: self.channels,
+            messages,
+            mode: self.mode,
+            profile: self.profile,
+        }
+    }
+}
+
+/// Where [`MessageSource::scan_into`] gives a scan's messages, in the scan's
+/// order, so that the messages need not be held together (a reader that
+/// can gives them a few chunks at a time).
+pub trait ScanSink<T> {
+    /// The next message.
+    fn message(&mut self, m: MappedMessage<T>);
+
+    /// Forgets every message given so far: the scan starts again (an MCAP
+    /// read through its index found fewer messages than the index declares,
+    /// and reads the file linearly).
+    fn restart(&mut self);
+}
+
+impl<T> ScanSink<T> for Vec<MappedMessage<T>> {
+    fn message(&mut self, m: MappedMessage<T>) {
+        self.push(m);
+    }
+
+    fn restart(&mut self) {
+        self.clear();
+    }
+}
+
 /// Messages and time range of one channel, as an index or a scan gives them.
 #[derive(Clone, Debug, PartialEq)]
 pub struct ChannelCount {
@@ -171,6 +246,19 @@ pub trait MessageSource {
         want: impl Fn(&ChannelInfo) -> bool + Sync,
         map: impl Fn(&ChannelInfo, &RawMessage<'_>) -> T + Sync,
     ) -> Result<MappedScan<T>>;
+
+    /// [`MessageSource::scan_map`] with the messages given to `sink` in the
+    /// same order. This default scans whole, then gives the messages a
+    /// quarter at a time ([`MappedScan::into_sink`]); the MCAP reader gives
+    /// them a wave of chunks at a time.
+    fn scan_into<T: Send + Default>(
+        &self,
+        want: impl Fn(&ChannelInfo) -> bool + Sync,
+        map: impl Fn(&ChannelInfo, &RawMessage<'_>) -> T + Sync,
+        sink: &mut dyn ScanSink<T>,
+    ) -> Result<ScanInfo> {
+        Ok(self.scan_map(want, map)?.into_sink(sink))
+    }
 
     /// Counts and time ranges per channel, from the index where there is one.
     fn inventory(&self) -> Result<Inventory>;
