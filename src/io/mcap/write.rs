@@ -369,10 +369,20 @@ fn check_filled(declared: usize, got: usize) -> Result<()> {
     ))
 }
 
-fn foxglove_poses(stamp: f64, frame: &str, traj: &Trajectory) -> Vec<u8> {
+/// `foxglove.PosesInFrame` of `traj` into `out` a pose at a time (a
+/// reference of hours at 200 Hz is a message of hundreds of MB, never whole
+/// in memory); the bytes written, which a `std::io::sink()` counts.
+fn foxglove_poses_into(
+    stamp: f64,
+    frame: &str,
+    traj: &Trajectory,
+    out: &mut dyn Write,
+) -> std::io::Result<u64> {
     let mut m = PbWriter::new();
     m.message(1, &pb_time(stamp));
     m.bytes(2, frame.as_bytes());
+    let mut n = m.buf.len() as u64;
+    out.write_all(&m.buf)?;
     for i in 0..traj.len() {
         let p = traj.positions[i];
         let q = match &traj.orientations {
@@ -382,9 +392,12 @@ fn foxglove_poses(stamp: f64, frame: &str, traj: &Trajectory) -> Vec<u8> {
             }
             None => [0.0, 0.0, 0.0, 1.0],
         };
+        m.buf.clear();
         m.message(3, &pb_pose([p.x, p.y, p.z], q));
+        n += m.buf.len() as u64;
+        out.write_all(&m.buf)?;
     }
-    m.buf
+    Ok(n)
 }
 
 fn foxglove_frame_transform(stamp: f64, parent: &str, child: &str, t: &Sim3) -> Vec<u8> {
@@ -701,8 +714,15 @@ fn write_world_impl(
                     if let Some(traj) = traj {
                         let mut ch =
                             w.add_channel(topic, schemas::FOXGLOVE_POSES_IN_FRAME, "protobuf")?;
-                        let msg = foxglove_poses(scene.stamp, scene.world_frame, traj);
-                        put(&mut w, &mut ch, &msg)?;
+                        let (stamp, frame) = (scene.stamp, scene.world_frame);
+                        let len = foxglove_poses_into(stamp, frame, traj, &mut std::io::sink())
+                            .map_err(|e| Error::io(path, e))?;
+                        crate::interrupt::check()?;
+                        w.message_with(&mut ch, t, len, |out| {
+                            foxglove_poses_into(stamp, frame, traj, out)
+                                .map(drop)
+                                .map_err(|e| Error::io(path, e))
+                        })?;
                     }
                 }
                 if let Some(leaves) = octomap {
