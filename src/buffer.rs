@@ -27,6 +27,28 @@ pub fn release_free_memory() {
     }
 }
 
+/// Arenas of glibc's allocator for a process that calls
+/// [`bound_arenas`]. Each thread that allocates gets an arena of its own
+/// (up to eight per core) and the free memory at the top of a thread's arena
+/// stays resident: `malloc_trim` gives back the top of the main arena alone.
+/// A conversion's parallel tasks free a batch of keyframes or a wave of
+/// chunks at a time, and on the 10x log about 20 MiB stayed resident that
+/// way after each phase. With two arenas, what the tasks free is given back
+/// at the end of the phase ([`release_free_memory`]).
+pub const ARENAS: i32 = 2;
+
+/// Bounds glibc's allocator to [`ARENAS`] arenas: for the command line,
+/// whose conversions promise a memory bound; the Python module leaves the
+/// host process's allocator as it is. A no-op with other allocators.
+pub fn bound_arenas() {
+    #[cfg(all(target_os = "linux", target_env = "gnu"))]
+    // SAFETY: mallopt sets a tunable of the allocator; called before any
+    // thread is started.
+    unsafe {
+        libc::mallopt(libc::M_ARENA_MAX, ARENAS);
+    }
+}
+
 /// Freed bytes between two [`release_free_memory`] calls of a [`Releaser`].
 pub const RELEASE_EVERY: usize = 2 << 20;
 
