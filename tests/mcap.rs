@@ -221,6 +221,12 @@ fn round_trip(compression: Option<mcap::Compression>) {
     assert_eq!(s.len(), imu.len());
     assert_eq!(s.gyro, imu.gyro);
     assert_eq!(s.accel, imu.accel);
+    // Sized from the summary's message counts as the scan began: no
+    // vector grew past what it holds.
+    assert_eq!(r.timestamps.capacity(), r.len());
+    assert_eq!(r.positions.capacity(), r.len());
+    assert_eq!(s.timestamps.capacity(), s.len());
+    assert_eq!(s.accel.capacity(), s.len());
 }
 
 #[test]

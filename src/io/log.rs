@@ -887,6 +887,13 @@ struct PoseColumn {
 }
 
 impl PoseColumn {
+    /// Room for `n` more samples, when the allocator has it (a hint).
+    fn reserve(&mut self, n: usize) {
+        let _ = self.times.try_reserve_exact(n);
+        let _ = self.positions.try_reserve_exact(n);
+        let _ = self.orientations.try_reserve_exact(n);
+    }
+
     fn push(&mut self, m: Mapped) {
         let i = self.n;
         self.n += 1;
@@ -920,6 +927,13 @@ struct ImuColumn {
 }
 
 impl ImuColumn {
+    /// Room for `n` more samples, when the allocator has it (a hint).
+    fn reserve(&mut self, n: usize) {
+        let _ = self.times.try_reserve_exact(n);
+        let _ = self.gyro.try_reserve_exact(n);
+        let _ = self.accel.try_reserve_exact(n);
+    }
+
     fn push(&mut self, m: Mapped) {
         let i = self.n;
         self.n += 1;
@@ -1412,6 +1426,10 @@ struct Gathered<'k> {
     poses: HashMap<u16, PoseColumn>,
     imu: HashMap<u16, ImuColumn>,
     stats: ChannelStats,
+    /// Messages expected per channel ([`ScanSink::expect`]).
+    expected: HashMap<u16, u64>,
+    /// Of those, what the channels kept in `messages` so far expect.
+    expected_messages: usize,
 }
 
 impl<'k> Gathered<'k> {
@@ -1422,27 +1440,57 @@ impl<'k> Gathered<'k> {
             poses: HashMap::new(),
             imu: HashMap::new(),
             stats: ChannelStats::new(),
+            expected: HashMap::new(),
+            expected_messages: 0,
         }
     }
 }
 
 impl ScanSink<Decoded> for Gathered<'_> {
+    fn expect(&mut self, counts: &BTreeMap<u16, u64>) {
+        self.expected = counts.iter().map(|(id, n)| (*id, *n)).collect();
+    }
+
     fn message(&mut self, m: Mapped) {
+        // The first message of its channel: room for as many as expected.
+        let expected = match self.stats.0[m.channel_id as usize].0 {
+            0 => self.expected.get(&m.channel_id).map_or(0, |&n| n as usize),
+            _ => 0,
+        };
         self.stats.add(m.channel_id, m.log_time);
         // A decode error goes where the channel's samples go.
         let kind = match &m.value {
             Decoded::Error(_) => self.kinds.cached(m.channel_id),
             _ => None,
         };
-        match (&m.value, kind) {
-            (Decoded::Imu(_), _) | (_, Some(MessageKind::Imu)) => {
-                self.imu.entry(m.channel_id).or_default().push(m)
+        enum Goes {
+            Imu,
+            Poses,
+            Kept,
+        }
+        let goes = match (&m.value, kind) {
+            (Decoded::Imu(_), _) | (_, Some(MessageKind::Imu)) => Goes::Imu,
+            (Decoded::Pose(_), _) => Goes::Poses,
+            (_, Some(k)) if k.is_pose() && k != MessageKind::Tf => Goes::Poses,
+            _ => Goes::Kept,
+        };
+        match goes {
+            Goes::Imu => {
+                let col = self.imu.entry(m.channel_id).or_default();
+                col.reserve(expected);
+                col.push(m);
             }
-            (Decoded::Pose(_), _) => self.poses.entry(m.channel_id).or_default().push(m),
-            (_, Some(k)) if k.is_pose() && k != MessageKind::Tf => {
-                self.poses.entry(m.channel_id).or_default().push(m)
+            Goes::Poses => {
+                let col = self.poses.entry(m.channel_id).or_default();
+                col.reserve(expected);
+                col.push(m);
             }
-            _ => self.messages.push(m),
+            Goes::Kept => {
+                self.expected_messages += expected;
+                let more = self.expected_messages.saturating_sub(self.messages.len());
+                let _ = self.messages.try_reserve_exact(more);
+                self.messages.push(m);
+            }
         }
     }
 
@@ -1450,6 +1498,7 @@ impl ScanSink<Decoded> for Gathered<'_> {
         *self = Gathered::new(self.kinds);
     }
 }
+
 /// The fixes of a GNSS channel, in log order, checked by
 /// [`GnssFixes::from_fixes`] (its index is the message's on the topic).
 fn read_fixes(path: &Path, messages: &[Mapped], c: &ChannelInfo) -> Result<GnssFixes> {

@@ -128,6 +128,16 @@ impl McapFile {
                 (items, known, ReadMode::Linear, schemas)
             }
         };
+        if let Some(declared) = self.declared_counts() {
+            // As many as the file can hold at most (a message record is at
+            // least 31 bytes), whatever its summary says.
+            let most = (self.bytes().len() / 31) as u64;
+            let counts: BTreeMap<u16, u64> = declared
+                .into_iter()
+                .map(|(id, n)| (id, n.min(most)))
+                .collect();
+            sink.expect(&counts);
+        }
         let mut merge = Merge {
             file: self,
             channels: if mode == ReadMode::Indexed {

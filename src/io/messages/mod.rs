@@ -111,6 +111,11 @@ impl<T> MappedScan<T> {
             mode,
             profile,
         } = self;
+        let mut counts: BTreeMap<u16, u64> = BTreeMap::new();
+        for m in &messages {
+            *counts.entry(m.channel_id).or_default() += 1;
+        }
+        sink.expect(&counts);
         let quarter = messages.len().div_ceil(4).max(1);
         while !messages.is_empty() {
             let n = quarter.min(messages.len());
@@ -156,6 +161,11 @@ impl ScanInfo {
 /// order, so that the messages need not be held together (a reader that
 /// can gives them a few chunks at a time).
 pub trait ScanSink<T> {
+    /// The messages the scan expects per channel id (an index's counts, no
+    /// more than the file can hold), before the first message: a hint to
+    /// size what the sink keeps, so that it need not grow.
+    fn expect(&mut self, _counts: &BTreeMap<u16, u64>) {}
+
     /// The next message.
     fn message(&mut self, m: MappedMessage<T>);
 
