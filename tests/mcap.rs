@@ -517,6 +517,65 @@ fn nan_poses_are_refused() {
 }
 
 #[test]
+fn graph_messages_give_poses_to_the_keyframes_before_them() {
+    use slam2world::io::mcap::write::{graph_msg_ros1_poses, keyframe_msg_ros1_at};
+    let kfs = test_keyframes(2, 4, 4);
+    let pose = |x: f64| Sim3::try_new(UnitQuaternion::identity(), Vector3::new(x, 0.0, 0.0), 1.0);
+    let (a, b, c) = (pose(1.0).unwrap(), pose(2.0).unwrap(), pose(3.0).unwrap());
+    // In log order: keyframe 0; graph 0 (ids 0 and 1: 1 not seen yet);
+    // keyframe 1; graph 1 (both); keyframe 0 again (its own pose again);
+    // graph 2 (id 1 alone).
+    let k = |i: usize, p: &Sim3| (true, keyframe_msg_ros1_at(&kfs[i], p));
+    let g = |poses: &[(i32, Sim3)]| (false, graph_msg_ros1_poses(poses));
+    let own0 = pose(9.0).unwrap();
+    let messages = [
+        k(0, &kfs[0].pose),
+        g(&[(0, a), (1, a)]),
+        k(1, &kfs[1].pose),
+        g(&[(0, b), (1, b)]),
+        k(0, &own0),
+        g(&[(1, c)]),
+    ];
+    let dir = tempfile::tempdir().unwrap();
+    let p = dir.path().join("graph.mcap");
+    {
+        let f = std::fs::File::create(&p).unwrap();
+        let mut w = mcap::WriteOptions::new()
+            .create(std::io::BufWriter::new(f))
+            .unwrap();
+        let (kn, ke, kd) = slam2world::io::mcap::schemas::ROS1_KEYFRAME;
+        let (gn, ge, gd) = slam2world::io::mcap::schemas::ROS1_KEYFRAME_GRAPH;
+        let ks = w.add_schema(kn, ke, kd).unwrap();
+        let gs = w.add_schema(gn, ge, gd).unwrap();
+        let kc = w
+            .add_channel(ks, "/lsd_slam/keyframes", "ros1", &Default::default())
+            .unwrap();
+        let gc = w
+            .add_channel(gs, "/lsd_slam/graph", "ros1", &Default::default())
+            .unwrap();
+        for (i, (is_kf, data)) in messages.iter().enumerate() {
+            let h = mcap::records::MessageHeader {
+                channel_id: if *is_kf { kc } else { gc },
+                sequence: i as u32,
+                log_time: i as u64,
+                publish_time: i as u64,
+            };
+            w.write_to_known_channel(&h, data).unwrap();
+        }
+        w.finish().unwrap();
+    }
+    let log = read_mcap(&p, &ReadOptions::default()).unwrap();
+    assert_eq!((log.keyframe_messages, log.graph_messages), (3, 3));
+    // Graph 0 finds keyframe 0; graph 1 both; graph 2 keyframe 1.
+    assert_eq!(log.graph_updates, 1 + 2 + 1);
+    let x: Vec<f64> = log.keyframes.iter().map(|k| k.pose.translation.x).collect();
+    // Keyframe 0: its second version came after every graph that named it.
+    // Keyframe 1: the last graph.
+    assert!((x[0] - own0.translation.x).abs() < 1e-6, "{x:?}");
+    assert!((x[1] - c.translation.x).abs() < 1e-6, "{x:?}");
+}
+
+#[test]
 fn bad_imu_messages_are_refused_by_index() {
     use slam2world::io::mcap::write::imu_ros1;
     let dir = tempfile::tempdir().unwrap();

@@ -10,7 +10,7 @@
 //! reference and the IMU are sorted by time. Times in the log are `u64`
 //! nanoseconds; the results are in seconds and metres.
 
-use std::collections::{BTreeMap, HashMap};
+use std::collections::{BTreeMap, HashMap, HashSet};
 use std::path::{Path, PathBuf};
 use std::sync::atomic::{AtomicU8, Ordering};
 
@@ -743,6 +743,7 @@ fn log_of_scan(
         mut messages,
         mut poses,
         mut imu,
+        graph: graph_updates,
         ..
     } = gathered;
     // The scan's waves are freed: their memory goes back before the assembly.
@@ -790,7 +791,13 @@ fn log_of_scan(
     keep_from(&mut messages, 0);
     let mut spilled = Vec::new();
     if let Some(kf) = picks.keyframes {
-        spilled = read_keyframes(path, &mut messages, kf, picks.graph, &mut log)?;
+        spilled = read_keyframes(
+            path,
+            &mut messages,
+            (kf, picks.graph),
+            &graph_updates,
+            &mut log,
+        )?;
     }
     keep_from(&mut messages, 2);
     if let Some(c) = picks.live {
@@ -1056,11 +1063,14 @@ struct Entry {
     pose_source: String,
 }
 
+/// The keyframes of channel `kf` (the latest version of each id), their
+/// poses from `graph`'s messages where one came after the version
+/// (`updates`, applied as the log was scanned).
 fn read_keyframes(
     path: &Path,
     messages: &mut [Mapped],
-    kf: &ChannelInfo,
-    graph: Option<&ChannelInfo>,
+    (kf, graph): (&ChannelInfo, Option<&ChannelInfo>),
+    updates: &GraphUpdates,
     log: &mut Log,
 ) -> Result<Vec<SpilledPixels>> {
     let graph_id = graph.map(|g| g.id);
@@ -1102,10 +1112,11 @@ fn read_keyframes(
                 },
             );
         } else if Some(m.channel_id) == graph_id {
+            // Its poses were applied as the log was scanned.
             let i = graph_index;
             graph_index += 1;
-            let frames = match &m.value {
-                Decoded::Graph(Ok(f)) => f,
+            match &m.value {
+                Decoded::Graph(Ok(_)) => {}
                 Decoded::Graph(Err(e)) => {
                     return Err(at(path, graph_topic, i, m.log_time, e.clone()))
                 }
@@ -1118,14 +1129,18 @@ fn read_keyframes(
                         WireError::schema("not a graph message"),
                     ))
                 }
-            };
-            for (id, c2w) in frames {
+            }
+        }
+    }
+    if let Some(g) = graph {
+        if let Some(a) = updates.applied.get(&(kf.id, g.id)) {
+            for (id, (i, c2w)) in &a.poses {
                 if let Some(e) = latest.get_mut(id) {
                     e.pose = *c2w;
                     e.pose_source = format!("topic {graph_topic}: message {i}");
-                    log.graph_updates += 1;
                 }
             }
+            log.graph_updates = a.updates;
         }
     }
     log.keyframe_messages = kf_index;
@@ -1430,6 +1445,59 @@ struct Gathered<'k> {
     expected: HashMap<u16, u64>,
     /// Of those, what the channels kept in `messages` so far expect.
     expected_messages: usize,
+    /// The graph messages' poses, applied as they come (the messages are
+    /// kept without them).
+    graph: GraphUpdates,
+}
+
+/// Graph messages applied to the keyframes as the scan gives them, for every
+/// pair of a keyframe channel and a graph channel: what `read_keyframes`
+/// would find going through the messages in order. An LSD-SLAM graph
+/// message holds every keyframe's pose so far, so that the messages of a
+/// long log grow as the square of its keyframes (37 MB for the 20x log's 467
+/// graph messages): they are not kept.
+#[derive(Debug, Default)]
+struct GraphUpdates {
+    /// The keyframe ids each keyframe channel has given so far.
+    seen: HashMap<u16, HashSet<i32>>,
+    /// Per (keyframe channel, graph channel).
+    applied: HashMap<(u16, u16), Applied>,
+}
+
+/// The graph messages of one channel applied to the keyframes of one channel.
+#[derive(Debug, Default)]
+struct Applied {
+    /// For each id, the pose of the last graph message after the id's latest
+    /// keyframe version, with that message's index on its topic.
+    poses: HashMap<i32, (usize, [f64; 7])>,
+    /// Poses given to a keyframe, over every graph message.
+    updates: usize,
+}
+
+impl GraphUpdates {
+    /// A version of keyframe `id` on channel `k`: its own pose again.
+    fn keyframe(&mut self, k: u16, id: i32) {
+        self.seen.entry(k).or_default().insert(id);
+        for ((kk, _), a) in self.applied.iter_mut() {
+            if *kk == k {
+                a.poses.remove(&id);
+            }
+        }
+    }
+
+    /// Graph message `index` of channel `g`: each pose given to the
+    /// keyframes seen so far.
+    fn graph(&mut self, g: u16, index: usize, frames: &[(i32, [f64; 7])]) {
+        for (k, ids) in &self.seen {
+            let a = self.applied.entry((*k, g)).or_default();
+            for (id, pose) in frames {
+                if ids.contains(id) {
+                    a.poses.insert(*id, (index, *pose));
+                    a.updates += 1;
+                }
+            }
+        }
+    }
 }
 
 impl<'k> Gathered<'k> {
@@ -1442,6 +1510,7 @@ impl<'k> Gathered<'k> {
             stats: ChannelStats::new(),
             expected: HashMap::new(),
             expected_messages: 0,
+            graph: GraphUpdates::default(),
         }
     }
 }
@@ -1451,12 +1520,26 @@ impl ScanSink<Decoded> for Gathered<'_> {
         self.expected = counts.iter().map(|(id, n)| (*id, *n)).collect();
     }
 
-    fn message(&mut self, m: Mapped) {
+    fn message(&mut self, mut m: Mapped) {
         // The first message of its channel: room for as many as expected.
-        let expected = match self.stats.0[m.channel_id as usize].0 {
+        let index = self.stats.0[m.channel_id as usize].0;
+        let expected = match index {
             0 => self.expected.get(&m.channel_id).map_or(0, |&n| n as usize),
             _ => 0,
         };
+        match &mut m.value {
+            Decoded::Keyframe(r) => {
+                if let Ok((msg, _)) = r.as_ref() {
+                    self.graph.keyframe(m.channel_id, msg.id);
+                }
+            }
+            Decoded::Graph(Ok(frames)) => {
+                let frames = std::mem::take(frames);
+                let index = usize::try_from(index).unwrap_or(usize::MAX);
+                self.graph.graph(m.channel_id, index, &frames);
+            }
+            _ => {}
+        }
         self.stats.add(m.channel_id, m.log_time);
         // A decode error goes where the channel's samples go.
         let kind = match &m.value {
