@@ -746,8 +746,6 @@ fn log_of_scan(
         graph: graph_updates,
         ..
     } = gathered;
-    // The scan's waves are freed: their memory goes back before the assembly.
-    crate::buffer::release_free_memory();
     // The channels read by each step below, in order: once a step is done, the
     // messages no later step reads are dropped and their memory given back, so
     // that a long log's scan and what is built from it are not held together.
@@ -880,74 +878,94 @@ enum Decoded {
     Other,
 }
 
-/// The pose samples of one channel as its messages come (the rows of a
-/// [`Trajectory`], in message order), and the first message that gave none.
+/// The samples of one channel as its messages come (`R`: the rows they
+/// make, in message order), and the first message that gave none.
 #[derive(Clone, Default)]
-struct PoseColumn {
-    times: Vec<f64>,
-    positions: Vec<Vector3<f64>>,
-    orientations: Vec<UnitQuaternion<f64>>,
+struct Column<R> {
+    rows: R,
     /// Messages given (the next one's index on its topic).
     n: usize,
-    /// The first message that is no pose sample: its index, log time and why.
+    /// The first message that is no sample: its index, log time and why.
     error: Option<(usize, u64, WireError)>,
 }
 
-impl PoseColumn {
-    /// Room for `n` more samples, when the allocator has it (a hint).
+/// The rows of a [`Column`].
+trait Rows: Default {
+    /// Room for `n` more rows, when the allocator has it (a hint).
+    fn reserve(&mut self, n: usize);
+
+    /// The row of a decoded message, or why it gives none.
+    fn add(&mut self, value: Decoded) -> std::result::Result<(), WireError>;
+}
+
+impl<R: Rows> Column<R> {
+    fn push(&mut self, m: Mapped) {
+        let i = self.n;
+        self.n += 1;
+        if self.error.is_some() {
+            return;
+        }
+        if let Err(e) = self.rows.add(m.value) {
+            self.error = Some((i, m.log_time, e));
+        }
+    }
+
+    /// The rows, or the first message's error (`path`, `topic` named).
+    fn into_rows(self, path: &Path, topic: &str) -> Result<R> {
+        match self.error {
+            Some((i, log_time, e)) => Err(at(path, topic, i, log_time, e)),
+            None => Ok(self.rows),
+        }
+    }
+}
+
+/// Pose samples: the rows of a [`Trajectory`].
+#[derive(Clone, Default)]
+struct PoseRows {
+    times: Vec<f64>,
+    positions: Vec<Vector3<f64>>,
+    orientations: Vec<UnitQuaternion<f64>>,
+}
+
+impl Rows for PoseRows {
     fn reserve(&mut self, n: usize) {
         let _ = self.times.try_reserve_exact(n);
         let _ = self.positions.try_reserve_exact(n);
         let _ = self.orientations.try_reserve_exact(n);
     }
 
-    fn push(&mut self, m: Mapped) {
-        let i = self.n;
-        self.n += 1;
-        if self.error.is_some() {
-            return;
-        }
-        match m.value {
+    fn add(&mut self, value: Decoded) -> std::result::Result<(), WireError> {
+        match value {
             Decoded::Pose((t, p, [x, y, z, w])) => {
                 self.times.push(t);
                 self.positions.push(Vector3::from(p));
                 self.orientations
                     .push(UnitQuaternion::new_unchecked(Quaternion::new(w, x, y, z)));
+                Ok(())
             }
-            Decoded::Error(e) => self.error = Some((i, m.log_time, e)),
-            _ => self.error = Some((i, m.log_time, WireError::schema("not a pose message"))),
+            Decoded::Error(e) => Err(e),
+            _ => Err(WireError::schema("not a pose message")),
         }
     }
 }
 
-/// The IMU samples of one channel as its messages come, and the first
-/// message that gave no finite sample.
+/// Finite IMU samples: the rows of [`ImuSamples`].
 #[derive(Default)]
-struct ImuColumn {
+struct ImuRows {
     times: Vec<f64>,
     gyro: Vec<Vector3<f64>>,
     accel: Vec<Vector3<f64>>,
-    /// Messages given (the next one's index on its topic).
-    n: usize,
-    /// The first message that is no finite sample: its index, log time and why.
-    error: Option<(usize, u64, WireError)>,
 }
 
-impl ImuColumn {
-    /// Room for `n` more samples, when the allocator has it (a hint).
+impl Rows for ImuRows {
     fn reserve(&mut self, n: usize) {
         let _ = self.times.try_reserve_exact(n);
         let _ = self.gyro.try_reserve_exact(n);
         let _ = self.accel.try_reserve_exact(n);
     }
 
-    fn push(&mut self, m: Mapped) {
-        let i = self.n;
-        self.n += 1;
-        if self.error.is_some() {
-            return;
-        }
-        let fail = match m.value {
+    fn add(&mut self, value: Decoded) -> std::result::Result<(), WireError> {
+        match value {
             Decoded::Imu(s)
                 if s.time.is_finite()
                     && s.gyro.iter().chain(s.accel.iter()).all(|v| v.is_finite()) =>
@@ -955,15 +973,20 @@ impl ImuColumn {
                 self.times.push(s.time);
                 self.gyro.push(Vector3::from(s.gyro));
                 self.accel.push(Vector3::from(s.accel));
-                return;
+                Ok(())
             }
-            Decoded::Imu(s) => WireError::value(format!("non-finite IMU sample {s:?}")),
-            Decoded::Error(e) => e,
-            _ => WireError::schema("not an IMU message"),
-        };
-        self.error = Some((i, m.log_time, fail));
+            Decoded::Imu(s) => Err(WireError::value(format!("non-finite IMU sample {s:?}"))),
+            Decoded::Error(e) => Err(e),
+            _ => Err(WireError::schema("not an IMU message")),
+        }
     }
 }
+
+/// The pose samples of one channel.
+type PoseColumn = Column<PoseRows>;
+
+/// The IMU samples of one channel.
+type ImuColumn = Column<ImuRows>;
 
 /// Every kind, for the per-channel cache of [`read_log_from`].
 const KINDS: [MessageKind; 12] = [
@@ -1264,18 +1287,12 @@ fn read_poses(
     c: &ChannelInfo,
     tf: (&Option<String>, &Option<String>),
 ) -> Result<Trajectory> {
-    let mine = messages.iter().filter(|m| m.channel_id == c.id);
     if kind_of(c) != Some(MessageKind::Tf) {
-        let PoseColumn {
+        let PoseRows {
             mut times,
             mut positions,
             mut orientations,
-            error,
-            ..
-        } = column;
-        if let Some((i, log_time, e)) = error {
-            return Err(at(path, &c.topic, i, log_time, e));
-        }
+        } = column.into_rows(path, &c.topic)?;
         if !times.is_sorted_by(|a, b| a <= b) {
             let mut order: Vec<usize> = (0..times.len()).collect();
             order.sort_by(|&a, &b| times[a].total_cmp(&times[b]));
@@ -1287,6 +1304,7 @@ fn read_poses(
             .map_err(|e| samples_err(path, &c.topic, e.to_string()));
     }
     let mut decoded: Vec<&Vec<StampedPose>> = Vec::new();
+    let mine = messages.iter().filter(|m| m.channel_id == c.id);
     for (i, m) in mine.enumerate() {
         match &m.value {
             Decoded::Tf(v) => decoded.push(v),
@@ -1410,16 +1428,11 @@ fn trajectory_of(
 /// The IMU samples of channel `c` from its column, by time (of samples with
 /// the same stamp, the first given).
 fn read_imu(path: &Path, column: ImuColumn, c: &ChannelInfo) -> Result<ImuSamples> {
-    let ImuColumn {
+    let ImuRows {
         mut times,
         mut gyro,
         mut accel,
-        error,
-        ..
-    } = column;
-    if let Some((i, log_time, e)) = error {
-        return Err(at(path, &c.topic, i, log_time, e));
-    }
+    } = column.into_rows(path, &c.topic)?;
     if !times.is_sorted_by(|a, b| a < b) {
         let mut order: Vec<usize> = (0..times.len()).collect();
         order.sort_by(|&a, &b| times[a].total_cmp(&times[b]));
@@ -1560,12 +1573,12 @@ impl ScanSink<Decoded> for Gathered<'_> {
         match goes {
             Goes::Imu => {
                 let col = self.imu.entry(m.channel_id).or_default();
-                col.reserve(expected);
+                col.rows.reserve(expected);
                 col.push(m);
             }
             Goes::Poses => {
                 let col = self.poses.entry(m.channel_id).or_default();
-                col.reserve(expected);
+                col.rows.reserve(expected);
                 col.push(m);
             }
             Goes::Kept => {

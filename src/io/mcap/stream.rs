@@ -76,9 +76,11 @@ impl McapFile {
         let (info, got) = self.scan_into_with(want, map, true, sink)?;
         if info.mode == ReadMode::Indexed {
             if let Some(declared) = self.declared_counts() {
-                let short = info.channels.values().filter(|c| want(c)).any(|c| {
-                    got.get(&c.id).copied().unwrap_or(0) < declared.get(&c.id).copied().unwrap_or(0)
-                });
+                let short = info
+                    .channels
+                    .values()
+                    .filter(|c| want(c))
+                    .any(|c| got[c.id as usize] < declared.get(&c.id).copied().unwrap_or(0));
                 if short {
                     sink.restart();
                     return Ok(self.scan_into_with(want, map, false, sink)?.0);
@@ -88,14 +90,14 @@ impl McapFile {
         Ok(info)
     }
 
-    /// The scan, and the messages given per wanted channel.
+    /// The scan, and the messages given per channel id.
     fn scan_into_with<T: Send + Default>(
         &self,
         want: &(impl Fn(&ChannelInfo) -> bool + Sync),
         map: &(impl Fn(&ChannelInfo, &RawMessage<'_>) -> T + Sync),
         use_index: bool,
         sink: &mut dyn ScanSink<T>,
-    ) -> Result<(ScanInfo, BTreeMap<u16, u64>)> {
+    ) -> Result<(ScanInfo, Vec<u64>)> {
         let profile = self.profile();
         let plan = if use_index {
             self.indexed_plan()?
@@ -147,7 +149,7 @@ impl McapFile {
             },
             schemas: BTreeMap::new(),
             keep: vec![0u8; 1 << 16],
-            got: BTreeMap::new(),
+            got: vec![0; 1 << 16],
         };
         for c in merge.channels.values() {
             merge.keep[c.id as usize] = if want(c) { 2 } else { 1 };
@@ -322,8 +324,8 @@ struct Merge<'f> {
     schemas: BTreeMap<u16, (records::SchemaHeader, Vec<u8>)>,
     /// Per channel id: 0 undefined, 1 unwanted, 2 wanted.
     keep: Vec<u8>,
-    /// Messages given to the sink, per channel.
-    got: BTreeMap<u16, u64>,
+    /// Messages given to the sink, per channel id.
+    got: Vec<u64>,
 }
 
 impl Merge<'_> {
@@ -409,7 +411,7 @@ impl Merge<'_> {
             messages[k].value = v;
         }
         for m in messages {
-            *self.got.entry(m.channel_id).or_default() += 1;
+            self.got[m.channel_id as usize] += 1;
             sink.message(m);
         }
         Ok(())

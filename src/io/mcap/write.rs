@@ -369,35 +369,52 @@ fn check_filled(declared: usize, got: usize) -> Result<()> {
     ))
 }
 
-/// `foxglove.PosesInFrame` of `traj` into `out` a pose at a time (a
+/// `foxglove.PosesInFrame` of a trajectory, written a pose at a time (a
 /// reference of hours at 200 Hz is a message of hundreds of MB, never whole
-/// in memory); the bytes written, which a `std::io::sink()` counts.
-fn foxglove_poses_into(
-    stamp: f64,
-    frame: &str,
-    traj: &Trajectory,
-    out: &mut dyn Write,
-) -> std::io::Result<u64> {
-    let mut m = PbWriter::new();
-    m.message(1, &pb_time(stamp));
-    m.bytes(2, frame.as_bytes());
-    let mut n = m.buf.len() as u64;
-    out.write_all(&m.buf)?;
-    for i in 0..traj.len() {
-        let p = traj.positions[i];
-        let q = match &traj.orientations {
-            Some(o) => {
-                let c = o[i].coords;
-                [c[0], c[1], c[2], c[3]]
-            }
-            None => [0.0, 0.0, 0.0, 1.0],
-        };
-        m.buf.clear();
-        m.message(3, &pb_pose([p.x, p.y, p.z], q));
-        n += m.buf.len() as u64;
-        out.write_all(&m.buf)?;
+/// in memory). Every pose field is the same number of bytes (fixed-width
+/// doubles), so the length is known before the message is written.
+struct PosesMessage<'t> {
+    head: Vec<u8>,
+    traj: &'t Trajectory,
+}
+
+impl<'t> PosesMessage<'t> {
+    fn new(stamp: f64, frame: &str, traj: &'t Trajectory) -> Self {
+        let mut m = PbWriter::new();
+        m.message(1, &pb_time(stamp));
+        m.bytes(2, frame.as_bytes());
+        PosesMessage { head: m.buf, traj }
     }
-    Ok(n)
+
+    /// Field 3 (a pose) of `p` and `q` (xyzw) into `m`, cleared first.
+    fn pose_field(m: &mut PbWriter, p: [f64; 3], q: [f64; 4]) {
+        m.buf.clear();
+        m.message(3, &pb_pose(p, q));
+    }
+
+    fn len(&self) -> u64 {
+        let mut m = PbWriter::new();
+        Self::pose_field(&mut m, [0.0; 3], [0.0; 4]);
+        (self.head.len() + self.traj.len() * m.buf.len()) as u64
+    }
+
+    fn write(&self, out: &mut dyn Write) -> std::io::Result<()> {
+        out.write_all(&self.head)?;
+        let mut m = PbWriter::new();
+        for i in 0..self.traj.len() {
+            let p = self.traj.positions[i];
+            let q = match &self.traj.orientations {
+                Some(o) => {
+                    let c = o[i].coords;
+                    [c[0], c[1], c[2], c[3]]
+                }
+                None => [0.0, 0.0, 0.0, 1.0],
+            };
+            Self::pose_field(&mut m, [p.x, p.y, p.z], q);
+            out.write_all(&m.buf)?;
+        }
+        Ok(())
+    }
 }
 
 fn foxglove_frame_transform(stamp: f64, parent: &str, child: &str, t: &Sim3) -> Vec<u8> {
@@ -714,14 +731,10 @@ fn write_world_impl(
                     if let Some(traj) = traj {
                         let mut ch =
                             w.add_channel(topic, schemas::FOXGLOVE_POSES_IN_FRAME, "protobuf")?;
-                        let (stamp, frame) = (scene.stamp, scene.world_frame);
-                        let len = foxglove_poses_into(stamp, frame, traj, &mut std::io::sink())
-                            .map_err(|e| Error::io(path, e))?;
+                        let msg = PosesMessage::new(scene.stamp, scene.world_frame, traj);
                         crate::interrupt::check()?;
-                        w.message_with(&mut ch, t, len, |out| {
-                            foxglove_poses_into(stamp, frame, traj, out)
-                                .map(drop)
-                                .map_err(|e| Error::io(path, e))
+                        w.message_with(&mut ch, t, msg.len(), |out| {
+                            msg.write(out).map_err(|e| Error::io(path, e))
                         })?;
                     }
                 }
