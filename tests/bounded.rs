@@ -200,3 +200,30 @@ fn keyframes_out_of_id_order_give_the_in_memory_octree() {
         bounded.octree.unwrap().to_bt_bytes()
     );
 }
+
+#[test]
+fn the_inertial_path_reads_its_imu_back_from_disk_to_the_same_outputs() {
+    // Without a reference the raw IMU is what the world frame comes from:
+    // a bounded read leaves it on disk and the fit reads it back.
+    let dir = tempfile::tempdir().unwrap();
+    let log = dir.path().join("imu.mcap");
+    let o = common::bin(&[
+        "simulate",
+        "-o",
+        log.to_str().unwrap(),
+        "--reduced",
+        "4",
+        "--no-reference",
+    ]);
+    assert!(o.status.success(), "{}", common::stderr(&o));
+    let read = slam2world::io::log::read_log_spilled(&log, &Default::default()).unwrap();
+    assert!(read.imu.is_none() && read.reference.is_none());
+    assert!(read.imu_on_disk.as_ref().is_some_and(|i| i.len() > 1000));
+    let (mem, bounded) = both(&log, &ConvertOptions::default(), dir.path());
+    assert!(mem.world.poses().is_none(), "the IMU gives the world frame");
+    assert_eq!(
+        mem.transform().scale.to_bits(),
+        bounded.transform().scale.to_bits()
+    );
+    assert_eq!(mem.report.points, bounded.report.points);
+}

@@ -600,16 +600,18 @@ fn bad_imu_messages_are_refused_by_index() {
             "/imu0",
             &messages,
         );
-        expect_decode_error(
+        // The same error at the same index when the samples go to disk as
+        // they are read (a bounded read), before anything is converted.
+        for r in [
             read_mcap(&p, &ReadOptions::default()),
-            "/imu0",
-            index,
-            |e| match e {
+            slam2world::io::log::read_log_spilled(&p, &ReadOptions::default()),
+        ] {
+            expect_decode_error(r, "/imu0", index, |e| match e {
                 WireError::Value { what } => non_finite && what.contains("non-finite IMU sample"),
                 WireError::Truncated { .. } => !non_finite,
                 _ => false,
-            },
-        );
+            });
+        }
     }
     // Samples out of order are read by time, the first of a repeated stamp kept.
     let p = dir.path().join("order.mcap");
@@ -629,6 +631,15 @@ fn bad_imu_messages_are_refused_by_index() {
     let imu = read_mcap(&p, &ReadOptions::default()).unwrap().imu.unwrap();
     assert_eq!(imu.timestamps, vec![0.0, 1.0, 2.0]);
     assert_eq!(imu.gyro[1].x, 1.0);
+    // Read bounded, the samples wait on disk and come back the same.
+    let log = slam2world::io::log::read_log_spilled(&p, &ReadOptions::default()).unwrap();
+    assert!(log.imu.is_none());
+    let on_disk = log.imu_on_disk.expect("the IMU on disk");
+    assert_eq!(on_disk.len(), 4);
+    let back = on_disk.load().unwrap();
+    assert_eq!(back.timestamps, imu.timestamps);
+    assert_eq!(back.gyro, imu.gyro);
+    assert_eq!(back.accel, imu.accel);
 }
 
 #[test]

@@ -31,7 +31,9 @@ use crate::io::messages::{
     ReadMode, ScanInfo, ScanSink,
 };
 use crate::io::rosbag::{Ros1Bag, Ros2Bag, Ros2Storage};
-use crate::io::spill::{PixelSpill, SpilledKeyframes, SpilledPixels};
+use crate::io::spill::{
+    ImuColumns, ImuSpill, PixelSpill, SpilledImu, SpilledKeyframes, SpilledPixels,
+};
 use crate::keyframe::Keyframe;
 use crate::trajectory::Trajectory;
 
@@ -102,6 +104,9 @@ pub struct Log {
     pub reference: Option<Trajectory>,
     /// Raw IMU samples, sorted by time (samples with a repeated time dropped).
     pub imu: Option<ImuSamples>,
+    /// The raw IMU samples left on disk by [`read_log_spilled`] (`imu` is
+    /// then `None`).
+    pub imu_on_disk: Option<std::sync::Arc<ImuOnDisk>>,
     /// GNSS fixes in log order (their stamps are the messages' header times),
     /// those without a fix dropped and counted.
     pub gnss: Option<GnssFixes>,
@@ -607,7 +612,7 @@ fn read_log_with(
                 |c| kinds.get(c).is_some(),
                 |c, m| decode_message(kinds.get(c), c, m, spill),
             )?;
-            let mut gathered = Gathered::new(&kinds);
+            let mut gathered = Gathered::new(&kinds, spill.is_some());
             let info = scan.into_sink(&mut gathered);
             let (topics, counts) = inventory_topics(&inv);
             log_of_scan(
@@ -683,7 +688,7 @@ fn read_log_spilling<S: MessageSource>(
     let path = source.path();
     let kinds = KindCache::new();
     let decode = |c: &ChannelInfo, m: &RawMessage<'_>| decode_message(kinds.get(c), c, m, spill);
-    let mut gathered = Gathered::new(&kinds);
+    let mut gathered = Gathered::new(&kinds, spill.is_some());
     let (info, topics, counts) = match counts {
         Some(inv) => {
             // Choose from the index, then read the chosen channels alone.
@@ -829,7 +834,12 @@ fn log_of_scan(
     }
     keep_from(&mut messages, 5);
     if let Some(c) = picks.imu {
-        log.imu = Some(read_imu(path, imu.remove(&c.id).unwrap_or_default(), c)?);
+        let column = imu.remove(&c.id).unwrap_or_default();
+        if column.rows.spill.is_some() {
+            log.imu_on_disk = ImuOnDisk::of_column(path, column, c)?.map(std::sync::Arc::new);
+        } else {
+            log.imu = Some(read_imu(path, column, c)?);
+        }
     }
     keep_from(&mut messages, 6);
     if let Some(c) = picks.gnss {
@@ -949,16 +959,22 @@ impl Rows for PoseRows {
     }
 }
 
-/// Finite IMU samples: the rows of [`ImuSamples`].
+/// Finite IMU samples: the rows of [`ImuSamples`], in memory or (a
+/// bounded read's) on disk.
 #[derive(Default)]
 struct ImuRows {
     times: Vec<f64>,
     gyro: Vec<Vector3<f64>>,
     accel: Vec<Vector3<f64>>,
+    /// Where the rows go instead, when set.
+    spill: Option<ImuSpill>,
 }
 
 impl Rows for ImuRows {
     fn reserve(&mut self, n: usize) {
+        if self.spill.is_some() {
+            return;
+        }
         let _ = self.times.try_reserve_exact(n);
         let _ = self.gyro.try_reserve_exact(n);
         let _ = self.accel.try_reserve_exact(n);
@@ -970,9 +986,15 @@ impl Rows for ImuRows {
                 if s.time.is_finite()
                     && s.gyro.iter().chain(s.accel.iter()).all(|v| v.is_finite()) =>
             {
-                self.times.push(s.time);
-                self.gyro.push(Vector3::from(s.gyro));
-                self.accel.push(Vector3::from(s.accel));
+                let (gyro, accel) = (Vector3::from(s.gyro), Vector3::from(s.accel));
+                match &mut self.spill {
+                    Some(spill) => spill.push(s.time, &gyro, &accel),
+                    None => {
+                        self.times.push(s.time);
+                        self.gyro.push(gyro);
+                        self.accel.push(accel);
+                    }
+                }
                 Ok(())
             }
             Decoded::Imu(s) => Err(WireError::value(format!("non-finite IMU sample {s:?}"))),
@@ -1226,7 +1248,15 @@ fn to_keyframe(
 /// The tracked poses of the live-frame channel `c` (see [`Log::live`]);
 /// `None` when it has no message.
 fn read_live(path: &Path, messages: &[Mapped], c: &ChannelInfo) -> Result<Option<Trajectory>> {
-    let mut rows: Vec<(f64, Vector3<f64>, UnitQuaternion<f64>)> = Vec::new();
+    // A long log has a live frame per camera frame: the rows are made once,
+    // at their exact size, and sorted only when they came out of order.
+    let n = messages.iter().filter(|m| m.channel_id == c.id).count();
+    if n == 0 {
+        return Ok(None);
+    }
+    let mut times = Vec::with_capacity(n);
+    let mut positions = Vec::with_capacity(n);
+    let mut orientations = Vec::with_capacity(n);
     for (i, m) in messages.iter().filter(|m| m.channel_id == c.id).enumerate() {
         let fail = |e: WireError| at(path, &c.topic, i, m.log_time, e);
         let (time, cam_to_world) = match &m.value {
@@ -1251,20 +1281,44 @@ fn read_live(path: &Path, messages: &[Mapped], c: &ChannelInfo) -> Result<Option
                 format!("frame {i}: time {time} is not finite"),
             ));
         }
-        rows.push((time, pose.translation, pose.rotation));
+        times.push(time);
+        positions.push(pose.translation);
+        orientations.push(pose.rotation);
     }
-    if rows.is_empty() {
-        return Ok(None);
+    // By time, a repeated time keeping its first frame.
+    if let Some(order) = time_order(&times, true) {
+        reorder(&mut times, &order);
+        reorder(&mut positions, &order);
+        reorder(&mut orientations, &order);
     }
-    rows.sort_by(|a, b| a.0.total_cmp(&b.0));
-    rows.dedup_by(|b, a| a.0 == b.0);
-    Trajectory::try_new(
-        rows.iter().map(|r| r.0).collect(),
-        rows.iter().map(|r| r.1).collect(),
-        Some(rows.iter().map(|r| r.2).collect()),
-    )
-    .map(Some)
-    .map_err(|e| samples_err(path, &c.topic, e.to_string()))
+    Trajectory::try_new(times, positions, Some(orientations))
+        .map(Some)
+        .map_err(|e| samples_err(path, &c.topic, e.to_string()))
+}
+
+/// The order that sorts `times` (equal times kept in their order; with
+/// `dedup`, only the first of them), or `None` when they are in that order
+/// already: strictly increasing with `dedup`, else non-decreasing.
+fn time_order(times: &[f64], dedup: bool) -> Option<Vec<usize>> {
+    let ordered = if dedup {
+        times.is_sorted_by(|a, b| a < b)
+    } else {
+        times.is_sorted_by(|a, b| a <= b)
+    };
+    if ordered {
+        return None;
+    }
+    let mut order: Vec<usize> = (0..times.len()).collect();
+    order.sort_by(|&a, &b| times[a].total_cmp(&times[b]));
+    if dedup {
+        order.dedup_by(|b, a| times[*a] == times[*b]);
+    }
+    Some(order)
+}
+
+/// `v`'s rows in `order` (from [`time_order`]).
+fn reorder<T: Copy>(v: &mut Vec<T>, order: &[usize]) {
+    *v = order.iter().map(|&k| v[k]).collect();
 }
 
 fn samples_err(path: &Path, topic: &str, what: String) -> Error {
@@ -1293,12 +1347,10 @@ fn read_poses(
             mut positions,
             mut orientations,
         } = column.into_rows(path, &c.topic)?;
-        if !times.is_sorted_by(|a, b| a <= b) {
-            let mut order: Vec<usize> = (0..times.len()).collect();
-            order.sort_by(|&a, &b| times[a].total_cmp(&times[b]));
-            times = order.iter().map(|&k| times[k]).collect();
-            positions = order.iter().map(|&k| positions[k]).collect();
-            orientations = order.iter().map(|&k| orientations[k]).collect();
+        if let Some(order) = time_order(&times, false) {
+            reorder(&mut times, &order);
+            reorder(&mut positions, &order);
+            reorder(&mut orientations, &order);
         }
         return Trajectory::try_new(times, positions, Some(orientations))
             .map_err(|e| samples_err(path, &c.topic, e.to_string()));
@@ -1425,23 +1477,67 @@ fn trajectory_of(
         .map_err(|e| samples_err(path, topic, e.to_string()))
 }
 
-/// The IMU samples of channel `c` from its column, by time (of samples with
-/// the same stamp, the first given).
+/// The IMU samples of channel `c` from its column (in memory), by time.
 fn read_imu(path: &Path, column: ImuColumn, c: &ChannelInfo) -> Result<ImuSamples> {
     let ImuRows {
-        mut times,
-        mut gyro,
-        mut accel,
+        times, gyro, accel, ..
     } = column.into_rows(path, &c.topic)?;
-    if !times.is_sorted_by(|a, b| a < b) {
-        let mut order: Vec<usize> = (0..times.len()).collect();
-        order.sort_by(|&a, &b| times[a].total_cmp(&times[b]));
-        order.dedup_by(|b, a| times[*a] == times[*b]);
-        times = order.iter().map(|&k| times[k]).collect();
-        gyro = order.iter().map(|&k| gyro[k]).collect();
-        accel = order.iter().map(|&k| accel[k]).collect();
+    imu_by_time(path, &c.topic, (times, gyro, accel))
+}
+
+/// The IMU samples of `topic` by time (of samples with the same stamp, the
+/// first given), checked.
+fn imu_by_time(
+    path: &Path,
+    topic: &str,
+    (mut times, mut gyro, mut accel): ImuColumns,
+) -> Result<ImuSamples> {
+    if let Some(order) = time_order(&times, true) {
+        reorder(&mut times, &order);
+        reorder(&mut gyro, &order);
+        reorder(&mut accel, &order);
     }
-    ImuSamples::try_new(times, gyro, accel).map_err(|e| samples_err(path, &c.topic, e.to_string()))
+    ImuSamples::try_new(times, gyro, accel).map_err(|e| samples_err(path, topic, e.to_string()))
+}
+
+/// The raw IMU samples of a log read by [`read_log_spilled`], left on disk
+/// ([`Log::imu_on_disk`]) until the step that uses them.
+#[derive(Debug)]
+pub struct ImuOnDisk {
+    samples: SpilledImu,
+    path: PathBuf,
+    topic: String,
+}
+
+impl ImuOnDisk {
+    /// The samples on channel `c`'s column, on disk; the column's first bad
+    /// message is the error, as for a log read in memory.
+    fn of_column(path: &Path, column: ImuColumn, c: &ChannelInfo) -> Result<Option<ImuOnDisk>> {
+        let rows = column.into_rows(path, &c.topic)?;
+        match rows.spill {
+            Some(spill) => Ok(Some(ImuOnDisk {
+                samples: spill.finish(path, &c.topic)?,
+                path: path.to_path_buf(),
+                topic: c.topic.clone(),
+            })),
+            None => Ok(None),
+        }
+    }
+
+    /// Samples held (before those with a repeated time are dropped).
+    pub fn len(&self) -> usize {
+        self.samples.len()
+    }
+
+    /// True without samples.
+    pub fn is_empty(&self) -> bool {
+        self.samples.is_empty()
+    }
+
+    /// The samples, read back and sorted by time as [`Log::imu`] is.
+    pub fn load(&self) -> Result<ImuSamples> {
+        imu_by_time(&self.path, &self.topic, self.samples.read()?)
+    }
 }
 
 /// What a log's scan is gathered into, as the scan gives it: the pose and
@@ -1461,6 +1557,8 @@ struct Gathered<'k> {
     /// The graph messages' poses, applied as they come (the messages are
     /// kept without them).
     graph: GraphUpdates,
+    /// The IMU columns go to disk ([`ImuOnDisk`]).
+    imu_on_disk: bool,
 }
 
 /// Graph messages applied to the keyframes as the scan gives them, for every
@@ -1514,7 +1612,7 @@ impl GraphUpdates {
 }
 
 impl<'k> Gathered<'k> {
-    fn new(kinds: &'k KindCache) -> Gathered<'k> {
+    fn new(kinds: &'k KindCache, imu_on_disk: bool) -> Gathered<'k> {
         Gathered {
             kinds,
             messages: Vec::new(),
@@ -1524,6 +1622,7 @@ impl<'k> Gathered<'k> {
             expected: HashMap::new(),
             expected_messages: 0,
             graph: GraphUpdates::default(),
+            imu_on_disk,
         }
     }
 }
@@ -1572,7 +1671,14 @@ impl ScanSink<Decoded> for Gathered<'_> {
         };
         match goes {
             Goes::Imu => {
-                let col = self.imu.entry(m.channel_id).or_default();
+                let on_disk = self.imu_on_disk;
+                let col = self.imu.entry(m.channel_id).or_insert_with(|| ImuColumn {
+                    rows: ImuRows {
+                        spill: on_disk.then(ImuSpill::new),
+                        ..ImuRows::default()
+                    },
+                    ..ImuColumn::default()
+                });
                 col.rows.reserve(expected);
                 col.push(m);
             }
@@ -1591,7 +1697,7 @@ impl ScanSink<Decoded> for Gathered<'_> {
     }
 
     fn restart(&mut self) {
-        *self = Gathered::new(self.kinds);
+        *self = Gathered::new(self.kinds, self.imu_on_disk);
     }
 }
 

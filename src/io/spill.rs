@@ -5,7 +5,11 @@
 //!   as the log is read (inside the parallel chunk tasks) and read back a
 //!   batch of keyframes at a time once `T_world_slam` is known;
 //! - [`CloudFile`]: the world cloud, appended keyframe by keyframe and read
-//!   back in bounded pieces by each output writer ([`CloudRef`]).
+//!   back in bounded pieces by each output writer ([`CloudRef`]);
+//! - [`ImuSpill`]: the raw IMU samples, written as the log is read and read
+//!   back ([`SpilledImu::load`]) for the one step that uses them, after the
+//!   alignment, so that they are not held beside the reference and the live
+//!   frames.
 //!
 //! Both are anonymous files in the temporary folder (`TMPDIR`, else `/tmp`):
 //! they take no name and are gone when closed, a crash included.
@@ -13,6 +17,8 @@
 use std::fs::File;
 use std::path::{Path, PathBuf};
 use std::sync::atomic::{AtomicU64, Ordering};
+
+use nalgebra::Vector3;
 
 use crate::error::{Error, Result};
 
@@ -130,6 +136,134 @@ pub struct SpilledKeyframes {
     pub spill: PixelSpill,
     /// Where each keyframe's pixels are.
     pub at: Vec<SpilledPixels>,
+}
+
+/// Raw IMU samples as a scan gives them, appended to a temporary file:
+/// a row is the time, the angular rate and the specific force, seven
+/// little-endian `f64`s. A write error is kept and returned by
+/// [`ImuSpill::finish`] (the scan that feeds it cannot fail).
+#[derive(Debug)]
+pub struct ImuSpill {
+    out: std::result::Result<std::io::BufWriter<File>, String>,
+    dir: PathBuf,
+    rows: usize,
+}
+
+/// Bytes of one [`ImuSpill`] row.
+const IMU_ROW: usize = 7 * 8;
+
+impl ImuSpill {
+    /// An empty spill in the temporary folder.
+    pub fn new() -> ImuSpill {
+        let dir = std::env::temp_dir();
+        let out = tempfile::tempfile_in(&dir)
+            .map(|f| std::io::BufWriter::with_capacity(1 << 16, f))
+            .map_err(|e| format!("{}: {e}", dir.display()));
+        ImuSpill { out, dir, rows: 0 }
+    }
+
+    /// Appends one sample.
+    pub fn push(&mut self, time: f64, gyro: &Vector3<f64>, accel: &Vector3<f64>) {
+        use std::io::Write;
+        let Ok(out) = &mut self.out else { return };
+        let mut row = [0u8; IMU_ROW];
+        for (k, v) in std::iter::once(time)
+            .chain(gyro.iter().copied())
+            .chain(accel.iter().copied())
+            .enumerate()
+        {
+            row[8 * k..8 * k + 8].copy_from_slice(&v.to_le_bytes());
+        }
+        match out.write_all(&row) {
+            Ok(()) => self.rows += 1,
+            Err(e) => self.out = Err(format!("{}: {e}", self.dir.display())),
+        }
+    }
+
+    /// The samples written, on disk; an error when one could not be.
+    pub fn finish(self, source: &Path, topic: &str) -> Result<SpilledImu> {
+        let io = |what: String| {
+            Error::io(
+                &self.dir,
+                std::io::Error::other(format!(
+                    "the IMU samples of {topic} in {} could not be set aside in the \
+                     temporary folder (TMPDIR): {what}",
+                    source.display()
+                )),
+            )
+        };
+        let file = self
+            .out
+            .map_err(&io)?
+            .into_inner()
+            .map_err(|e| io(e.error().to_string()))?;
+        Ok(SpilledImu {
+            file,
+            dir: self.dir,
+            rows: self.rows,
+        })
+    }
+}
+
+impl Default for ImuSpill {
+    fn default() -> Self {
+        ImuSpill::new()
+    }
+}
+
+/// IMU rows as columns: times, angular rates, specific forces.
+pub type ImuColumns = (Vec<f64>, Vec<Vector3<f64>>, Vec<Vector3<f64>>);
+
+/// The IMU samples of an [`ImuSpill`], in the order they were given.
+#[derive(Debug)]
+pub struct SpilledImu {
+    file: File,
+    dir: PathBuf,
+    rows: usize,
+}
+
+impl SpilledImu {
+    /// Samples held.
+    pub fn len(&self) -> usize {
+        self.rows
+    }
+
+    /// True without samples.
+    pub fn is_empty(&self) -> bool {
+        self.rows == 0
+    }
+
+    /// The samples read back: times, angular rates and specific forces, in
+    /// the order given (read a piece at a time into rows of exact size).
+    pub fn read(&self) -> Result<ImuColumns> {
+        let n = self.rows;
+        let (mut times, mut gyro, mut accel) = (
+            Vec::with_capacity(n),
+            Vec::with_capacity(n),
+            Vec::with_capacity(n),
+        );
+        const PIECE: usize = 4096;
+        let mut bytes = vec![0u8; PIECE * IMU_ROW];
+        let mut start = 0;
+        while start < n {
+            let k = PIECE.min(n - start);
+            let piece = &mut bytes[..k * IMU_ROW];
+            read_at(&self.file, piece, (start * IMU_ROW) as u64)
+                .map_err(|e| Error::io(&self.dir, e))?;
+            for row in piece.chunks_exact(IMU_ROW) {
+                let v = |i: usize| {
+                    let mut b = [0u8; 8];
+                    b.copy_from_slice(&row[8 * i..8 * i + 8]);
+                    f64::from_le_bytes(b)
+                };
+                times.push(v(0));
+                gyro.push(Vector3::new(v(1), v(2), v(3)));
+                accel.push(Vector3::new(v(4), v(5), v(6)));
+            }
+            start += k;
+        }
+        Ok((times, gyro, accel))
+    }
 }
 
 /// A world cloud on disk: `f32` coordinates and RGB colours in two files,
@@ -304,6 +438,43 @@ impl CloudRef<'_> {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn imu_samples_on_disk_come_back_bit_for_bit_across_pieces() {
+        let mut spill = ImuSpill::new();
+        let n = 3 * 4096 + 17;
+        let v = |i: usize, k: usize| match (i + k) % 5 {
+            0 => -0.0,
+            1 => f64::MIN_POSITIVE / 4.0,
+            2 => 1e300,
+            _ => (i as f64).sin() * (k as f64 + 1.0),
+        };
+        let row = |i: usize| {
+            (
+                i as f64 * 0.005,
+                Vector3::new(v(i, 1), v(i, 2), v(i, 3)),
+                Vector3::new(v(i, 4), v(i, 5), v(i, 6)),
+            )
+        };
+        for i in 0..n {
+            let (t, g, a) = row(i);
+            spill.push(t, &g, &a);
+        }
+        let on_disk = spill.finish(Path::new("log.mcap"), "/imu0").unwrap();
+        assert_eq!(on_disk.len(), n);
+        let (times, gyro, accel) = on_disk.read().unwrap();
+        assert_eq!((times.capacity(), gyro.capacity()), (n, n));
+        for i in 0..n {
+            let (t, g, a) = row(i);
+            assert_eq!(times[i].to_bits(), t.to_bits());
+            for k in 0..3 {
+                assert_eq!(gyro[i][k].to_bits(), g[k].to_bits(), "row {i}");
+                assert_eq!(accel[i][k].to_bits(), a[k].to_bits(), "row {i}");
+            }
+        }
+        // Read twice, the same.
+        assert_eq!(on_disk.read().unwrap().0, times);
+    }
 
     #[test]
     fn a_cloud_file_gives_back_what_was_pushed_in_any_pieces() {

@@ -418,10 +418,25 @@ pub fn convert(rec: &Recording, opts: &ConvertOptions) -> Result<Conversion> {
 /// The recording's raw IMU and live frames, which only the fit and its
 /// checks read: borrowed from the recording by [`convert`], owned in a
 /// bounded conversion, which frees them before the keyframes are streamed
-/// (on a long log they are most of what the conversion holds).
+/// (on a long log they are most of what the conversion holds). A bounded
+/// read leaves the IMU on disk ([`Recording::imu_on_disk`]): it is read
+/// back where it is used, the live frames freed first.
 struct Motion<'a> {
     imu: Option<Cow<'a, ImuSamples>>,
     live: Option<Cow<'a, Trajectory>>,
+}
+
+/// The recording's raw IMU: `imu`, else read back from disk; `None` when
+/// the recording has none.
+fn imu_of<'a>(
+    imu: Option<Cow<'a, ImuSamples>>,
+    rec: &Recording,
+) -> Result<Option<Cow<'a, ImuSamples>>> {
+    match (imu, &rec.imu_on_disk) {
+        (Some(i), _) => Ok(Some(i)),
+        (None, Some(d)) => d.load().map(|i| Some(Cow::Owned(i))),
+        (None, None) => Ok(None),
+    }
 }
 
 /// [`convert`] with the recording's IMU and live frames given apart
@@ -460,8 +475,13 @@ fn convert_with(rec: &Recording, motion: Motion<'_>, opts: &ConvertOptions) -> R
         }
         None => (rec.reference.as_ref(), None, opts),
     };
-    let live_frames = motion.live.as_deref();
-    let world = match (reference, motion.imu.as_deref()) {
+    let Motion { mut imu, live } = motion;
+    if reference.is_none() {
+        // The IMU is the reference.
+        imu = imu_of(imu, rec)?;
+    }
+    let live_frames = live.as_deref();
+    let world = match (reference, imu.as_deref()) {
         (Some(r), _) => {
             // Against fixes, the live frames are paired with the fixes
             // interpolated at their own stamps (the online session's rule).
@@ -494,24 +514,32 @@ fn convert_with(rec: &Recording, motion: Motion<'_>, opts: &ConvertOptions) -> R
     };
     let align_s = secs(t0);
     let t = world.transform();
-    // What reads the IMU and the live frames besides the fit, before they go.
-    let imu_check = match (&world, motion.imu.as_deref()) {
-        (WorldFrame::Poses(_), Some(imu)) => Some(imu::consistency_report(
-            &slam,
-            imu,
-            rec.source.imu_topic.clone(),
-            opts,
-            &t,
-        )),
-        _ => None,
-    };
-    let live_frames = motion.live.as_deref().map_or(0, Trajectory::len);
-    let owned =
-        matches!(motion.imu, Some(Cow::Owned(_))) || matches!(motion.live, Some(Cow::Owned(_)));
-    drop(motion);
-    if owned {
+    // What reads the IMU and the live frames besides the fit, before they go:
+    // the live frames first, so that an IMU read back from disk is not held
+    // beside them.
+    let live_frames = live.as_deref().map_or(0, Trajectory::len);
+    if matches!(live, Some(Cow::Owned(_))) {
+        drop(live);
         crate::buffer::release_free_memory();
     }
+    let imu_check = match &world {
+        WorldFrame::Poses(_) => imu_of(imu, rec)?.map(|imu| {
+            let report =
+                imu::consistency_report(&slam, &imu, rec.source.imu_topic.clone(), opts, &t);
+            if matches!(imu, Cow::Owned(_)) {
+                drop(imu);
+                crate::buffer::release_free_memory();
+            }
+            report
+        }),
+        _ => {
+            if matches!(imu, Some(Cow::Owned(_))) {
+                drop(imu);
+                crate::buffer::release_free_memory();
+            }
+            None
+        }
+    };
     let ray_origins = rec.keyframes.is_empty() && rec.cloud_origins.is_some();
     if rec.keyframes.is_empty() && ((opts.map.is_some() && !ray_origins) || opts.windowed_cloud) {
         return Err(Error::invalid(

@@ -114,6 +114,10 @@ pub struct Recording {
     pub reference: Option<Arc<Trajectory>>,
     /// Raw IMU samples, sorted by time.
     pub imu: Option<ImuSamples>,
+    /// The raw IMU samples left on disk by [`Source::read_bounded`] (`imu`
+    /// is then `None`): read back after the alignment, for the step that
+    /// uses them.
+    pub imu_on_disk: Option<Arc<crate::io::log::ImuOnDisk>>,
     /// GNSS fixes (WGS84), the reference when present: the world frame is
     /// then ENU at an origin (`pipeline::gnss`).
     pub gnss: Option<GnssFixes>,
@@ -164,6 +168,7 @@ impl From<Log> for Recording {
             cloud: None,
             reference: log.reference.map(Arc::new),
             imu: log.imu,
+            imu_on_disk: log.imu_on_disk,
             gnss: log.gnss,
             ..Recording::default()
         }
