@@ -125,6 +125,19 @@ fn the_bounded_conversion_writes_the_in_memory_outputs_byte_for_byte() {
     };
     let (mem, bounded) = both(&log, &opts, dir.path());
     assert_eq!(mem.report.points, bounded.report.points);
+    // The bounded conversion's reference waited on disk, and its writers read
+    // it there (the outputs above are the same).
+    assert!(mem.reference.is_some() && mem.reference_on_disk.is_none());
+    let on_disk = bounded
+        .reference_on_disk
+        .as_ref()
+        .expect("reference on disk");
+    assert!(bounded.reference.is_none());
+    let back = on_disk.load().unwrap();
+    let r = mem.reference.as_ref().unwrap();
+    assert_eq!(back.timestamps, r.timestamps);
+    assert_eq!(back.positions, r.positions);
+    assert_eq!(back.orientations, r.orientations);
     assert!(mem.report.points > 10_000, "{}", mem.report.points);
     let s = bounded.report.stream.as_ref().unwrap();
     // A batch of keyframes at a time, never the whole log.

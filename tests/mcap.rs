@@ -681,7 +681,7 @@ fn world_mcap_reads_back() {
             cloud: slam2world::io::spill::CloudRef::Memory(&points, Some(&colors)),
             t_world_slam: Sim3::identity(),
             slam_trajectory: Some(&r),
-            reference: Some(&r),
+            reference: Some((&r).into()),
             stamp: 12.5,
             world_frame: "world",
             slam_frame: "slam",

@@ -135,7 +135,7 @@ fn seeds(reader: &str, dir: &Path) -> Vec<PathBuf> {
                 cloud: slam2world::io::spill::CloudRef::Memory(&pts, None),
                 t_world_slam: Sim3::identity(),
                 slam_trajectory: Some(&traj),
-                reference: Some(&traj),
+                reference: Some((&traj).into()),
                 stamp: 5.0,
                 world_frame: "world",
                 slam_frame: "slam",

@@ -32,7 +32,7 @@ use crate::io::messages::{
 };
 use crate::io::rosbag::{Ros1Bag, Ros2Bag, Ros2Storage};
 use crate::io::spill::{
-    ImuColumns, ImuSpill, PixelSpill, SpilledImu, SpilledKeyframes, SpilledPixels,
+    PixelSpill, RowFile, RowSpill, SpilledKeyframes, SpilledPixels, TrajectoryFile, ROW_PIECE,
 };
 use crate::keyframe::Keyframe;
 use crate::trajectory::Trajectory;
@@ -107,6 +107,9 @@ pub struct Log {
     /// The raw IMU samples left on disk by [`read_log_spilled`] (`imu` is
     /// then `None`).
     pub imu_on_disk: Option<std::sync::Arc<ImuOnDisk>>,
+    /// The reference poses left on disk by [`read_log_spilled`] when they
+    /// came in time order (`reference` is then `None`).
+    pub reference_on_disk: Option<std::sync::Arc<TrajectoryFile>>,
     /// GNSS fixes in log order (their stamps are the messages' header times),
     /// those without a fix dropped and counted.
     pub gnss: Option<GnssFixes>,
@@ -807,30 +810,44 @@ fn log_of_scan(
         log.live = read_live(path, &messages, c)?;
     }
     keep_from(&mut messages, 3);
-    // The estimate's and the reference's columns (one column when both
+    // The estimate's and the reference's samples (the same ones when both
     // name the same topic).
     let same = picks.est.is_some() && picks.est.map(|c| c.id) == picks.pose.map(|c| c.id);
-    let mut column = |id: u16, again: bool| match (poses.remove(&id), again) {
-        (Some(col), true) => {
-            poses.insert(id, col.clone());
-            col
-        }
-        (col, _) => col.unwrap_or_default(),
-    };
+    let mut samples_of =
+        |c: &ChannelInfo| PoseSamples::of_column(path, poses.remove(&c.id).unwrap_or_default(), c);
+    let mut shared = None;
     if let Some(c) = picks.est {
-        let col = column(c.id, same);
-        log.frames = Some(read_poses(path, &messages, col, c, (&None, &None))?);
+        let samples = samples_of(c)?;
+        let rows = samples.rows()?;
+        log.frames = Some(read_poses(path, &messages, rows, c, (&None, &None))?);
+        if same {
+            shared = Some(samples);
+        }
     }
     keep_from(&mut messages, 4);
     if let Some(c) = picks.pose {
-        let col = column(c.id, false);
-        log.reference = Some(read_poses(
-            path,
-            &messages,
-            col,
-            c,
-            (&options.tf_parent, &options.tf_child),
-        )?);
+        let samples = match shared.take() {
+            Some(s) => s,
+            None => samples_of(c)?,
+        };
+        match samples {
+            // A bounded read's reference stays on disk when its times are in
+            // order (it is checked when read back).
+            PoseSamples::Disk(rows, true) => {
+                log.reference_on_disk = Some(std::sync::Arc::new(TrajectoryFile::new(
+                    rows, path, &c.topic,
+                )?));
+            }
+            samples => {
+                log.reference = Some(read_poses(
+                    path,
+                    &messages,
+                    samples.rows()?,
+                    c,
+                    (&options.tf_parent, &options.tf_child),
+                )?);
+            }
+        }
     }
     keep_from(&mut messages, 5);
     if let Some(c) = picks.imu {
@@ -929,16 +946,26 @@ impl<R: Rows> Column<R> {
     }
 }
 
-/// Pose samples: the rows of a [`Trajectory`].
-#[derive(Clone, Default)]
+/// Pose samples: the rows of a [`Trajectory`], in memory or (a bounded
+/// read's) on disk.
+#[derive(Default)]
 struct PoseRows {
     times: Vec<f64>,
     positions: Vec<Vector3<f64>>,
     orientations: Vec<UnitQuaternion<f64>>,
+    /// Where the rows go instead, when set: `t x y z qx qy qz qw`.
+    spill: Option<RowSpill>,
+    /// The latest time given, and whether a time ever went back (or was no
+    /// number): the rows on disk are then not a trajectory as they are.
+    last: f64,
+    unordered: bool,
 }
 
 impl Rows for PoseRows {
     fn reserve(&mut self, n: usize) {
+        if self.spill.is_some() {
+            return;
+        }
         let _ = self.times.try_reserve_exact(n);
         let _ = self.positions.try_reserve_exact(n);
         let _ = self.orientations.try_reserve_exact(n);
@@ -947,14 +974,84 @@ impl Rows for PoseRows {
     fn add(&mut self, value: Decoded) -> std::result::Result<(), WireError> {
         match value {
             Decoded::Pose((t, p, [x, y, z, w])) => {
-                self.times.push(t);
-                self.positions.push(Vector3::from(p));
-                self.orientations
-                    .push(UnitQuaternion::new_unchecked(Quaternion::new(w, x, y, z)));
+                match &mut self.spill {
+                    Some(spill) => {
+                        // Times only go forward (NaN compares false).
+                        let forward = spill.is_empty() || t >= self.last;
+                        self.unordered |= !forward;
+                        self.last = t;
+                        spill.push(&[t, p[0], p[1], p[2], x, y, z, w]);
+                    }
+                    None => {
+                        self.times.push(t);
+                        self.positions.push(Vector3::from(p));
+                        self.orientations
+                            .push(UnitQuaternion::new_unchecked(Quaternion::new(w, x, y, z)));
+                    }
+                }
                 Ok(())
             }
             Decoded::Error(e) => Err(e),
             _ => Err(WireError::schema("not a pose message")),
+        }
+    }
+}
+
+/// A pose channel's samples after the scan: in memory, or on disk with
+/// whether their times never go back.
+enum PoseSamples {
+    Memory(PoseRows),
+    Disk(std::sync::Arc<RowFile>, bool),
+}
+
+impl PoseSamples {
+    /// The samples of channel `c`'s column; the column's first bad message
+    /// is the error.
+    fn of_column(path: &Path, column: PoseColumn, c: &ChannelInfo) -> Result<PoseSamples> {
+        let mut rows = column.into_rows(path, &c.topic)?;
+        match rows.spill.take() {
+            Some(spill) => {
+                let what = format!("the poses of {} in {}", c.topic, path.display());
+                let file = spill.finish(&what)?;
+                Ok(PoseSamples::Disk(
+                    std::sync::Arc::new(file),
+                    !rows.unordered,
+                ))
+            }
+            None => Ok(PoseSamples::Memory(rows)),
+        }
+    }
+
+    /// The rows in memory: a copy, or read back from disk.
+    fn rows(&self) -> Result<PoseRows> {
+        match self {
+            PoseSamples::Memory(r) => Ok(PoseRows {
+                times: r.times.clone(),
+                positions: r.positions.clone(),
+                orientations: r.orientations.clone(),
+                ..PoseRows::default()
+            }),
+            PoseSamples::Disk(file, _) => {
+                let n = file.len();
+                let mut r = PoseRows {
+                    times: Vec::with_capacity(n),
+                    positions: Vec::with_capacity(n),
+                    orientations: Vec::with_capacity(n),
+                    ..PoseRows::default()
+                };
+                file.for_each_piece(ROW_PIECE, |_, values| {
+                    for v in values.chunks_exact(8) {
+                        r.times.push(v[0]);
+                        r.positions.push(Vector3::new(v[1], v[2], v[3]));
+                        r.orientations
+                            .push(UnitQuaternion::new_unchecked(Quaternion::new(
+                                v[7], v[4], v[5], v[6],
+                            )));
+                    }
+                    Ok(())
+                })?;
+                Ok(r)
+            }
         }
     }
 }
@@ -966,8 +1063,8 @@ struct ImuRows {
     times: Vec<f64>,
     gyro: Vec<Vector3<f64>>,
     accel: Vec<Vector3<f64>>,
-    /// Where the rows go instead, when set.
-    spill: Option<ImuSpill>,
+    /// Where the rows go instead, when set: `t gx gy gz ax ay az`.
+    spill: Option<RowSpill>,
 }
 
 impl Rows for ImuRows {
@@ -986,13 +1083,15 @@ impl Rows for ImuRows {
                 if s.time.is_finite()
                     && s.gyro.iter().chain(s.accel.iter()).all(|v| v.is_finite()) =>
             {
-                let (gyro, accel) = (Vector3::from(s.gyro), Vector3::from(s.accel));
                 match &mut self.spill {
-                    Some(spill) => spill.push(s.time, &gyro, &accel),
+                    Some(spill) => {
+                        let ([gx, gy, gz], [ax, ay, az]) = (s.gyro, s.accel);
+                        spill.push(&[s.time, gx, gy, gz, ax, ay, az]);
+                    }
                     None => {
                         self.times.push(s.time);
-                        self.gyro.push(gyro);
-                        self.accel.push(accel);
+                        self.gyro.push(Vector3::from(s.gyro));
+                        self.accel.push(Vector3::from(s.accel));
                     }
                 }
                 Ok(())
@@ -1268,14 +1367,14 @@ fn read_live(path: &Path, messages: &[Mapped], c: &ChannelInfo) -> Result<Option
             _ => return Err(fail(WireError::schema("not a keyframe message"))),
         };
         let pose = Sim3::from_lsd_slam(cam_to_world).map_err(|e| {
-            samples_err(
+            samples_error(
                 path,
                 &c.topic,
                 format!("frame {i}: camToWorld {cam_to_world:?}: {e}"),
             )
         })?;
         if !time.is_finite() {
-            return Err(samples_err(
+            return Err(samples_error(
                 path,
                 &c.topic,
                 format!("frame {i}: time {time} is not finite"),
@@ -1293,7 +1392,7 @@ fn read_live(path: &Path, messages: &[Mapped], c: &ChannelInfo) -> Result<Option
     }
     Trajectory::try_new(times, positions, Some(orientations))
         .map(Some)
-        .map_err(|e| samples_err(path, &c.topic, e.to_string()))
+        .map_err(|e| samples_error(path, &c.topic, e.to_string()))
 }
 
 /// The order that sorts `times` (equal times kept in their order; with
@@ -1321,7 +1420,9 @@ fn reorder<T: Copy>(v: &mut Vec<T>, order: &[usize]) {
     *v = order.iter().map(|&k| v[k]).collect();
 }
 
-fn samples_err(path: &Path, topic: &str, what: String) -> Error {
+/// [`LogError::Samples`]: the samples of `topic` in `path` make no
+/// trajectory (or IMU stream), and why.
+pub(crate) fn samples_error(path: &Path, topic: &str, what: String) -> Error {
     log_err(
         path,
         LogError::Samples {
@@ -1337,7 +1438,7 @@ fn samples_err(path: &Path, topic: &str, what: String) -> Error {
 fn read_poses(
     path: &Path,
     messages: &[Mapped],
-    column: PoseColumn,
+    rows: PoseRows,
     c: &ChannelInfo,
     tf: (&Option<String>, &Option<String>),
 ) -> Result<Trajectory> {
@@ -1346,14 +1447,15 @@ fn read_poses(
             mut times,
             mut positions,
             mut orientations,
-        } = column.into_rows(path, &c.topic)?;
+            ..
+        } = rows;
         if let Some(order) = time_order(&times, false) {
             reorder(&mut times, &order);
             reorder(&mut positions, &order);
             reorder(&mut orientations, &order);
         }
         return Trajectory::try_new(times, positions, Some(orientations))
-            .map_err(|e| samples_err(path, &c.topic, e.to_string()));
+            .map_err(|e| samples_error(path, &c.topic, e.to_string()));
     }
     let mut decoded: Vec<&Vec<StampedPose>> = Vec::new();
     let mine = messages.iter().filter(|m| m.channel_id == c.id);
@@ -1468,13 +1570,13 @@ fn trajectory_of(
     let mut orientations = Vec::with_capacity(n);
     for (i, time, position, orientation) in samples {
         let (time, position, [x, y, z, w]) = checked_sample((time, position, orientation))
-            .map_err(|e| samples_err(path, topic, format!("message {i}: {e}")))?;
+            .map_err(|e| samples_error(path, topic, format!("message {i}: {e}")))?;
         times.push(time);
         positions.push(Vector3::from(position));
         orientations.push(UnitQuaternion::new_unchecked(Quaternion::new(w, x, y, z)));
     }
     Trajectory::try_new(times, positions, Some(orientations))
-        .map_err(|e| samples_err(path, topic, e.to_string()))
+        .map_err(|e| samples_error(path, topic, e.to_string()))
 }
 
 /// The IMU samples of channel `c` from its column (in memory), by time.
@@ -1490,33 +1592,35 @@ fn read_imu(path: &Path, column: ImuColumn, c: &ChannelInfo) -> Result<ImuSample
 fn imu_by_time(
     path: &Path,
     topic: &str,
-    (mut times, mut gyro, mut accel): ImuColumns,
+    (mut times, mut gyro, mut accel): (Vec<f64>, Vec<Vector3<f64>>, Vec<Vector3<f64>>),
 ) -> Result<ImuSamples> {
     if let Some(order) = time_order(&times, true) {
         reorder(&mut times, &order);
         reorder(&mut gyro, &order);
         reorder(&mut accel, &order);
     }
-    ImuSamples::try_new(times, gyro, accel).map_err(|e| samples_err(path, topic, e.to_string()))
+    ImuSamples::try_new(times, gyro, accel).map_err(|e| samples_error(path, topic, e.to_string()))
 }
 
 /// The raw IMU samples of a log read by [`read_log_spilled`], left on disk
 /// ([`Log::imu_on_disk`]) until the step that uses them.
 #[derive(Debug)]
 pub struct ImuOnDisk {
-    samples: SpilledImu,
+    samples: RowFile,
     path: PathBuf,
     topic: String,
 }
 
 impl ImuOnDisk {
-    /// The samples on channel `c`'s column, on disk; the column's first bad
-    /// message is the error, as for a log read in memory.
+    /// The samples on channel `c`'s column, on disk (`None`: the column is
+    /// in memory); the column's first bad message is the error, as for a
+    /// log read in memory.
     fn of_column(path: &Path, column: ImuColumn, c: &ChannelInfo) -> Result<Option<ImuOnDisk>> {
         let rows = column.into_rows(path, &c.topic)?;
+        let what = format!("the IMU samples of {} in {}", c.topic, path.display());
         match rows.spill {
             Some(spill) => Ok(Some(ImuOnDisk {
-                samples: spill.finish(path, &c.topic)?,
+                samples: spill.finish(&what)?,
                 path: path.to_path_buf(),
                 topic: c.topic.clone(),
             })),
@@ -1536,7 +1640,21 @@ impl ImuOnDisk {
 
     /// The samples, read back and sorted by time as [`Log::imu`] is.
     pub fn load(&self) -> Result<ImuSamples> {
-        imu_by_time(&self.path, &self.topic, self.samples.read()?)
+        let n = self.len();
+        let (mut t, mut g, mut a) = (
+            Vec::with_capacity(n),
+            Vec::with_capacity(n),
+            Vec::with_capacity(n),
+        );
+        self.samples.for_each_piece(ROW_PIECE, |_, values| {
+            for r in values.chunks_exact(7) {
+                t.push(r[0]);
+                g.push(Vector3::new(r[1], r[2], r[3]));
+                a.push(Vector3::new(r[4], r[5], r[6]));
+            }
+            Ok(())
+        })?;
+        imu_by_time(&self.path, &self.topic, (t, g, a))
     }
 }
 
@@ -1557,8 +1675,9 @@ struct Gathered<'k> {
     /// The graph messages' poses, applied as they come (the messages are
     /// kept without them).
     graph: GraphUpdates,
-    /// The IMU columns go to disk ([`ImuOnDisk`]).
-    imu_on_disk: bool,
+    /// The pose and IMU columns go to disk (a bounded read: the reference
+    /// and the IMU wait there for the steps that use them).
+    on_disk: bool,
 }
 
 /// Graph messages applied to the keyframes as the scan gives them, for every
@@ -1612,7 +1731,7 @@ impl GraphUpdates {
 }
 
 impl<'k> Gathered<'k> {
-    fn new(kinds: &'k KindCache, imu_on_disk: bool) -> Gathered<'k> {
+    fn new(kinds: &'k KindCache, on_disk: bool) -> Gathered<'k> {
         Gathered {
             kinds,
             messages: Vec::new(),
@@ -1622,7 +1741,7 @@ impl<'k> Gathered<'k> {
             expected: HashMap::new(),
             expected_messages: 0,
             graph: GraphUpdates::default(),
-            imu_on_disk,
+            on_disk,
         }
     }
 }
@@ -1671,10 +1790,10 @@ impl ScanSink<Decoded> for Gathered<'_> {
         };
         match goes {
             Goes::Imu => {
-                let on_disk = self.imu_on_disk;
+                let on_disk = self.on_disk;
                 let col = self.imu.entry(m.channel_id).or_insert_with(|| ImuColumn {
                     rows: ImuRows {
-                        spill: on_disk.then(ImuSpill::new),
+                        spill: on_disk.then(|| RowSpill::new(7)),
                         ..ImuRows::default()
                     },
                     ..ImuColumn::default()
@@ -1683,7 +1802,17 @@ impl ScanSink<Decoded> for Gathered<'_> {
                 col.push(m);
             }
             Goes::Poses => {
-                let col = self.poses.entry(m.channel_id).or_default();
+                let on_disk = self.on_disk;
+                let col = self
+                    .poses
+                    .entry(m.channel_id)
+                    .or_insert_with(|| PoseColumn {
+                        rows: PoseRows {
+                            spill: on_disk.then(|| RowSpill::new(8)),
+                            ..PoseRows::default()
+                        },
+                        ..PoseColumn::default()
+                    });
                 col.rows.reserve(expected);
                 col.push(m);
             }
@@ -1697,7 +1826,7 @@ impl ScanSink<Decoded> for Gathered<'_> {
     }
 
     fn restart(&mut self) {
-        *self = Gathered::new(self.kinds, self.imu_on_disk);
+        *self = Gathered::new(self.kinds, self.on_disk);
     }
 }
 
@@ -1721,7 +1850,7 @@ fn read_fixes(path: &Path, messages: &[Mapped], c: &ChannelInfo) -> Result<GnssF
         }
     }
     GnssFixes::from_fixes(fixes, TimeBase::Source).map_err(|e| match e {
-        Error::InvalidFix { .. } => samples_err(path, &c.topic, e.to_string()),
+        Error::InvalidFix { .. } => samples_error(path, &c.topic, e.to_string()),
         e => e,
     })
 }

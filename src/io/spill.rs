@@ -6,10 +6,9 @@
 //!   batch of keyframes at a time once `T_world_slam` is known;
 //! - [`CloudFile`]: the world cloud, appended keyframe by keyframe and read
 //!   back in bounded pieces by each output writer ([`CloudRef`]);
-//! - [`ImuSpill`]: the raw IMU samples, written as the log is read and read
-//!   back ([`SpilledImu::load`]) for the one step that uses them, after the
-//!   alignment, so that they are not held beside the reference and the live
-//!   frames.
+//! - [`RowSpill`]: rows of numbers (a reference trajectory's poses, raw IMU
+//!   samples) written as the log is read, read back ([`RowFile`]) a piece at
+//!   a time by the steps that use them.
 //!
 //! Both are anonymous files in the temporary folder (`TMPDIR`, else `/tmp`):
 //! they take no name and are gone when closed, a crash included.
@@ -18,9 +17,10 @@ use std::fs::File;
 use std::path::{Path, PathBuf};
 use std::sync::atomic::{AtomicU64, Ordering};
 
-use nalgebra::Vector3;
+use nalgebra::{Quaternion, UnitQuaternion, Vector3};
 
 use crate::error::{Error, Result};
+use crate::trajectory::Trajectory;
 
 #[cfg(unix)]
 fn write_at(f: &File, buf: &[u8], offset: u64) -> std::io::Result<()> {
@@ -138,57 +138,66 @@ pub struct SpilledKeyframes {
     pub at: Vec<SpilledPixels>,
 }
 
-/// Raw IMU samples as a scan gives them, appended to a temporary file:
-/// a row is the time, the angular rate and the specific force, seven
-/// little-endian `f64`s. A write error is kept and returned by
-/// [`ImuSpill::finish`] (the scan that feeds it cannot fail).
+/// Rows of `f64`s as a scan gives them (a trajectory's poses, raw IMU
+/// samples), appended to a temporary file as little-endian bytes. A write
+/// error is kept and returned by [`RowSpill::finish`] (the scan that feeds
+/// it cannot fail).
 #[derive(Debug)]
-pub struct ImuSpill {
+pub struct RowSpill {
     out: std::result::Result<std::io::BufWriter<File>, String>,
     dir: PathBuf,
+    width: usize,
     rows: usize,
 }
 
-/// Bytes of one [`ImuSpill`] row.
-const IMU_ROW: usize = 7 * 8;
-
-impl ImuSpill {
-    /// An empty spill in the temporary folder.
-    pub fn new() -> ImuSpill {
+impl RowSpill {
+    /// An empty spill of rows of `width` values in the temporary folder.
+    pub fn new(width: usize) -> RowSpill {
         let dir = std::env::temp_dir();
         let out = tempfile::tempfile_in(&dir)
             .map(|f| std::io::BufWriter::with_capacity(1 << 16, f))
             .map_err(|e| format!("{}: {e}", dir.display()));
-        ImuSpill { out, dir, rows: 0 }
+        RowSpill {
+            out,
+            dir,
+            width: width.max(1),
+            rows: 0,
+        }
     }
 
-    /// Appends one sample.
-    pub fn push(&mut self, time: f64, gyro: &Vector3<f64>, accel: &Vector3<f64>) {
+    /// Appends one row (`width` values; more are cut, fewer padded with 0).
+    pub fn push(&mut self, row: &[f64]) {
         use std::io::Write;
         let Ok(out) = &mut self.out else { return };
-        let mut row = [0u8; IMU_ROW];
-        for (k, v) in std::iter::once(time)
-            .chain(gyro.iter().copied())
-            .chain(accel.iter().copied())
-            .enumerate()
-        {
-            row[8 * k..8 * k + 8].copy_from_slice(&v.to_le_bytes());
+        let mut bytes = [0u8; 8 * MAX_WIDTH];
+        let w = self.width.min(MAX_WIDTH);
+        for (k, v) in row.iter().take(w).enumerate() {
+            bytes[8 * k..8 * k + 8].copy_from_slice(&v.to_le_bytes());
         }
-        match out.write_all(&row) {
+        match out.write_all(&bytes[..8 * w]) {
             Ok(()) => self.rows += 1,
             Err(e) => self.out = Err(format!("{}: {e}", self.dir.display())),
         }
     }
 
-    /// The samples written, on disk; an error when one could not be.
-    pub fn finish(self, source: &Path, topic: &str) -> Result<SpilledImu> {
-        let io = |what: String| {
+    /// Rows given so far.
+    pub fn len(&self) -> usize {
+        self.rows
+    }
+
+    /// True before the first row.
+    pub fn is_empty(&self) -> bool {
+        self.rows == 0
+    }
+
+    /// The rows written, on disk; `what` names them in the error when one
+    /// could not be written.
+    pub fn finish(self, what: &str) -> Result<RowFile> {
+        let io = |e: String| {
             Error::io(
                 &self.dir,
                 std::io::Error::other(format!(
-                    "the IMU samples of {topic} in {} could not be set aside in the \
-                     temporary folder (TMPDIR): {what}",
-                    source.display()
+                    "{what} could not be set aside in the temporary folder (TMPDIR): {e}"
                 )),
             )
         };
@@ -197,72 +206,258 @@ impl ImuSpill {
             .map_err(&io)?
             .into_inner()
             .map_err(|e| io(e.error().to_string()))?;
-        Ok(SpilledImu {
+        Ok(RowFile {
             file,
             dir: self.dir,
+            width: self.width.min(MAX_WIDTH),
             rows: self.rows,
         })
     }
 }
 
-impl Default for ImuSpill {
-    fn default() -> Self {
-        ImuSpill::new()
-    }
-}
+/// The widest row of a [`RowSpill`].
+const MAX_WIDTH: usize = 8;
 
-/// IMU rows as columns: times, angular rates, specific forces.
-pub type ImuColumns = (Vec<f64>, Vec<Vector3<f64>>, Vec<Vector3<f64>>);
-
-/// The IMU samples of an [`ImuSpill`], in the order they were given.
+/// The rows of a [`RowSpill`], in the order they were given, read back a
+/// piece at a time.
 #[derive(Debug)]
-pub struct SpilledImu {
+pub struct RowFile {
     file: File,
     dir: PathBuf,
+    width: usize,
     rows: usize,
 }
 
-impl SpilledImu {
-    /// Samples held.
+impl RowFile {
+    /// Rows held.
     pub fn len(&self) -> usize {
         self.rows
     }
 
-    /// True without samples.
+    /// True without rows.
     pub fn is_empty(&self) -> bool {
         self.rows == 0
     }
 
-    /// The samples read back: times, angular rates and specific forces, in
-    /// the order given (read a piece at a time into rows of exact size).
-    pub fn read(&self) -> Result<ImuColumns> {
-        let n = self.rows;
-        let (mut times, mut gyro, mut accel) = (
+    /// Values per row.
+    pub fn width(&self) -> usize {
+        self.width
+    }
+
+    /// Every row, in order, in pieces of at most `max` rows: `f` gets the
+    /// index of the piece's first row and its values (rows × width).
+    pub fn for_each_piece(
+        &self,
+        max: usize,
+        mut f: impl FnMut(usize, &[f64]) -> Result<()>,
+    ) -> Result<()> {
+        let max = max.max(1);
+        let row_bytes = 8 * self.width;
+        let mut bytes = vec![0u8; max.min(self.rows) * row_bytes];
+        let mut values = Vec::with_capacity(max.min(self.rows) * self.width);
+        let mut start = 0;
+        while start < self.rows {
+            let k = max.min(self.rows - start);
+            let piece = &mut bytes[..k * row_bytes];
+            read_at(&self.file, piece, (start * row_bytes) as u64)
+                .map_err(|e| Error::io(&self.dir, e))?;
+            values.clear();
+            values.extend(piece.chunks_exact(8).map(|b| {
+                let mut v = [0u8; 8];
+                v.copy_from_slice(b);
+                f64::from_le_bytes(v)
+            }));
+            f(start, &values)?;
+            start += k;
+        }
+        Ok(())
+    }
+
+    /// Row `i`'s values, or `None` past the end.
+    pub fn row(&self, i: usize) -> Result<Option<Vec<f64>>> {
+        if i >= self.rows {
+            return Ok(None);
+        }
+        let mut bytes = vec![0u8; 8 * self.width];
+        read_at(&self.file, &mut bytes, (i * 8 * self.width) as u64)
+            .map_err(|e| Error::io(&self.dir, e))?;
+        Ok(Some(
+            bytes
+                .chunks_exact(8)
+                .map(|b| {
+                    let mut v = [0u8; 8];
+                    v.copy_from_slice(b);
+                    f64::from_le_bytes(v)
+                })
+                .collect(),
+        ))
+    }
+}
+
+/// Rows per piece when a [`RowFile`] is read whole.
+pub const ROW_PIECE: usize = 4096;
+
+/// A trajectory with orientations on disk: a [`RowFile`] of rows `t, x, y,
+/// z, qx, qy, qz, qw`, times non-decreasing, read back a piece at a time
+/// ([`TrajectoryRef`]) or whole ([`TrajectoryFile::load`]). A bounded
+/// conversion's reference poses wait here between the alignment and the
+/// writers.
+#[derive(Debug)]
+pub struct TrajectoryFile {
+    rows: std::sync::Arc<RowFile>,
+    /// Where the poses came from (the log), for errors.
+    source: PathBuf,
+    /// Their topic, for errors.
+    topic: String,
+}
+
+impl TrajectoryFile {
+    /// The poses of `rows` (8 values a row, times non-decreasing) of
+    /// `topic` in `source`.
+    pub fn new(
+        rows: std::sync::Arc<RowFile>,
+        source: &Path,
+        topic: &str,
+    ) -> Result<TrajectoryFile> {
+        if rows.width() != 8 {
+            return Err(Error::invalid(
+                "trajectory file",
+                format!("rows of {} values, not t x y z qx qy qz qw", rows.width()),
+            ));
+        }
+        Ok(TrajectoryFile {
+            rows,
+            source: source.to_path_buf(),
+            topic: topic.to_string(),
+        })
+    }
+
+    /// Poses held.
+    pub fn len(&self) -> usize {
+        self.rows.len()
+    }
+
+    /// True without poses.
+    pub fn is_empty(&self) -> bool {
+        self.rows.is_empty()
+    }
+
+    /// The topic the poses came from.
+    pub fn topic(&self) -> &str {
+        &self.topic
+    }
+
+    /// The trajectory, read back whole and checked as one read in memory is
+    /// ([`Trajectory::try_new`]; its error names the log and the topic).
+    pub fn load(&self) -> Result<Trajectory> {
+        let n = self.len();
+        let (mut t, mut p, mut q) = (
             Vec::with_capacity(n),
             Vec::with_capacity(n),
             Vec::with_capacity(n),
         );
-        const PIECE: usize = 4096;
-        let mut bytes = vec![0u8; PIECE * IMU_ROW];
-        let mut start = 0;
-        while start < n {
-            let k = PIECE.min(n - start);
-            let piece = &mut bytes[..k * IMU_ROW];
-            read_at(&self.file, piece, (start * IMU_ROW) as u64)
-                .map_err(|e| Error::io(&self.dir, e))?;
-            for row in piece.chunks_exact(IMU_ROW) {
-                let v = |i: usize| {
-                    let mut b = [0u8; 8];
-                    b.copy_from_slice(&row[8 * i..8 * i + 8]);
-                    f64::from_le_bytes(b)
-                };
-                times.push(v(0));
-                gyro.push(Vector3::new(v(1), v(2), v(3)));
-                accel.push(Vector3::new(v(4), v(5), v(6)));
-            }
-            start += k;
+        TrajectoryRef::File(self).for_each_piece(
+            ROW_PIECE,
+            |_, times, positions, orientations| {
+                t.extend_from_slice(times);
+                p.extend_from_slice(positions);
+                q.extend_from_slice(orientations.unwrap_or_default());
+                Ok(())
+            },
+        )?;
+        Trajectory::try_new(t, p, Some(q))
+            .map_err(|e| crate::io::log::samples_error(&self.source, &self.topic, e.to_string()))
+    }
+}
+
+/// A trajectory to read: in memory, or on disk ([`TrajectoryFile`]). Its
+/// readers take it a piece at a time, so that one on disk is never whole in
+/// memory; the pieces of both are the same poses.
+#[derive(Clone, Copy, Debug)]
+pub enum TrajectoryRef<'a> {
+    /// In memory.
+    Memory(&'a Trajectory),
+    /// On disk.
+    File(&'a TrajectoryFile),
+}
+
+impl<'a> From<&'a Trajectory> for TrajectoryRef<'a> {
+    fn from(t: &'a Trajectory) -> Self {
+        TrajectoryRef::Memory(t)
+    }
+}
+
+impl TrajectoryRef<'_> {
+    /// Poses held.
+    pub fn len(&self) -> usize {
+        match self {
+            TrajectoryRef::Memory(t) => t.len(),
+            TrajectoryRef::File(f) => f.len(),
         }
-        Ok((times, gyro, accel))
+    }
+
+    /// True without poses.
+    pub fn is_empty(&self) -> bool {
+        self.len() == 0
+    }
+
+    /// Every pose, in order, in pieces of at most `max`: `f` gets the index
+    /// of the piece's first pose, its times, positions and orientations
+    /// (when the trajectory has them).
+    pub fn for_each_piece(
+        &self,
+        max: usize,
+        mut f: impl FnMut(usize, &[f64], &[Vector3<f64>], Option<&[UnitQuaternion<f64>]>) -> Result<()>,
+    ) -> Result<()> {
+        let max = max.max(1);
+        match self {
+            TrajectoryRef::Memory(t) => {
+                let mut start = 0;
+                while start < t.len() {
+                    let end = (start + max).min(t.len());
+                    let q = t.orientations.as_ref().map(|q| &q[start..end]);
+                    f(
+                        start,
+                        &t.timestamps[start..end],
+                        &t.positions[start..end],
+                        q,
+                    )?;
+                    start = end;
+                }
+                Ok(())
+            }
+            TrajectoryRef::File(file) => {
+                let (mut t, mut p, mut q) = (Vec::new(), Vec::new(), Vec::new());
+                file.rows.for_each_piece(max, |first, values| {
+                    t.clear();
+                    p.clear();
+                    q.clear();
+                    for r in values.chunks_exact(8) {
+                        t.push(r[0]);
+                        p.push(Vector3::new(r[1], r[2], r[3]));
+                        q.push(UnitQuaternion::new_unchecked(Quaternion::new(
+                            r[7], r[4], r[5], r[6],
+                        )));
+                    }
+                    f(first, &t, &p, Some(&q))
+                })
+            }
+        }
+    }
+
+    /// The positions of poses `indices` (any order), `None` for an index
+    /// past the end.
+    pub fn positions_at(&self, indices: &[usize]) -> Result<Vec<Option<Vector3<f64>>>> {
+        match self {
+            TrajectoryRef::Memory(t) => Ok(indices
+                .iter()
+                .map(|&i| t.positions.get(i).copied())
+                .collect()),
+            TrajectoryRef::File(file) => indices
+                .iter()
+                .map(|&i| Ok(file.rows.row(i)?.map(|r| Vector3::new(r[1], r[2], r[3]))))
+                .collect(),
+        }
     }
 }
 
@@ -440,40 +635,102 @@ mod tests {
     use super::*;
 
     #[test]
-    fn imu_samples_on_disk_come_back_bit_for_bit_across_pieces() {
-        let mut spill = ImuSpill::new();
-        let n = 3 * 4096 + 17;
+    fn rows_on_disk_come_back_bit_for_bit_in_any_pieces() {
+        let width = 7;
+        let mut spill = RowSpill::new(width);
+        let n = 3 * ROW_PIECE + 17;
         let v = |i: usize, k: usize| match (i + k) % 5 {
             0 => -0.0,
             1 => f64::MIN_POSITIVE / 4.0,
             2 => 1e300,
+            3 => f64::NAN,
             _ => (i as f64).sin() * (k as f64 + 1.0),
         };
-        let row = |i: usize| {
-            (
-                i as f64 * 0.005,
-                Vector3::new(v(i, 1), v(i, 2), v(i, 3)),
-                Vector3::new(v(i, 4), v(i, 5), v(i, 6)),
-            )
+        let row = |i: usize| (0..width).map(|k| v(i, k)).collect::<Vec<f64>>();
+        for i in 0..n {
+            spill.push(&row(i));
+        }
+        assert_eq!(spill.len(), n);
+        let file = spill.finish("rows").unwrap();
+        assert_eq!((file.len(), file.width()), (n, width));
+        for max in [1, 1000, ROW_PIECE, n, 10 * n] {
+            let mut next = 0;
+            file.for_each_piece(max, |first, values| {
+                assert_eq!(first, next);
+                assert!(values.len() <= max * width && values.len() % width == 0);
+                for (j, r) in values.chunks_exact(width).enumerate() {
+                    let want = row(first + j);
+                    assert!(r.iter().zip(&want).all(|(a, b)| a.to_bits() == b.to_bits()));
+                }
+                next += values.len() / width;
+                Ok(())
+            })
+            .unwrap();
+            assert_eq!(next, n);
+        }
+        let last = file.row(n - 1).unwrap().unwrap();
+        assert!(last
+            .iter()
+            .zip(&row(n - 1))
+            .all(|(a, b)| a.to_bits() == b.to_bits()));
+        assert!(file.row(n).unwrap().is_none());
+        // An error in the callback stops the reading and is returned.
+        let mut calls = 0;
+        let r = file.for_each_piece(10, |_, _| {
+            calls += 1;
+            Err(Error::invalid("x", "stop"))
+        });
+        assert!(r.is_err() && calls == 1);
+    }
+
+    #[test]
+    fn a_trajectory_on_disk_reads_as_the_one_in_memory() {
+        let n = 2 * ROW_PIECE + 5;
+        let t: Vec<f64> = (0..n).map(|i| (i / 2) as f64 * 0.01).collect();
+        let p: Vec<Vector3<f64>> = (0..n)
+            .map(|i| Vector3::new(i as f64, -(i as f64), (i as f64).sqrt()))
+            .collect();
+        let q: Vec<UnitQuaternion<f64>> = (0..n)
+            .map(|i| UnitQuaternion::from_euler_angles(0.1, 0.0, i as f64 * 1e-3))
+            .collect();
+        let traj = Trajectory::try_new(t, p, Some(q)).unwrap();
+        let mut spill = RowSpill::new(8);
+        for i in 0..n {
+            let (x, c) = (
+                traj.positions[i],
+                traj.orientations.as_ref().unwrap()[i].coords,
+            );
+            spill.push(&[traj.timestamps[i], x.x, x.y, x.z, c[0], c[1], c[2], c[3]]);
+        }
+        let rows = std::sync::Arc::new(spill.finish("poses").unwrap());
+        let file = TrajectoryFile::new(rows, Path::new("log.mcap"), "/gt").unwrap();
+        let back = file.load().unwrap();
+        assert_eq!(back.timestamps, traj.timestamps);
+        assert_eq!(back.positions, traj.positions);
+        assert_eq!(back.orientations, traj.orientations);
+        let (mem, disk) = (TrajectoryRef::Memory(&traj), TrajectoryRef::File(&file));
+        assert_eq!((mem.len(), disk.len()), (n, n));
+        let pieces = |r: TrajectoryRef<'_>, max: usize| {
+            let mut got = Vec::new();
+            r.for_each_piece(max, |first, t, p, q| {
+                got.push((first, t.to_vec(), p.to_vec(), q.map(<[_]>::to_vec)));
+                Ok(())
+            })
+            .unwrap();
+            got
         };
-        for i in 0..n {
-            let (t, g, a) = row(i);
-            spill.push(t, &g, &a);
+        for max in [1, 777, ROW_PIECE, 10 * n] {
+            assert_eq!(pieces(mem, max), pieces(disk, max), "pieces of {max}");
         }
-        let on_disk = spill.finish(Path::new("log.mcap"), "/imu0").unwrap();
-        assert_eq!(on_disk.len(), n);
-        let (times, gyro, accel) = on_disk.read().unwrap();
-        assert_eq!((times.capacity(), gyro.capacity()), (n, n));
-        for i in 0..n {
-            let (t, g, a) = row(i);
-            assert_eq!(times[i].to_bits(), t.to_bits());
-            for k in 0..3 {
-                assert_eq!(gyro[i][k].to_bits(), g[k].to_bits(), "row {i}");
-                assert_eq!(accel[i][k].to_bits(), a[k].to_bits(), "row {i}");
-            }
-        }
-        // Read twice, the same.
-        assert_eq!(on_disk.read().unwrap().0, times);
+        let at = [n - 1, 0, 3, n, 3];
+        assert_eq!(
+            mem.positions_at(&at).unwrap(),
+            disk.positions_at(&at).unwrap()
+        );
+        assert_eq!(disk.positions_at(&at).unwrap()[3], None);
+        // Rows of another width are no trajectory.
+        let imu = std::sync::Arc::new(RowSpill::new(7).finish("imu").unwrap());
+        assert!(TrajectoryFile::new(imu, Path::new("log.mcap"), "/imu").is_err());
     }
 
     #[test]

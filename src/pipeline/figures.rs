@@ -15,7 +15,7 @@ use crate::align::stages::detect_stages;
 use crate::align::trajectories::{fit_scale_factors, TrajectoryAlignment};
 use crate::defaults;
 use crate::error::{Error, Result};
-use crate::io::spill::CloudRef;
+use crate::io::spill::{CloudRef, TrajectoryRef};
 use crate::map::{OccupancyMap, VoxelState};
 use crate::trajectory::Trajectory;
 
@@ -90,6 +90,32 @@ impl PathData {
             n_total: n,
             stride,
         }
+    }
+
+    /// [`PathData::decimated`] of a trajectory in memory or on disk, read a
+    /// piece at a time.
+    pub fn decimated_ref(t: TrajectoryRef<'_>, max: usize) -> Result<Self> {
+        if let TrajectoryRef::Memory(t) = t {
+            return Ok(PathData::decimated(t, max));
+        }
+        let n = t.len();
+        let stride = stride_for(n, max);
+        let mut path = PathData {
+            n_total: n,
+            stride,
+            ..PathData::default()
+        };
+        t.for_each_piece(PIECE, |first, times, positions, _| {
+            for (j, (time, p)) in times.iter().zip(positions).enumerate() {
+                let i = first + j;
+                if i % stride == 0 || i + 1 == n {
+                    path.t.push(*time);
+                    path.xyz.push([p.x, p.y, p.z]);
+                }
+            }
+            Ok(())
+        })?;
+        Ok(path)
     }
 }
 
@@ -218,15 +244,15 @@ impl FigureData {
         let mut f = FigureData {
             estimate: PathData::from(&c.slam_trajectory),
             reference: c
-                .reference
-                .as_ref()
-                .map(|r| PathData::decimated(r, defaults::HTML_MAX_PATH_POINTS)),
+                .reference_ref()
+                .map(|r| PathData::decimated_ref(r, defaults::HTML_MAX_PATH_POINTS))
+                .transpose()?,
             ..FigureData::default()
         };
         if let Some(p) = c.world.poses() {
             let offset = p.alignment.offset;
             f.estimate.t.iter_mut().for_each(|t| *t += offset);
-            f.add_pairs(&c.slam_frame, c.reference.as_deref(), &p.alignment);
+            f.add_pairs(&c.slam_frame, c.reference_ref(), &p.alignment)?;
         }
         let cloud = c.cloud_ref();
         f.origin = center_of(cloud, &f.estimate)?;
@@ -263,7 +289,7 @@ impl FigureData {
             )),
             ..FigureData::default()
         };
-        f.add_pairs(slam, Some(reference), fit);
+        f.add_pairs(slam, Some(TrajectoryRef::Memory(reference)), fit)?;
         f.origin = center_of(CloudRef::Memory(&[], None), &f.estimate)?;
         Ok(f)
     }
@@ -273,9 +299,9 @@ impl FigureData {
     fn add_pairs(
         &mut self,
         slam: &Trajectory,
-        reference: Option<&Trajectory>,
+        reference: Option<TrajectoryRef<'_>>,
         fit: &TrajectoryAlignment,
-    ) {
+    ) -> Result<()> {
         let n = fit.pairs.len().min(fit.errors.len());
         for (k, &(s, _)) in fit.pairs.iter().take(n).enumerate() {
             self.pairs.slam_index.push(s);
@@ -285,16 +311,22 @@ impl FigureData {
             self.pairs.error.push(fit.errors[k]);
             self.pairs.fitted.push(fit.fitted(k));
         }
-        let Some(reference) = reference else { return };
-        let at = |v: &[nalgebra::Vector3<f64>], i: usize| v.get(i).copied();
+        let Some(reference) = reference else {
+            return Ok(());
+        };
+        let rows: Vec<usize> = fit.pairs.iter().map(|&(_, r)| r).collect();
+        let ref_at = reference.positions_at(&rows)?;
         type Points = Vec<nalgebra::Vector3<f64>>;
         let pos: Option<(Points, Points)> = fit
             .pairs
             .iter()
-            .map(|&(s, r)| Some((at(&slam.positions, s)?, at(&reference.positions, r)?)))
+            .zip(ref_at)
+            .map(|(&(s, _), r)| Some((slam.positions.get(s).copied()?, r?)))
             .collect::<Option<Vec<_>>>()
             .map(|v| v.into_iter().unzip());
-        let Some((src, dst)) = pos else { return };
+        let Some((src, dst)) = pos else {
+            return Ok(());
+        };
         self.scale_factors = fit_scale_factors(&src, &dst);
         self.stages = match &fit.stages {
             Some(s) => Some(StagesFigure {
@@ -309,10 +341,11 @@ impl FigureData {
                     used_by_fit: false,
                 }),
         };
+        Ok(())
     }
 }
 
-/// Points per piece when the figures read a cloud.
+/// Points (or poses) per piece when the figures read a cloud (or a path).
 const PIECE: usize = 1 << 16;
 
 /// The middle of the bounding box of the cloud and the path (the origin of

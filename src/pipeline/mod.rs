@@ -117,6 +117,10 @@ pub struct Conversion {
     /// The reference trajectory (`T_world_body`), when there is one: the
     /// recording's own (shared), or the one made of its GNSS fixes.
     pub reference: Option<Arc<Trajectory>>,
+    /// The reference on disk, when a bounded conversion left it there
+    /// (`reference` is then `None`; [`Conversion::reference_ref`] gives
+    /// either).
+    pub reference_on_disk: Option<Arc<crate::io::spill::TrajectoryFile>>,
     /// The report.
     pub report: Report,
     /// The occupancy octree of the world cloud (world frame), when asked for.
@@ -144,8 +148,17 @@ impl Conversion {
         self.world.transform()
     }
 
-    /// The world cloud to write: on disk when the conversion kept it there,
-    /// else `cloud`.
+    /// The reference to read (the writers take it a piece at a time): on
+    /// disk when the conversion left it there, else `reference`.
+    pub fn reference_ref(&self) -> Option<crate::io::spill::TrajectoryRef<'_>> {
+        match (&self.reference, &self.reference_on_disk) {
+            (Some(r), _) => Some(crate::io::spill::TrajectoryRef::Memory(r)),
+            (None, Some(f)) => Some(crate::io::spill::TrajectoryRef::File(f)),
+            (None, None) => None,
+        }
+    }
+
+    /// The world cloud to write: in memory, or on disk.
     pub fn cloud_ref(&self) -> crate::io::spill::CloudRef<'_> {
         match &self.cloud_file {
             Some(f) => crate::io::spill::CloudRef::File(f),
@@ -461,6 +474,13 @@ fn convert_with(rec: &Recording, motion: Motion<'_>, opts: &ConvertOptions) -> R
         None => None,
     };
     opts.geo_outputs.las_for(gnss_ref.is_some())?;
+    // A bounded read leaves the reference on disk: read back for the fit,
+    // it goes again once the fit and the report have what they need of it.
+    let on_disk = match (&rec.reference, &rec.reference_on_disk, &gnss_ref) {
+        (None, Some(d), None) => Some(d),
+        _ => None,
+    };
+    let loaded = on_disk.map(|d| d.load().map(Arc::new)).transpose()?;
     let gnss_opts;
     let (reference, weights, opts) = match &gnss_ref {
         Some(g) => {
@@ -471,9 +491,9 @@ fn convert_with(rec: &Recording, motion: Motion<'_>, opts: &ConvertOptions) -> R
             }
             gnss_opts = o;
             let w = g.weights.as_deref().filter(|_| opts.align.robust.is_none());
-            (Some(&g.trajectory), w, &gnss_opts)
+            (Some(g.trajectory.clone()), w, &gnss_opts)
         }
-        None => (rec.reference.as_ref(), None, opts),
+        None => (rec.reference.clone().or(loaded), None, opts),
     };
     let Motion { mut imu, live } = motion;
     if reference.is_none() {
@@ -481,7 +501,7 @@ fn convert_with(rec: &Recording, motion: Motion<'_>, opts: &ConvertOptions) -> R
         imu = imu_of(imu, rec)?;
     }
     let live_frames = live.as_deref();
-    let world = match (reference, imu.as_deref()) {
+    let world = match (reference.as_ref(), imu.as_deref()) {
         (Some(r), _) => {
             // Against fixes, the live frames are paired with the fixes
             // interpolated at their own stamps (the online session's rule).
@@ -539,6 +559,26 @@ fn convert_with(rec: &Recording, motion: Motion<'_>, opts: &ConvertOptions) -> R
             }
             None
         }
+    };
+    // What the report takes of the reference; then a reference read back
+    // from disk goes (the writers read it there), before the keyframes.
+    let reference_poses = reference.as_ref().map_or(0, |r| r.len());
+    let pair_reference_times: Vec<f64> = match (&world, &reference) {
+        (WorldFrame::Poses(p), Some(r)) => p
+            .alignment
+            .pairs
+            .iter()
+            .map(|&(_, i)| r.timestamps.get(i).copied().unwrap_or(f64::NAN))
+            .collect(),
+        _ => Vec::new(),
+    };
+    let reference = match on_disk {
+        Some(_) => {
+            drop(reference);
+            crate::buffer::release_free_memory();
+            None
+        }
+        None => reference,
     };
     let ray_origins = rec.keyframes.is_empty() && rec.cloud_origins.is_some();
     if rec.keyframes.is_empty() && ((opts.map.is_some() && !ray_origins) || opts.windowed_cloud) {
@@ -649,19 +689,18 @@ fn convert_with(rec: &Recording, motion: Motion<'_>, opts: &ConvertOptions) -> R
     let (pairs, fit, fit_rmse, ape, pairs_fitted, imu_report) = match &world {
         WorldFrame::Poses(p) => {
             let a = &p.alignment;
-            let reference = reference.map_or(&[][..], |r| &r.timestamps[..]);
             let pairs: Vec<PairReport> = a
                 .pairs
                 .iter()
                 .zip(&a.errors)
                 .enumerate()
-                .map(|(k, (&(s, r), &error))| {
+                .map(|(k, (&(s, _), &error))| {
                     used[s] = true;
                     PairReport {
                         keyframe_id: id_of(s),
                         name: name_of(s),
                         keyframe_time: slam.timestamps[s],
-                        reference_time: reference[r],
+                        reference_time: pair_reference_times[k],
                         error,
                         fitted: a.fitted(k),
                     }
@@ -696,7 +735,7 @@ fn convert_with(rec: &Recording, motion: Motion<'_>, opts: &ConvertOptions) -> R
         graph_topic: rec.source.graph_topic.clone(),
         reference_topic: world.poses().and(rec.source.reference_topic.clone()),
         keyframes: slam.len(),
-        reference_poses: reference.map_or(0, |r| r.len()),
+        reference_poses,
         frames_used: used.iter().filter(|u| **u).count(),
         frames_dropped,
         pairs_fitted,
@@ -757,7 +796,8 @@ fn convert_with(rec: &Recording, motion: Motion<'_>, opts: &ConvertOptions) -> R
         cloud,
         slam_trajectory: world_slam,
         slam_frame: slam,
-        reference: reference.cloned(),
+        reference,
+        reference_on_disk: on_disk.cloned(),
         report,
         octree,
         native: rec.native.as_ref().map(|m| m.transformed(&t)),

@@ -160,7 +160,7 @@ impl Conversion {
             cloud: self.cloud_ref(),
             t_world_slam: self.transform(),
             slam_trajectory: Some(&self.slam_trajectory),
-            reference: self.reference.as_deref(),
+            reference: self.reference_ref(),
             stamp: self.world_stamp()?,
             world_frame: "world",
             slam_frame: "slam",

@@ -118,6 +118,10 @@ pub struct Recording {
     /// is then `None`): read back after the alignment, for the step that
     /// uses them.
     pub imu_on_disk: Option<Arc<crate::io::log::ImuOnDisk>>,
+    /// The reference poses left on disk by [`Source::read_bounded`]
+    /// (`reference` is then `None`): read back for the alignment, then read
+    /// a piece at a time by the writers.
+    pub reference_on_disk: Option<Arc<crate::io::spill::TrajectoryFile>>,
     /// GNSS fixes (WGS84), the reference when present: the world frame is
     /// then ENU at an origin (`pipeline::gnss`).
     pub gnss: Option<GnssFixes>,
@@ -169,6 +173,7 @@ impl From<Log> for Recording {
             reference: log.reference.map(Arc::new),
             imu: log.imu,
             imu_on_disk: log.imu_on_disk,
+            reference_on_disk: log.reference_on_disk,
             gnss: log.gnss,
             ..Recording::default()
         }

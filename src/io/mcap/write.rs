@@ -14,7 +14,7 @@ use crate::geometry::Sim3;
 use crate::imu::ImuSamples;
 use crate::io::atomic::OutputSet;
 use crate::io::messages::wire::PbWriter;
-use crate::io::spill::CloudRef;
+use crate::io::spill::{CloudRef, TrajectoryRef};
 use crate::keyframe::Keyframe;
 use crate::trajectory::Trajectory;
 
@@ -42,8 +42,8 @@ pub struct WorldScene<'a> {
     pub t_world_slam: Sim3,
     /// The SLAM trajectory mapped into the world frame.
     pub slam_trajectory: Option<&'a Trajectory>,
-    /// The reference trajectory (world frame).
-    pub reference: Option<&'a Trajectory>,
+    /// The reference trajectory (world frame), in memory or on disk.
+    pub reference: Option<TrajectoryRef<'a>>,
     /// Stamp of the cloud and transform messages, seconds.
     pub stamp: f64,
     /// Frame name of the world (`world` by default in the CLI).
@@ -375,11 +375,11 @@ fn check_filled(declared: usize, got: usize) -> Result<()> {
 /// doubles), so the length is known before the message is written.
 struct PosesMessage<'t> {
     head: Vec<u8>,
-    traj: &'t Trajectory,
+    traj: TrajectoryRef<'t>,
 }
 
 impl<'t> PosesMessage<'t> {
-    fn new(stamp: f64, frame: &str, traj: &'t Trajectory) -> Self {
+    fn new(stamp: f64, frame: &str, traj: TrajectoryRef<'t>) -> Self {
         let mut m = PbWriter::new();
         m.message(1, &pb_time(stamp));
         m.bytes(2, frame.as_bytes());
@@ -398,22 +398,27 @@ impl<'t> PosesMessage<'t> {
         (self.head.len() + self.traj.len() * m.buf.len()) as u64
     }
 
-    fn write(&self, out: &mut dyn Write) -> std::io::Result<()> {
-        out.write_all(&self.head)?;
+    /// The message into `out` (`path` names the file in an error), the
+    /// trajectory read a piece at a time.
+    fn write(&self, out: &mut dyn Write, path: &Path) -> Result<()> {
+        let io = |e| Error::io(path, e);
+        out.write_all(&self.head).map_err(io)?;
         let mut m = PbWriter::new();
-        for i in 0..self.traj.len() {
-            let p = self.traj.positions[i];
-            let q = match &self.traj.orientations {
-                Some(o) => {
-                    let c = o[i].coords;
-                    [c[0], c[1], c[2], c[3]]
+        self.traj
+            .for_each_piece(1 << 14, |_, _, positions, orientations| {
+                for (i, p) in positions.iter().enumerate() {
+                    let q = match orientations {
+                        Some(o) => {
+                            let c = o[i].coords;
+                            [c[0], c[1], c[2], c[3]]
+                        }
+                        None => [0.0, 0.0, 0.0, 1.0],
+                    };
+                    Self::pose_field(&mut m, [p.x, p.y, p.z], q);
+                    out.write_all(&m.buf).map_err(io)?;
                 }
-                None => [0.0, 0.0, 0.0, 1.0],
-            };
-            Self::pose_field(&mut m, [p.x, p.y, p.z], q);
-            out.write_all(&m.buf)?;
-        }
-        Ok(())
+                Ok(())
+            })
     }
 }
 
@@ -725,7 +730,10 @@ fn write_world_impl(
                 put(&mut w, &mut tf, &msg)?;
                 clouds(&mut w, &mut cloud, false)?;
                 for (topic, traj) in [
-                    (topics::SLAM_TRAJECTORY, scene.slam_trajectory),
+                    (
+                        topics::SLAM_TRAJECTORY,
+                        scene.slam_trajectory.map(TrajectoryRef::Memory),
+                    ),
                     (topics::REFERENCE, scene.reference),
                 ] {
                     if let Some(traj) = traj {
@@ -733,9 +741,7 @@ fn write_world_impl(
                             w.add_channel(topic, schemas::FOXGLOVE_POSES_IN_FRAME, "protobuf")?;
                         let msg = PosesMessage::new(scene.stamp, scene.world_frame, traj);
                         crate::interrupt::check()?;
-                        w.message_with(&mut ch, t, msg.len(), |out| {
-                            msg.write(out).map_err(|e| Error::io(path, e))
-                        })?;
+                        w.message_with(&mut ch, t, msg.len(), |out| msg.write(out, path))?;
                     }
                 }
                 if let Some(leaves) = octomap {
