@@ -534,9 +534,29 @@ fn convert_with(rec: &Recording, motion: Motion<'_>, opts: &ConvertOptions) -> R
     };
     let align_s = secs(t0);
     let t = world.transform();
+    // What the report takes of the reference; then a reference read back
+    // from disk goes (the writers read it there), before the IMU comes back.
+    let reference_poses = reference.as_ref().map_or(0, |r| r.len());
+    let pair_reference_times: Vec<f64> = match (&world, &reference) {
+        (WorldFrame::Poses(p), Some(r)) => p
+            .alignment
+            .pairs
+            .iter()
+            .map(|&(_, i)| r.timestamps.get(i).copied().unwrap_or(f64::NAN))
+            .collect(),
+        _ => Vec::new(),
+    };
+    let reference = match on_disk {
+        Some(_) => {
+            drop(reference);
+            crate::buffer::release_free_memory();
+            None
+        }
+        None => reference,
+    };
     // What reads the IMU and the live frames besides the fit, before they go:
     // the live frames first, so that an IMU read back from disk is not held
-    // beside them.
+    // beside them either.
     let live_frames = live.as_deref().map_or(0, Trajectory::len);
     if matches!(live, Some(Cow::Owned(_))) {
         drop(live);
@@ -559,26 +579,6 @@ fn convert_with(rec: &Recording, motion: Motion<'_>, opts: &ConvertOptions) -> R
             }
             None
         }
-    };
-    // What the report takes of the reference; then a reference read back
-    // from disk goes (the writers read it there), before the keyframes.
-    let reference_poses = reference.as_ref().map_or(0, |r| r.len());
-    let pair_reference_times: Vec<f64> = match (&world, &reference) {
-        (WorldFrame::Poses(p), Some(r)) => p
-            .alignment
-            .pairs
-            .iter()
-            .map(|&(_, i)| r.timestamps.get(i).copied().unwrap_or(f64::NAN))
-            .collect(),
-        _ => Vec::new(),
-    };
-    let reference = match on_disk {
-        Some(_) => {
-            drop(reference);
-            crate::buffer::release_free_memory();
-            None
-        }
-        None => reference,
     };
     let ray_origins = rec.keyframes.is_empty() && rec.cloud_origins.is_some();
     if rec.keyframes.is_empty() && ((opts.map.is_some() && !ray_origins) || opts.windowed_cloud) {
