@@ -121,10 +121,28 @@ impl PixelSpill {
     }
 
     /// The arrays of `at`: inverse depth, variance and colour (RGB).
+    /// Read a piece at a time (a keyframe's bytes are never whole in memory
+    /// beside its arrays).
     pub fn get(&self, at: SpilledPixels) -> Result<(Vec<f32>, Vec<f32>, Vec<u8>)> {
-        let mut bytes = vec![0u8; at.pixels * crate::io::messages::decode::POINT_BYTES];
-        read_at(&self.file, &mut bytes, at.offset).map_err(|e| Error::io(&self.dir, e))?;
-        Ok(crate::io::messages::decode::split_pointcloud(&bytes))
+        use crate::io::messages::decode::{split_pointcloud_into, POINT_BYTES};
+        const PIECE: usize = 1 << 14;
+        let n = at.pixels;
+        let mut out = (
+            Vec::with_capacity(n),
+            Vec::with_capacity(n),
+            Vec::with_capacity(3 * n),
+        );
+        let mut bytes = vec![0u8; PIECE.min(n) * POINT_BYTES];
+        let mut done = 0;
+        while done < n {
+            let k = PIECE.min(n - done);
+            let piece = &mut bytes[..k * POINT_BYTES];
+            read_at(&self.file, piece, at.offset + (done * POINT_BYTES) as u64)
+                .map_err(|e| Error::io(&self.dir, e))?;
+            split_pointcloud_into(piece, &mut out);
+            done += k;
+        }
+        Ok(out)
     }
 }
 
@@ -770,5 +788,12 @@ mod tests {
         assert_eq!(spill.get(sb).unwrap(), split(&b));
         assert_eq!(spill.get(sa).unwrap(), split(&a));
         assert_eq!(spill.len(), 12 * 53);
+        // A keyframe of several read pieces (16384 pixels each) and a part.
+        let c: Vec<u8> = (0..12 * (2 * 16384 + 5)).map(|i| (i * 13 % 251) as u8).collect();
+        let sc = spill.put(&c).unwrap();
+        let got = spill.get(sc).unwrap();
+        assert_eq!(got, split(&c));
+        assert_eq!(got.0.capacity(), 2 * 16384 + 5, "sized once");
+        assert_eq!(spill.get(sa).unwrap(), split(&a));
     }
 }

@@ -205,10 +205,23 @@ pub fn keyframe_ros1(data: &[u8]) -> WireResult<KeyframeMsg<'_>> {
 /// or a length update per point.
 pub fn split_pointcloud(pc: &[u8]) -> (Vec<f32>, Vec<f32>, Vec<u8>) {
     let n = pc.len() / POINT_BYTES;
+    let mut out = (
+        Vec::with_capacity(n),
+        Vec::with_capacity(n),
+        Vec::with_capacity(3 * n),
+    );
+    split_pointcloud_into(pc, &mut out);
+    out
+}
+
+/// [`split_pointcloud`] appending to `out` (inverse depth, variance, RGB):
+/// a cloud read a piece at a time is split as it comes.
+pub fn split_pointcloud_into(pc: &[u8], (idepth, var, color): &mut (Vec<f32>, Vec<f32>, Vec<u8>)) {
+    let n = pc.len() / POINT_BYTES;
+    idepth.reserve(n);
+    var.reserve(n);
+    color.reserve(3 * n);
     // Written once, without a zero fill first (megabytes a keyframe).
-    let mut idepth: Vec<f32> = Vec::with_capacity(n);
-    let mut var: Vec<f32> = Vec::with_capacity(n);
-    let mut color: Vec<u8> = Vec::with_capacity(3 * n);
     for (((p, d), v), c) in pc
         .chunks_exact(POINT_BYTES)
         .zip(idepth.spare_capacity_mut())
@@ -221,14 +234,14 @@ pub fn split_pointcloud(pc: &[u8]) -> (Vec<f32>, Vec<f32>, Vec<u8>) {
             c.write(b);
         }
     }
-    // SAFETY: the loop ran over the `n` points, and wrote the first `n`
-    // elements of `idepth` and `var` and the first `3n` of `color`.
+    // SAFETY: the loop ran over the `n` points (each vector had room for
+    // them), and wrote the `n` elements of `idepth` and `var` and the `3n`
+    // of `color` after their lengths.
     unsafe {
-        idepth.set_len(n);
-        var.set_len(n);
-        color.set_len(3 * n);
+        idepth.set_len(idepth.len() + n);
+        var.set_len(var.len() + n);
+        color.set_len(color.len() + 3 * n);
     }
-    (idepth, var, color)
 }
 
 /// Decodes a ROS 1 `lsd_slam_viewer/keyframeGraphMsg`: `(id, camToWorld)` per frame.
