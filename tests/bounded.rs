@@ -240,3 +240,47 @@ fn the_inertial_path_reads_its_imu_back_from_disk_to_the_same_outputs() {
     );
     assert_eq!(mem.report.points, bounded.report.points);
 }
+
+#[test]
+fn a_reference_file_replaces_the_log_reference_left_on_disk() {
+    use slam2world::pipeline::reconstruction::{open_input, ReferenceSpec};
+    // The log's reference, every other pose, written as a TUM file: given as
+    // the reference, it is the one fitted and written, in both paths.
+    let dir = tempfile::tempdir().unwrap();
+    let log = dir.path().join("sim.mcap");
+    let o = common::bin(&["simulate", "-o", log.to_str().unwrap(), "--reduced", "4"]);
+    assert!(o.status.success(), "{}", common::stderr(&o));
+    let own = slam2world::io::read_log(&log, &Default::default())
+        .unwrap()
+        .reference
+        .unwrap();
+    let keep: Vec<usize> = (0..own.len()).step_by(2).collect();
+    let half = Trajectory::try_new(
+        keep.iter().map(|&i| own.timestamps[i]).collect(),
+        keep.iter().map(|&i| own.positions[i]).collect(),
+        own.orientations
+            .as_ref()
+            .map(|q| keep.iter().map(|&i| q[i]).collect()),
+    )
+    .unwrap();
+    let tum = dir.path().join("ref.tum");
+    slam2world::io::text::write_tum(&half, &tum).unwrap();
+    let spec = ReferenceSpec {
+        path: tum,
+        format: None,
+        time_unit: None,
+    };
+    let opts = ConvertOptions::default();
+    let src = open_input(&log, &opts.read, &Default::default(), Some(&spec)).unwrap();
+    let mem = slam2world::pipeline::convert_source(&*src, &opts).unwrap();
+    let bounded = slam2world::pipeline::convert_source_bounded(&*src, &opts).unwrap();
+    for c in [&mem, &bounded] {
+        assert_eq!(c.report.reference_poses, half.len());
+        assert!(c.reference_on_disk.is_none());
+        assert_eq!(c.reference.as_ref().unwrap().len(), half.len());
+    }
+    assert_eq!(
+        mem.transform().scale.to_bits(),
+        bounded.transform().scale.to_bits()
+    );
+}

@@ -584,9 +584,11 @@ pub fn read_log(path: impl AsRef<Path>, options: &ReadOptions) -> Result<Log> {
     read_log_with(path.as_ref(), options, None).map(|r| r.0)
 }
 
-/// [`read_log`] with the keyframes' pixels left on disk, in a [`PixelSpill`]
-/// written as the log is read: the log in memory is then its poses, IMU and
-/// fixes, whatever its length ([`Log::pixels`] says where the pixels are).
+/// [`read_log`] with what grows with the log's length left on disk, written
+/// as the log is read: the keyframes' pixels in a [`PixelSpill`]
+/// ([`Log::pixels`]), the raw IMU ([`Log::imu_on_disk`]) and the reference
+/// poses when they come in time order ([`Log::reference_on_disk`]). The log
+/// in memory is then its keyframes' poses, live frames and fixes.
 pub fn read_log_spilled(path: impl AsRef<Path>, options: &ReadOptions) -> Result<Log> {
     let spill = PixelSpill::new()?;
     let (mut log, at) = read_log_with(path.as_ref(), options, Some(&spill))?;

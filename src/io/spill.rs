@@ -789,7 +789,9 @@ mod tests {
         assert_eq!(spill.get(sa).unwrap(), split(&a));
         assert_eq!(spill.len(), 12 * 53);
         // A keyframe of several read pieces (16384 pixels each) and a part.
-        let c: Vec<u8> = (0..12 * (2 * 16384 + 5)).map(|i| (i * 13 % 251) as u8).collect();
+        let c: Vec<u8> = (0..12 * (2 * 16384 + 5))
+            .map(|i| (i * 13 % 251) as u8)
+            .collect();
         let sc = spill.put(&c).unwrap();
         let got = spill.get(sc).unwrap();
         assert_eq!(got, split(&c));

@@ -815,12 +815,15 @@ pub fn convert_path(path: impl AsRef<Path>, opts: &ConvertOptions) -> Result<Con
     convert_source(&*source::open_log(path.as_ref(), &opts.read)?, opts)
 }
 
-/// [`convert_path`] in bounded memory: the keyframes' pixels and the world
-/// cloud stay on disk (temporary files, [`crate::io::spill`]), so that the
-/// memory is the trajectories, the octree and a batch of keyframes whatever
-/// the log's length; the conversion's `cloud` is then empty and its writers
-/// read [`Conversion::cloud_file`]. The outputs are those of the in-memory
-/// conversion, byte for byte.
+/// [`convert_path`] in bounded memory: the keyframes' pixels, the raw IMU,
+/// the reference poses and the world cloud stay on disk (temporary files,
+/// [`crate::io::spill`]), each read back for the step that uses it, so that
+/// the memory is the SLAM poses, the octree and a batch of keyframes
+/// whatever the log's length (the reference whole only while it is fitted,
+/// the IMU while it is checked); the conversion's `cloud` is then empty and
+/// its writers read [`Conversion::cloud_file`] and
+/// [`Conversion::reference_on_disk`]. The outputs are those of the
+/// in-memory conversion, byte for byte.
 pub fn convert_path_bounded(path: impl AsRef<Path>, opts: &ConvertOptions) -> Result<Conversion> {
     opts.check()?;
     convert_source_bounded(&*source::open_log(path.as_ref(), &opts.read)?, opts)

@@ -646,6 +646,8 @@ pub fn attach_reference(rec: &mut Recording, spec: &ReferenceSpec) -> Result<()>
             info.names = Some(names);
         }
     }
+    // The file's reference replaces the log's, wherever that was.
+    rec.reference_on_disk = None;
     rec.source.reference_topic = None;
     rec.source.reference_path = Some(spec.path.clone());
     rec.source.reference_file = Some(info);
