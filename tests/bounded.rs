@@ -1,7 +1,7 @@
 //! The bounded-memory conversion (`convert_path_bounded`, what the CLI's
-//! `convert` runs): keyframe pixels and the world cloud on disk, a batch of
-//! keyframes in memory at a time, and the very outputs of the in-memory
-//! conversion.
+//! `convert` runs): keyframe pixels, raw IMU, reference poses and the world
+//! cloud on disk, a batch of keyframes in memory at a time, and the very
+//! outputs of the in-memory conversion.
 
 mod common;
 
