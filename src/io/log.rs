@@ -1043,12 +1043,10 @@ impl PoseSamples {
                 };
                 file.for_each_piece(ROW_PIECE, |_, values| {
                     for v in values.chunks_exact(8) {
-                        r.times.push(v[0]);
-                        r.positions.push(Vector3::new(v[1], v[2], v[3]));
-                        r.orientations
-                            .push(UnitQuaternion::new_unchecked(Quaternion::new(
-                                v[7], v[4], v[5], v[6],
-                            )));
+                        let (t, p, q) = crate::io::spill::pose_of_row(v);
+                        r.times.push(t);
+                        r.positions.push(p);
+                        r.orientations.push(q);
                     }
                     Ok(())
                 })?;

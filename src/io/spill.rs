@@ -388,6 +388,15 @@ impl TrajectoryFile {
     }
 }
 
+/// The pose of a [`TrajectoryFile`] row `t x y z qx qy qz qw`.
+pub(crate) fn pose_of_row(r: &[f64]) -> (f64, Vector3<f64>, UnitQuaternion<f64>) {
+    (
+        r[0],
+        Vector3::new(r[1], r[2], r[3]),
+        UnitQuaternion::new_unchecked(Quaternion::new(r[7], r[4], r[5], r[6])),
+    )
+}
+
 /// A trajectory to read: in memory, or on disk ([`TrajectoryFile`]). Its
 /// readers take it a piece at a time, so that one on disk is never whole in
 /// memory; the pieces of both are the same poses.
@@ -451,11 +460,10 @@ impl TrajectoryRef<'_> {
                     p.clear();
                     q.clear();
                     for r in values.chunks_exact(8) {
-                        t.push(r[0]);
-                        p.push(Vector3::new(r[1], r[2], r[3]));
-                        q.push(UnitQuaternion::new_unchecked(Quaternion::new(
-                            r[7], r[4], r[5], r[6],
-                        )));
+                        let (time, position, orientation) = pose_of_row(r);
+                        t.push(time);
+                        p.push(position);
+                        q.push(orientation);
                     }
                     f(first, &t, &p, Some(&q))
                 })
