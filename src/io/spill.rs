@@ -350,6 +350,27 @@ impl TrajectoryFile {
         })
     }
 
+    /// `t` (with its orientations, identity where it has none) written to
+    /// a temporary file, named `topic` of `source` in errors.
+    pub fn write(t: &Trajectory, source: &Path, topic: &str) -> Result<TrajectoryFile> {
+        let mut spill = RowSpill::new(8);
+        TrajectoryRef::Memory(t).for_each_piece(
+            ROW_PIECE,
+            |_, times, positions, orientations| {
+                for (i, (time, p)) in times.iter().zip(positions).enumerate() {
+                    let q = orientations.map_or([0.0, 0.0, 0.0, 1.0], |q| {
+                        let c = q[i].coords;
+                        [c[0], c[1], c[2], c[3]]
+                    });
+                    spill.push(&[*time, p.x, p.y, p.z, q[0], q[1], q[2], q[3]]);
+                }
+                Ok(())
+            },
+        )?;
+        let rows = spill.finish(&format!("the poses of {topic}"))?;
+        TrajectoryFile::new(std::sync::Arc::new(rows), source, topic)
+    }
+
     /// Poses held.
     pub fn len(&self) -> usize {
         self.rows.len()
@@ -720,16 +741,7 @@ mod tests {
             .map(|i| UnitQuaternion::from_euler_angles(0.1, 0.0, i as f64 * 1e-3))
             .collect();
         let traj = Trajectory::try_new(t, p, Some(q)).unwrap();
-        let mut spill = RowSpill::new(8);
-        for i in 0..n {
-            let (x, c) = (
-                traj.positions[i],
-                traj.orientations.as_ref().unwrap()[i].coords,
-            );
-            spill.push(&[traj.timestamps[i], x.x, x.y, x.z, c[0], c[1], c[2], c[3]]);
-        }
-        let rows = std::sync::Arc::new(spill.finish("poses").unwrap());
-        let file = TrajectoryFile::new(rows, Path::new("log.mcap"), "/gt").unwrap();
+        let file = TrajectoryFile::write(&traj, Path::new("log.mcap"), "/gt").unwrap();
         let back = file.load().unwrap();
         assert_eq!(back.timestamps, traj.timestamps);
         assert_eq!(back.positions, traj.positions);

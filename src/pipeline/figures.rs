@@ -470,6 +470,30 @@ mod tests {
     use crate::map::MapParams;
 
     #[test]
+    fn a_path_on_disk_decimates_as_in_memory() {
+        use crate::io::spill::TrajectoryFile;
+        for n in [0usize, 1, 5, 9_999, 10_000, 70_001] {
+            let t = Trajectory::try_new(
+                (0..n).map(|i| i as f64 * 0.01).collect(),
+                (0..n)
+                    .map(|i| nalgebra::Vector3::new(i as f64, (i % 7) as f64, -1.0))
+                    .collect(),
+                None,
+            )
+            .unwrap();
+            let file = TrajectoryFile::write(&t, std::path::Path::new("log"), "/gt").unwrap();
+            for max in [1, 10, 777, 5_000, usize::MAX] {
+                let disk = PathData::decimated_ref(TrajectoryRef::File(&file), max).unwrap();
+                assert_eq!(
+                    disk,
+                    PathData::decimated(&t, max),
+                    "{n} poses, at most {max}"
+                );
+            }
+        }
+    }
+
+    #[test]
     fn a_path_keeps_every_stride_th_pose_and_the_last() {
         let t = Trajectory::try_new(
             (0..10).map(f64::from).collect(),
