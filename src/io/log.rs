@@ -1422,7 +1422,7 @@ fn reorder<T: Copy>(v: &mut Vec<T>, order: &[usize]) {
 
 /// [`LogError::Samples`]: the samples of `topic` in `path` make no
 /// trajectory (or IMU stream), and why.
-pub(crate) fn samples_error(path: &Path, topic: &str, what: String) -> Error {
+fn samples_error(path: &Path, topic: &str, what: String) -> Error {
     log_err(
         path,
         LogError::Samples {

@@ -404,8 +404,13 @@ impl TrajectoryFile {
                 Ok(())
             },
         )?;
-        Trajectory::try_new(t, p, Some(q))
-            .map_err(|e| crate::io::log::samples_error(&self.source, &self.topic, e.to_string()))
+        Trajectory::try_new(t, p, Some(q)).map_err(|e| Error::Log {
+            path: self.source.clone(),
+            reason: Box::new(crate::error::LogError::Samples {
+                topic: self.topic.clone(),
+                what: e.to_string(),
+            }),
+        })
     }
 }
 
