@@ -853,11 +853,21 @@ fn log_of_scan(
     }
     keep_from(&mut messages, 5);
     if let Some(c) = picks.imu {
-        let column = imu.remove(&c.id).unwrap_or_default();
-        if column.rows.spill.is_some() {
-            log.imu_on_disk = ImuOnDisk::of_column(path, column, c)?.map(std::sync::Arc::new);
-        } else {
-            log.imu = Some(read_imu(path, column, c)?);
+        // The column's first bad message is the error, wherever its rows are.
+        let rows = imu
+            .remove(&c.id)
+            .unwrap_or_default()
+            .into_rows(path, &c.topic)?;
+        match rows.spill {
+            Some(spill) => {
+                log.imu_on_disk = Some(std::sync::Arc::new(ImuOnDisk::new(spill, path, c)?));
+            }
+            None => {
+                let ImuRows {
+                    times, gyro, accel, ..
+                } = rows;
+                log.imu = Some(imu_by_time(path, &c.topic, (times, gyro, accel))?);
+            }
         }
     }
     keep_from(&mut messages, 6);
@@ -1579,14 +1589,6 @@ fn trajectory_of(
         .map_err(|e| samples_error(path, topic, e.to_string()))
 }
 
-/// The IMU samples of channel `c` from its column (in memory), by time.
-fn read_imu(path: &Path, column: ImuColumn, c: &ChannelInfo) -> Result<ImuSamples> {
-    let ImuRows {
-        times, gyro, accel, ..
-    } = column.into_rows(path, &c.topic)?;
-    imu_by_time(path, &c.topic, (times, gyro, accel))
-}
-
 /// The IMU samples of `topic` by time (of samples with the same stamp, the
 /// first given), checked.
 fn imu_by_time(
@@ -1612,20 +1614,14 @@ pub struct ImuOnDisk {
 }
 
 impl ImuOnDisk {
-    /// The samples on channel `c`'s column, on disk (`None`: the column is
-    /// in memory); the column's first bad message is the error, as for a
-    /// log read in memory.
-    fn of_column(path: &Path, column: ImuColumn, c: &ChannelInfo) -> Result<Option<ImuOnDisk>> {
-        let rows = column.into_rows(path, &c.topic)?;
+    /// The samples `spill` took of channel `c`, on disk.
+    fn new(spill: RowSpill, path: &Path, c: &ChannelInfo) -> Result<ImuOnDisk> {
         let what = format!("the IMU samples of {} in {}", c.topic, path.display());
-        match rows.spill {
-            Some(spill) => Ok(Some(ImuOnDisk {
-                samples: spill.finish(&what)?,
-                path: path.to_path_buf(),
-                topic: c.topic.clone(),
-            })),
-            None => Ok(None),
-        }
+        Ok(ImuOnDisk {
+            samples: spill.finish(&what)?,
+            path: path.to_path_buf(),
+            topic: c.topic.clone(),
+        })
     }
 
     /// Samples held (before those with a repeated time are dropped).

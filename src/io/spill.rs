@@ -280,11 +280,7 @@ impl RowFile {
             read_at(&self.file, piece, (start * row_bytes) as u64)
                 .map_err(|e| Error::io(&self.dir, e))?;
             values.clear();
-            values.extend(piece.chunks_exact(8).map(|b| {
-                let mut v = [0u8; 8];
-                v.copy_from_slice(b);
-                f64::from_le_bytes(v)
-            }));
+            values.extend(piece.chunks_exact(8).map(le_f64));
             f(start, &values)?;
             start += k;
         }
@@ -299,17 +295,15 @@ impl RowFile {
         let mut bytes = vec![0u8; 8 * self.width];
         read_at(&self.file, &mut bytes, (i * 8 * self.width) as u64)
             .map_err(|e| Error::io(&self.dir, e))?;
-        Ok(Some(
-            bytes
-                .chunks_exact(8)
-                .map(|b| {
-                    let mut v = [0u8; 8];
-                    v.copy_from_slice(b);
-                    f64::from_le_bytes(v)
-                })
-                .collect(),
-        ))
+        Ok(Some(bytes.chunks_exact(8).map(le_f64).collect()))
     }
+}
+
+/// The `f64` of 8 little-endian bytes.
+fn le_f64(b: &[u8]) -> f64 {
+    let mut v = [0u8; 8];
+    v.copy_from_slice(b);
+    f64::from_le_bytes(v)
 }
 
 /// Rows per piece when a [`RowFile`] is read whole.
