@@ -45,6 +45,9 @@ demo: install
 
 test: lint test-rust test-install test-python
 
+# A one-shot run keeps no incremental caches (4-5 GB that a fresh machine would never reuse).
+test: export CARGO_INCREMENTAL = 0
+
 test-rust:
 	cargo test --all-targets
 
