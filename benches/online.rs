@@ -6,6 +6,10 @@
 //! push (one keyframe inserted per frame while a map is built in steps). Run it on one core
 //! (`RAYON_NUM_THREADS=1 taskset -c 0 cargo bench --bench online`), and again
 //! with another process keeping the other core busy.
+//!
+//! Under `cargo test` (no `--bench` argument) it runs as a smoke test: the
+//! same path on 160×120 images, stopped after a few keyframes of the map
+//! (simulating and pushing the whole log takes minutes unoptimised).
 
 use std::time::Instant;
 
@@ -18,15 +22,25 @@ fn pct(v: &mut [f64], p: f64) -> f64 {
     v[((v.len() - 1) as f64 * p).round() as usize]
 }
 
+/// Keyframes of the map a smoke run (`cargo test`) measures before it stops.
+const SMOKE_KEYFRAMES: usize = 3;
+
 fn main() {
+    let smoke = !std::env::args().any(|a| a == "--bench");
     let dir = tempfile::tempdir().expect("tempdir");
     let log = dir.path().join("paper.mcap");
-    let code = slam2world::cli::main_with_args([
+    let mut args = vec![
         "slam2world".to_string(),
         "simulate".into(),
         "-o".into(),
         log.display().to_string(),
-    ]);
+    ];
+    if smoke {
+        for set in ["width=160", "height=120"] {
+            args.extend(["--set".into(), set.into()]);
+        }
+    }
+    let code = slam2world::cli::main_with_args(args);
     assert_eq!(code, 0);
     let file = McapFile::open(&log).expect("log");
     let channels = file.channels().expect("channels");
@@ -66,8 +80,15 @@ fn main() {
             fit.push(timing.fit_s);
             bp.push(timing.backproject_s);
             ins.push(timing.insert_s);
+            if smoke && total.len() == SMOKE_KEYFRAMES {
+                break;
+            }
         }
     }
+    assert!(
+        !total.is_empty(),
+        "no keyframe was pushed after the map existed"
+    );
     let ms = |v: &mut Vec<f64>| (1e3 * pct(v, 0.5), 1e3 * pct(v, 0.99));
     println!(
         "online: {} keyframes after the map exists ({} of them rebuilt it), threads {}",
@@ -84,6 +105,10 @@ fn main() {
         ("grid (after)", &mut grid),
         ("tracked-frame push", &mut frames),
     ] {
+        if v.is_empty() {
+            println!("{name:22} none");
+            continue;
+        }
         let (p50, p99) = ms(v);
         println!("{name:22} p50 {p50:8.2} ms  p99 {p99:8.2} ms");
     }
