@@ -20,6 +20,48 @@ use crate::io::messages::{
 /// whose channel the task could not see, by position in the item's messages.
 type Part<T> = (Vec<Def>, Vec<MappedMessage<T>>, Vec<(usize, Vec<u8>)>);
 
+/// Decompression buffers kept from one wave of chunk tasks to the next, for
+/// as long as one scan runs. Freed at the end of each wave, a chunk's buffer
+/// (3.8 MB for the demo's chunks) went back to the system (with the command
+/// line's fixed mmap threshold, [`crate::buffer::MMAP_THRESHOLD`], glibc
+/// trims the free top of its heap from 128 KiB) and the next wave's tasks
+/// faulted its pages in again: 4.7 GB of chunks on the 10x log.
+#[derive(Default)]
+struct Buffers(std::sync::Mutex<Vec<Vec<u8>>>);
+
+/// A buffer of [`Buffers`] lent to one chunk task (a rayon split), given
+/// back when the task ends.
+struct Lent<'p> {
+    buf: Vec<u8>,
+    pool: &'p Buffers,
+}
+
+impl Buffers {
+    /// Buffers kept at most: one for each thread (a task a waiting thread
+    /// stole lends one more, dropped when it ends).
+    fn most() -> usize {
+        rayon::current_num_threads()
+    }
+
+    fn lend(&self) -> Lent<'_> {
+        let buf = match self.0.lock() {
+            Ok(mut kept) => kept.pop().unwrap_or_default(),
+            Err(_) => Vec::new(),
+        };
+        Lent { buf, pool: self }
+    }
+}
+
+impl Drop for Lent<'_> {
+    fn drop(&mut self) {
+        if let Ok(mut kept) = self.pool.0.lock() {
+            if kept.len() < Buffers::most() {
+                kept.push(std::mem::take(&mut self.buf));
+            }
+        }
+    }
+}
+
 /// Channel lookup by id for the chunk tasks: `(info, wanted)`.
 fn table_of<'k>(
     known: &'k BTreeMap<u16, ChannelInfo>,
@@ -194,6 +236,7 @@ impl McapFile {
         // sink before the next wave's tasks run (a long log's messages are never
         // all held), and the channels a wave defined are known to the next.
         let wave = (rayon::current_num_threads() * 4).max(8);
+        let buffers = Buffers::default();
         while !items.is_empty() {
             let rest = items.split_off(wave.min(items.len()));
             let batch = std::mem::replace(&mut items, rest);
@@ -201,13 +244,16 @@ impl McapFile {
                 let table = table_of(&known, want);
                 batch
                     .into_par_iter()
-                    .map_init(Vec::new, |buf, item| {
-                        crate::interrupt::check()?;
-                        self.map_item(item, &table, buf, want, map)
-                    })
+                    .map_init(
+                        || buffers.lend(),
+                        |lent, item| {
+                            crate::interrupt::check()?;
+                            self.map_item(item, &table, &mut lent.buf, want, map)
+                        },
+                    )
                     .collect()
             };
-            // What the chunk tasks freed (their buffers) goes back first.
+            // What the chunk tasks freed goes back first.
             crate::buffer::release_free_memory();
             merge.wave(parts, want, map, sink)?;
             for (id, c) in &merge.channels {
