@@ -353,6 +353,26 @@ impl Error {
         }
     }
 
+    /// Shorthand for [`Error::Log`].
+    pub fn log(path: &std::path::Path, reason: LogError) -> Self {
+        Error::Log {
+            path: path.to_path_buf(),
+            reason: Box::new(reason),
+        }
+    }
+
+    /// [`LogError::Samples`]: the samples of `topic` in `path` make no
+    /// trajectory (or IMU stream), and why.
+    pub fn samples(path: &std::path::Path, topic: &str, what: String) -> Self {
+        Error::log(
+            path,
+            LogError::Samples {
+                topic: topic.to_string(),
+                what,
+            },
+        )
+    }
+
     /// Shorthand for [`Error::Parse`].
     pub fn parse(path: impl Into<PathBuf>, line: usize, reason: impl Into<String>) -> Self {
         Error::Parse {

@@ -148,13 +148,6 @@ pub struct Log {
     pub pixels: Option<std::sync::Arc<SpilledKeyframes>>,
 }
 
-fn log_err(path: &Path, reason: LogError) -> Error {
-    Error::Log {
-        path: path.to_path_buf(),
-        reason: Box::new(reason),
-    }
-}
-
 /// Reference pose kinds in the order they are preferred.
 const POSE_KINDS: [MessageKind; 7] = [
     MessageKind::PoseStamped,
@@ -263,7 +256,7 @@ fn choose<'c>(
             .find(|c| c.topic == topic)
             .or_else(|| channels.values().find(|c| bare(&c.topic) == bare(topic)));
         let Some(c) = found else {
-            return Err(log_err(
+            return Err(Error::log(
                 path,
                 LogError::NoTopic {
                     role,
@@ -274,7 +267,7 @@ fn choose<'c>(
         };
         return match kind_of(c) {
             Some(k) if kinds.contains(&k) => Ok(Some(c)),
-            Some(_) => Err(log_err(
+            Some(_) => Err(Error::log(
                 path,
                 LogError::WrongType {
                     role,
@@ -283,7 +276,7 @@ fn choose<'c>(
                     expected: kinds_text(kinds),
                 },
             )),
-            None => Err(log_err(
+            None => Err(Error::log(
                 path,
                 LogError::UnknownType {
                     role,
@@ -321,7 +314,7 @@ fn check_encoding(path: &Path, c: &ChannelInfo, kind: MessageKind) -> Result<()>
     if kind.encodings().contains(&c.message_encoding.as_str()) {
         Ok(())
     } else {
-        Err(log_err(
+        Err(Error::log(
             path,
             LogError::Encoding {
                 topic: c.topic.clone(),
@@ -1319,7 +1312,7 @@ fn to_keyframe(
 ) -> Result<(Keyframe, Option<SpilledPixels>)> {
     let m = &e.msg;
     let what = |what: String| {
-        log_err(
+        Error::log(
             path,
             LogError::Keyframe {
                 topic: topic.to_string(),
@@ -1377,14 +1370,14 @@ fn read_live(path: &Path, messages: &[Mapped], c: &ChannelInfo) -> Result<Option
             _ => return Err(fail(WireError::schema("not a keyframe message"))),
         };
         let pose = Sim3::from_lsd_slam(cam_to_world).map_err(|e| {
-            samples_error(
+            Error::samples(
                 path,
                 &c.topic,
                 format!("frame {i}: camToWorld {cam_to_world:?}: {e}"),
             )
         })?;
         if !time.is_finite() {
-            return Err(samples_error(
+            return Err(Error::samples(
                 path,
                 &c.topic,
                 format!("frame {i}: time {time} is not finite"),
@@ -1402,7 +1395,7 @@ fn read_live(path: &Path, messages: &[Mapped], c: &ChannelInfo) -> Result<Option
     }
     Trajectory::try_new(times, positions, Some(orientations))
         .map(Some)
-        .map_err(|e| samples_error(path, &c.topic, e.to_string()))
+        .map_err(|e| Error::samples(path, &c.topic, e.to_string()))
 }
 
 /// The order that sorts `times` (equal times kept in their order; with
@@ -1430,18 +1423,6 @@ fn reorder<T: Copy>(v: &mut Vec<T>, order: &[usize]) {
     *v = order.iter().map(|&k| v[k]).collect();
 }
 
-/// [`LogError::Samples`]: the samples of `topic` in `path` make no
-/// trajectory (or IMU stream), and why.
-fn samples_error(path: &Path, topic: &str, what: String) -> Error {
-    log_err(
-        path,
-        LogError::Samples {
-            topic: topic.to_string(),
-            what,
-        },
-    )
-}
-
 /// The pose samples of a pose channel: its column (gathered as the log was
 /// scanned), or for TF its messages narrowed to one frame pair (`tf`: the
 /// parent and child asked for; the most frequent pair that fits).
@@ -1465,7 +1446,7 @@ fn read_poses(
             reorder(&mut orientations, &order);
         }
         return Trajectory::try_new(times, positions, Some(orientations))
-            .map_err(|e| samples_error(path, &c.topic, e.to_string()));
+            .map_err(|e| Error::samples(path, &c.topic, e.to_string()));
     }
     let mut decoded: Vec<&Vec<StampedPose>> = Vec::new();
     let mine = messages.iter().filter(|m| m.channel_id == c.id);
@@ -1485,7 +1466,7 @@ fn read_poses(
         }
     }
     let no_transform = || {
-        log_err(
+        Error::log(
             path,
             LogError::NoTransform {
                 topic: c.topic.clone(),
@@ -1525,7 +1506,7 @@ fn read_poses(
         }
     }
     if samples.is_empty() {
-        return Err(log_err(
+        return Err(Error::log(
             path,
             LogError::NoTransform {
                 topic: c.topic.clone(),
@@ -1580,13 +1561,13 @@ fn trajectory_of(
     let mut orientations = Vec::with_capacity(n);
     for (i, time, position, orientation) in samples {
         let (time, position, [x, y, z, w]) = checked_sample((time, position, orientation))
-            .map_err(|e| samples_error(path, topic, format!("message {i}: {e}")))?;
+            .map_err(|e| Error::samples(path, topic, format!("message {i}: {e}")))?;
         times.push(time);
         positions.push(Vector3::from(position));
         orientations.push(UnitQuaternion::new_unchecked(Quaternion::new(w, x, y, z)));
     }
     Trajectory::try_new(times, positions, Some(orientations))
-        .map_err(|e| samples_error(path, topic, e.to_string()))
+        .map_err(|e| Error::samples(path, topic, e.to_string()))
 }
 
 /// The IMU samples of `topic` by time (of samples with the same stamp, the
@@ -1601,7 +1582,7 @@ fn imu_by_time(
         reorder(&mut gyro, &order);
         reorder(&mut accel, &order);
     }
-    ImuSamples::try_new(times, gyro, accel).map_err(|e| samples_error(path, topic, e.to_string()))
+    ImuSamples::try_new(times, gyro, accel).map_err(|e| Error::samples(path, topic, e.to_string()))
 }
 
 /// The raw IMU samples of a log read by [`read_log_spilled`], left on disk
@@ -1846,7 +1827,7 @@ fn read_fixes(path: &Path, messages: &[Mapped], c: &ChannelInfo) -> Result<GnssF
         }
     }
     GnssFixes::from_fixes(fixes, TimeBase::Source).map_err(|e| match e {
-        Error::InvalidFix { .. } => samples_error(path, &c.topic, e.to_string()),
+        Error::InvalidFix { .. } => Error::samples(path, &c.topic, e.to_string()),
         e => e,
     })
 }

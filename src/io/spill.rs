@@ -345,8 +345,10 @@ impl TrajectoryFile {
     }
 
     /// `t` (with its orientations, identity where it has none) written to
-    /// a temporary file, named `topic` of `source` in errors.
-    pub fn write(t: &Trajectory, source: &Path, topic: &str) -> Result<TrajectoryFile> {
+    /// a temporary file, named `topic` of `source` in errors (for tests: a
+    /// conversion's reference reaches disk as the log is scanned).
+    #[cfg(test)]
+    pub(crate) fn write(t: &Trajectory, source: &Path, topic: &str) -> Result<TrajectoryFile> {
         let mut spill = RowSpill::new(8);
         TrajectoryRef::Memory(t).for_each_piece(
             ROW_PIECE,
@@ -398,13 +400,8 @@ impl TrajectoryFile {
                 Ok(())
             },
         )?;
-        Trajectory::try_new(t, p, Some(q)).map_err(|e| Error::Log {
-            path: self.source.clone(),
-            reason: Box::new(crate::error::LogError::Samples {
-                topic: self.topic.clone(),
-                what: e.to_string(),
-            }),
-        })
+        Trajectory::try_new(t, p, Some(q))
+            .map_err(|e| Error::samples(&self.source, &self.topic, e.to_string()))
     }
 }
 

@@ -44,11 +44,11 @@ impl Buffers {
     }
 
     fn lend(&self) -> Lent<'_> {
-        let buf = match self.0.lock() {
-            Ok(mut kept) => kept.pop().unwrap_or_default(),
-            Err(_) => Vec::new(),
-        };
-        Lent { buf, pool: self }
+        let buf = self.0.lock().ok().and_then(|mut kept| kept.pop());
+        Lent {
+            buf: buf.unwrap_or_default(),
+            pool: self,
+        }
     }
 }
 
