@@ -68,7 +68,7 @@ test-install: install
 
 lint: install
 	cargo fmt --check
-	cargo clippy --all-targets -- -D warnings
+	# One pass: `python` turns on `cli` too, and no code is compiled only without them.
 	cargo clippy --all-targets --features python -- -D warnings
 	$(PY) -m ruff check python tests benches
 	$(PY) -m ruff format --check python tests benches
@@ -99,7 +99,7 @@ fuzz:
 # address-space limit, every case checked for panics, aborts, hangs and memory.
 FUZZ_STABLE_SECONDS ?= 600
 fuzz-stable:
-	SLAM2WORLD_MUTATION_SECONDS=$(FUZZ_STABLE_SECONDS) cargo test --release --test mutation mcap_random_run_for_a_while -- --nocapture
+	SLAM2WORLD_MUTATION_SECONDS=$(FUZZ_STABLE_SECONDS) cargo test --release --test it mutation::mcap_random_run_for_a_while -- --nocapture
 
 clean:
 	cargo clean

@@ -1,4 +1,4 @@
-"""Writes the ROS bag fixtures of tests/rosbag.rs with the independent `rosbags` package.
+"""Writes the ROS bag fixtures of tests/it/rosbag.rs with the independent `rosbags` package.
 
     .venv/bin/python tests/data/rosbag/make_fixtures.py
 

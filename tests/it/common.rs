@@ -1,5 +1,4 @@
-//! Helpers shared by the integration tests (each test crate uses a subset).
-#![allow(dead_code)]
+//! Helpers shared by the integration-test modules.
 
 use std::path::{Path, PathBuf};
 use std::process::{Command, Output};

@@ -1,8 +1,7 @@
 //! `slam2world imu-init` as a user runs it: exit codes 0 / 1 (bad data, one
 //! line) / 2 (usage), text and JSON output.
 
-mod common;
-use common::{bin, data, stderr};
+use crate::common::{bin, data, stderr};
 use std::path::{Path, PathBuf};
 
 /// A body at rest for 10 s: keyframes at 10 Hz, IMU at 200 Hz reading gravity.

@@ -20,7 +20,7 @@ use slam2world::align::{align, AlignMethod, AlignOptions, Alignment};
 use slam2world::trajectory::associate;
 use slam2world::{Error, Sim3, Trajectory};
 
-mod common;
+use crate::common;
 
 const ANCHORS: [Anchor; 2] = [Anchor::None, Anchor::First];
 

@@ -495,12 +495,17 @@ struct Outcome {
 fn run_worker(reader: &str, cases: &[(PathBuf, u64)]) -> Outcome {
     let exe = std::env::current_exe().unwrap();
     let mut cmd = Command::new(exe);
-    cmd.args(["worker", "--exact", "--nocapture", "--test-threads=1"])
-        .env("SLAM2WORLD_MUTATION_READER", reader)
-        .env("RUST_BACKTRACE", "0")
-        .stdin(Stdio::piped())
-        .stdout(Stdio::piped())
-        .stderr(Stdio::null());
+    cmd.args([
+        "mutation::worker",
+        "--exact",
+        "--nocapture",
+        "--test-threads=1",
+    ])
+    .env("SLAM2WORLD_MUTATION_READER", reader)
+    .env("RUST_BACKTRACE", "0")
+    .stdin(Stdio::piped())
+    .stdout(Stdio::piped())
+    .stderr(Stdio::null());
     #[cfg(target_os = "linux")]
     {
         use std::os::unix::process::CommandExt;

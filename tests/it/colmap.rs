@@ -2,8 +2,7 @@
 //! rigs and frames, the real Maupertuis model, name references, bad input.
 //! (pycolmap checks the same files from the other side: tests/python/test_colmap.py.)
 
-mod common;
-use common::data;
+use crate::common::data;
 
 use std::path::Path;
 

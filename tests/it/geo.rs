@@ -1,7 +1,7 @@
 //! Geodesy, GNSS readers and georeferenced writers (core layer). The Python
 //! tests check the same against pymap3d, pyproj, laspy and pypcd4.
 
-mod common;
+use crate::common;
 
 use std::path::Path;
 

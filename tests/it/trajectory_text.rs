@@ -2,8 +2,7 @@
 //! shared real data (ORB-SLAM3 EuRoC in ns, TUM in s), CSV, headers,
 //! repeated stamps, over-long lines.
 
-mod common;
-use common::data;
+use crate::common::data;
 
 use std::io::Write;
 

@@ -3,7 +3,7 @@
 //! cloud on disk, a batch of keyframes in memory at a time, and the very
 //! outputs of the in-memory conversion.
 
-mod common;
+use crate::common;
 
 use std::path::Path;
 

@@ -4,8 +4,7 @@
 //! benchmark's rule, and its published fr2/desk figure), the extrinsic and
 //! orientations with a yaw-only fit, and each fit-quality refusal.
 
-mod common;
-use common::data;
+use crate::common::data;
 
 use nalgebra::{UnitQuaternion, Vector3};
 use rand::{Rng, SeedableRng};

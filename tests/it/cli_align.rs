@@ -1,8 +1,7 @@
 //! `slam2world align` as a user runs it: exit codes 0 / 1 (bad data, one
 //! line) / 2 (usage), text and JSON output.
 
-mod common;
-use common::{bin, data, stderr};
+use crate::common::{bin, data, stderr};
 use std::path::{Path, PathBuf};
 
 /// A synthetic pair of TUM files: `est` is `ref` mapped by a known Sim(3) inverse.

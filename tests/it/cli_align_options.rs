@@ -2,8 +2,7 @@
 //! refusals through the command line, as a user runs them: `align` (text and
 //! JSON), `transform-cloud`; exit 1 with one line for refused fits.
 
-mod common;
-use common::{bin, data, stderr};
+use crate::common::{bin, data, stderr};
 use std::path::{Path, PathBuf};
 
 /// TUM files: a gravity-aligned path (`ref`) and the estimate `est` with

@@ -2,7 +2,7 @@
 //! package (`tests/data/rosbag/make_fixtures.py`), against real bags in
 //! `../shared/data` (skipped when absent), and against damaged input.
 
-mod common;
+use crate::common;
 
 use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};

@@ -7,8 +7,7 @@
 //! (pycolmap checks the same outputs from the other side:
 //! tests/python/test_reconstruction.py.)
 
-mod common;
-use common::{bin, data, stderr};
+use crate::common::{bin, data, stderr};
 
 use std::path::{Path, PathBuf};
 

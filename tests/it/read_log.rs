@@ -5,7 +5,7 @@
 //! conversion with that of the MCAP log of the same messages is checked in
 //! `tests/python/test_bags.py`, where both are written by independent writers.
 
-mod common;
+use crate::common;
 
 use std::path::{Path, PathBuf};
 

@@ -2,8 +2,7 @@
 //! against the reference numbers in each folder's PROVENANCE.md (computed with
 //! evo 1.38.1; the Python tests run evo itself). Skips when the data is absent.
 
-mod common;
-use common::data;
+use crate::common::data;
 
 use nalgebra::Vector3;
 use slam2world::align::trajectories::{align_trajectories, TrajectoryAlignOptions};
