@@ -10,7 +10,7 @@ DIST ?= dist
 MANYLINUX ?= manylinux2014
 
 .PHONY: install build-tools wheel sdist demo test test-rust test-python test-install lint fmt browser \
-	bench compare fuzz fuzz-stable clean
+	bench compare fuzz fuzz-stable clean check develop
 
 $(PY):
 	python3 -m venv $(VENV)
@@ -45,11 +45,30 @@ demo: install
 
 test: lint test-rust test-install test-python
 
+# The contributor loop, after each change (CONTRIBUTING.md): fmt, clippy, the Rust unit and
+# integration tests and the Python tests against a debug build installed in place, leaving out
+# the slow tests (cargo `#[ignore = "slow: ..."]`, pytest `-m slow`) that `make test` runs.
+# Incremental builds: a one-line change in src/ recompiles little.
+check: develop
+	cargo fmt --check
+	cargo clippy --all-targets --features python -- -D warnings
+	cargo test --lib --bins --test it
+	$(PY) -m ruff check python tests benches
+	$(PY) -m ruff format --check python tests benches
+	$(PY) -m pytest -q -m "not slow"
+
+# A debug build of the Python module, installed in place into .venv with the test dependencies
+# (it replaces the release wheel of `make install` until that runs again).
+develop: build-tools
+	$(PY) -m maturin develop --quiet --extras test
+
 # A one-shot run keeps no incremental caches (4-5 GB that a fresh machine would never reuse).
 test: export CARGO_INCREMENTAL = 0
 
+# Every test, the slow ones included; the benches run once each as tests.
 test-rust:
-	cargo test --all-targets
+	cargo test --lib --bins --tests -- --include-ignored
+	cargo test --benches
 
 # The report-page tests open report.html in headless Chromium, from Debian's packages where
 # the machine has none (as root with apt); without one they skip, saying why.

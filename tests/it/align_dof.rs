@@ -430,6 +430,7 @@ fn sim3_and_se3_without_anchor_are_align() {
 }
 
 #[test]
+#[ignore = "slow: make test runs it"]
 fn noisy_fits_are_the_least_squares_optimum() {
     let mut rng = ChaCha8Rng::seed_from_u64(3);
     for dof in Dof::ALL {
@@ -790,6 +791,7 @@ fn degenerate_inputs_are_refused_with_the_figure() {
 }
 
 #[test]
+#[ignore = "slow: make test runs it"]
 fn robust_fits_ignore_outliers_with_every_dof() {
     let mut rng = ChaCha8Rng::seed_from_u64(8);
     for dof in Dof::ALL {

@@ -114,6 +114,7 @@ fn both(log: &Path, opts: &ConvertOptions, out: &Path) -> (Conversion, Conversio
 }
 
 #[test]
+#[ignore = "slow: make test runs it"]
 fn the_bounded_conversion_writes_the_in_memory_outputs_byte_for_byte() {
     let dir = tempfile::tempdir().unwrap();
     let log = dir.path().join("sim.mcap");
@@ -215,6 +216,7 @@ fn keyframes_out_of_id_order_give_the_in_memory_octree() {
 }
 
 #[test]
+#[ignore = "slow: make test runs it"]
 fn the_inertial_path_reads_its_imu_back_from_disk_to_the_same_outputs() {
     // Without a reference the raw IMU is what the world frame comes from:
     // a bounded read leaves it on disk and the fit reads it back.
@@ -242,6 +244,7 @@ fn the_inertial_path_reads_its_imu_back_from_disk_to_the_same_outputs() {
 }
 
 #[test]
+#[ignore = "slow: make test runs it"]
 fn a_reference_file_replaces_the_log_reference_left_on_disk() {
     use slam2world::pipeline::reconstruction::{open_input, ReferenceSpec};
     // The log's reference, every other pose, written as a TUM file: given as

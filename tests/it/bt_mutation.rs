@@ -194,6 +194,7 @@ fn exercise(path: &std::path::Path) -> bool {
 }
 
 #[test]
+#[ignore = "slow: make test runs it"]
 fn mutated_bt_files_read_or_fail_cleanly() {
     let base = base_file();
     assert!(base.len() > 1000, "{} bytes", base.len());

@@ -51,6 +51,7 @@ fn usage_and_argument_errors() {
 }
 
 #[test]
+#[ignore = "slow: make test runs it"]
 fn euroc_v102_report_agrees_with_the_reference() {
     let (Some(est), Some(imu), Some(gt)) = (
         data("euroc_v102", "V102.txt"),

@@ -113,6 +113,7 @@ fn write_folder(dir: &Path, r: usize) {
 }
 
 #[test]
+#[ignore = "slow: make test runs it"]
 fn both_disparity_resolutions_read_to_the_scene() {
     for r in [8usize, 1] {
         let dir = tempfile::tempdir().unwrap();

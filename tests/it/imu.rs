@@ -275,6 +275,7 @@ fn euroc_grade_noise_ten_seconds() {
 }
 
 #[test]
+#[ignore = "slow: make test runs it"]
 fn longer_windows_do_better() {
     let mut curve = Vec::new();
     for w in [5.0, 10.0, 20.0, 40.0] {
@@ -330,6 +331,7 @@ fn v102_keyframes(est: &Trajectory, start: f64, window: f64) -> (Trajectory, Sim
 }
 
 #[test]
+#[ignore = "slow: make test runs it"]
 fn euroc_v102_scale_and_gravity_agree_with_the_pose_fit() {
     let (Some(imu_path), Some(est_path), Some(gt_path)) = (
         shared_data("euroc_v102_imu", "V102.txt"),

@@ -34,6 +34,7 @@ fn window(kf: &Trajectory, t0: f64, w: f64) -> Trajectory {
 }
 
 #[test]
+#[ignore = "slow: make test runs it"]
 fn simulated_windows_scale_and_gravity() {
     let sim = run();
     let kf = sim.keyframe_trajectory().unwrap();

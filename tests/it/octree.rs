@@ -171,6 +171,7 @@ fn occupied_wins_over_free_within_a_scan() {
 }
 
 #[test]
+#[ignore = "slow: make test runs it"]
 fn parallel_insertion_equals_sequential_for_any_thread_count() {
     let scans = random_scans(7, 4, 5000);
     let mut seq = OccupancyMap::try_new(MapParams::new(0.05)).unwrap();
@@ -224,6 +225,7 @@ fn keyframe_insertion_uses_each_keyframes_camera_centre() {
 }
 
 #[test]
+#[ignore = "slow: make test runs it"]
 fn bt_round_trip_keeps_every_voxel_state() {
     let m = scene_map(0.1);
     let dir = tempfile::tempdir().unwrap();

@@ -152,6 +152,7 @@ fn stable_is_reported_within_ten_seconds_of_the_true_start_never_before() {
 }
 
 #[test]
+#[ignore = "slow: make test runs it"]
 fn a_whole_log_ends_on_the_batch_transform_and_octree() {
     use rayon::prelude::*;
     runs().par_iter().for_each(|r| {
@@ -350,6 +351,7 @@ fn gnss_log(log: &std::path::Path, out: &std::path::Path, unknown: Option<usize>
 }
 
 #[test]
+#[ignore = "slow: make test runs it"]
 fn a_gnss_log_ends_on_the_batch_transform_in_enu() {
     // Every fix with a covariance (weighted pairs); and one fix halfway
     // without: from there all pairs weigh the same, those fitted already too.

@@ -679,6 +679,7 @@ fn real_bags_read_through_read_log() {
 /// Mutated bags through the whole assembly (decoders included): a result or a
 /// typed error, never a panic (the stable-Rust counterpart of the fuzz target).
 #[test]
+#[ignore = "slow: make test runs it"]
 fn mutated_bags_through_read_log_never_panic() {
     let dir = tempfile::tempdir().unwrap();
     let sources: Vec<Vec<u8>> = ROS1

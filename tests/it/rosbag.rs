@@ -768,6 +768,7 @@ fn mutate(rng: &mut ChaCha8Rng, bytes: &[u8]) -> Vec<u8> {
 }
 
 #[test]
+#[ignore = "slow: make test runs it"]
 fn mutated_ros1_bags_never_panic() {
     let dir = tempfile::tempdir().unwrap();
     let sources: Vec<Vec<u8>> = ROS1
@@ -829,6 +830,7 @@ fn deep_db3(path: &Path) {
 }
 
 #[test]
+#[ignore = "slow: make test runs it"]
 fn mutated_db3_files_never_panic() {
     let dir = tempfile::tempdir().unwrap();
     let deep = dir.path().join("deep.db3");
@@ -1095,6 +1097,7 @@ fn big_db3(path: &Path, n: i64, zstd: bool) -> Vec<(i64, i64, i64)> {
 }
 
 #[test]
+#[ignore = "slow: make test runs it"]
 fn db3_scans_split_into_ranges_keep_order_counts_and_error_places() {
     let dir = tempfile::tempdir().unwrap();
     // Two ranges or more on a machine of two threads or more.

@@ -31,6 +31,7 @@ fn world_points(sim: &Simulation) -> Vec<Vector3<f64>> {
 }
 
 #[test]
+#[ignore = "slow: make test runs it"]
 fn noiseless_keyframes_lie_on_the_true_surfaces() {
     let sim = reduced(false);
     let pts = world_points(&sim);
@@ -80,6 +81,7 @@ fn keyframes_are_normalised_like_lsd_slam() {
 }
 
 #[test]
+#[ignore = "slow: make test runs it"]
 fn noisy_points_scatter_by_the_stated_depth_noise() {
     let sim = reduced(true);
     let pts = world_points(&sim);
@@ -96,6 +98,7 @@ fn noisy_points_scatter_by_the_stated_depth_noise() {
 }
 
 #[test]
+#[ignore = "slow: make test runs it"]
 fn slam_path_has_the_three_stages() {
     let sim = reduced(true);
     let cfg = &sim.config;
@@ -130,6 +133,7 @@ fn slam_path_has_the_three_stages() {
 }
 
 #[test]
+#[ignore = "slow: make test runs it"]
 fn same_seed_same_run_other_seed_other_noise() {
     let cfg = SimConfig {
         n_keyframes: 4,
@@ -195,6 +199,7 @@ use slam2world::cloud::{backproject, PointFilter};
 use slam2world::sim::evaluate::{point_distances, transform_error, ErrorStats};
 
 #[test]
+#[ignore = "slow: make test runs it"]
 fn noiseless_alignment_recovers_the_truth() {
     // A 60 Hz reference shares the camera's clock, so association is exact.
     let mut cfg = SimConfig::default().reduced(4).noiseless();
@@ -226,6 +231,7 @@ fn noiseless_alignment_recovers_the_truth() {
 }
 
 #[test]
+#[ignore = "slow: make test runs it"]
 fn default_noise_alignment_adds_almost_nothing() {
     let sim = simulate(&SimConfig::default().reduced(4)).unwrap();
     let fit = align_trajectories(
@@ -275,6 +281,7 @@ fn default_noise_alignment_adds_almost_nothing() {
 }
 
 #[test]
+#[ignore = "slow: make test runs it"]
 fn scale_drift_degrades_a_single_transform() {
     // The paper's conclusion: the scale is not constant, and one Sim(3) cannot follow it.
     let rmse = |drift: f64| {

@@ -52,6 +52,7 @@ fn simulate_is_reproducible_byte_for_byte() {
 }
 
 #[test]
+#[ignore = "slow: make test runs it"]
 fn demo_then_evaluate() {
     let dir = tempfile::tempdir().unwrap();
     let out = dir.path().join("demo");

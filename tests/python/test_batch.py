@@ -85,6 +85,7 @@ def logs(tmp_path_factory: pytest.TempPathFactory) -> list[Path]:
     return [*paths, truncated, noref]
 
 
+@pytest.mark.slow
 def test_batch_rows_match_single_convert_and_broken_logs_are_rows(
     ray_session: None, logs: list[Path], tmp_path: Path
 ) -> None:
@@ -131,6 +132,7 @@ def test_batch_rows_match_single_convert_and_broken_logs_are_rows(
 
 
 # Ray Data's own context warns about its own deprecated settings on import.
+@pytest.mark.slow
 @pytest.mark.filterwarnings("ignore::DeprecationWarning:ray")
 def test_convert_many_takes_a_ray_dataset(
     ray_session: None, logs: list[Path], tmp_path: Path
@@ -141,6 +143,7 @@ def test_convert_many_takes_a_ray_dataset(
     assert {r["path"] for r in rows} == {str(p) for p in logs[:2]}
 
 
+@pytest.mark.slow
 def test_duplicate_stems_get_their_own_folders(
     ray_session: None, logs: list[Path], tmp_path: Path
 ) -> None:
@@ -152,6 +155,7 @@ def test_duplicate_stems_get_their_own_folders(
     assert rows[0]["scale"] == rows[1]["scale"]
 
 
+@pytest.mark.slow
 def test_console_script_batch(ray_session: None, logs: list[Path], tmp_path: Path) -> None:
     out = tmp_path / "cli"
     code = batch.main(

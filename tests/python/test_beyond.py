@@ -117,6 +117,7 @@ def test_windowed_alignment_follows_scale_drift() -> None:
     assert by_distance.rmse < 0.2 * by_distance.single.rmse
 
 
+@pytest.mark.slow
 def test_extended_trajectory_fit_on_euroc() -> None:
     folder = "euroc_mh01_orbslam3_mono"
     est = read_ns(data_path(folder, "f_dataset-MH01_mono.txt"))

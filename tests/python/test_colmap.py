@@ -153,6 +153,7 @@ def test_transformed_equals_pycolmap_transform(tmp_path: Path, fmt: str) -> None
             assert_allclose(pose.matrix(), other.matrix(), rtol=0, atol=1e-12)
 
 
+@pytest.mark.slow
 def test_maupertuis_written_back_unchanged(data: Any, tmp_path: Path) -> None:
     src = data.path("colmap_maupertuis", "reconstruction")
     original = pycolmap.Reconstruction(str(src))

@@ -28,6 +28,7 @@ def run(*args: str) -> subprocess.CompletedProcess[str]:
     )
 
 
+@pytest.mark.slow
 def test_smoke_every_area(tmp_path: Path) -> None:
     out = tmp_path / "bench.json"
     proc = run("--json", str(out))
@@ -56,6 +57,7 @@ def test_smoke_every_area(tmp_path: Path) -> None:
     assert ("octree", "OctoMap memoryUsage / leaves") in targets
 
 
+@pytest.mark.slow
 def test_smoke_curves_and_threads(tmp_path: Path) -> None:
     out = tmp_path / "bench.json"
     curves = tmp_path / "curves"

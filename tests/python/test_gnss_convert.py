@@ -164,6 +164,7 @@ def _path_length(p: np.ndarray) -> float:
     return float(np.linalg.norm(np.diff(p, axis=0), axis=1).sum())
 
 
+@pytest.mark.slow
 def test_a_simulated_flight_converts_to_a_georeferenced_map(
     flight: s2w.Simulation, tmp_path: Path
 ) -> None:
@@ -230,6 +231,7 @@ def test_a_simulated_flight_converts_to_a_georeferenced_map(
     np.testing.assert_allclose(xyz, np.column_stack([e2, n2, h2]), atol=2e-3)
 
 
+@pytest.mark.slow
 def test_outputs_options_and_origin_given(flight: s2w.Simulation, tmp_path: Path) -> None:
     log = tmp_path / "flight.mcap"
     _write_flight(flight, log, level=True)
@@ -345,6 +347,7 @@ def test_the_command_line_takes_the_gnss_options(flight: s2w.Simulation, tmp_pat
     assert s2w._slam2world.run_cli([*argv, "--origin", "north"]) == 2
 
 
+@pytest.mark.slow
 def test_las_without_gnss_is_refused(tmp_path: Path) -> None:
     log = tmp_path / "sim.mcap"
     argv = ["slam2world", "simulate", "-o", str(log), "--reduced", "4", "--seed", "1"]

@@ -52,6 +52,7 @@ def cube_distance(
     return best
 
 
+@pytest.mark.slow
 def test_scene_grid_marks_the_cubes_occupied_and_the_plane_free(
     scene: tuple[s2w.Simulation, s2w.OccupancyMap],
 ) -> None:

@@ -182,6 +182,7 @@ def test_euroc_v102_agrees_with_the_pose_fit() -> None:
     assert _angle_deg(a.gravity_slam, g_ref) < 1.0
 
 
+@pytest.mark.slow
 def test_simulation_ten_second_window() -> None:
     """The simulation's keyframes (unknown Sim(3)) and EuRoC-grade raw IMU."""
     sim = s2w.simulate(seed=1, width=32, height=24, gyro_bias=0.01, accel_bias=0.05)

@@ -103,6 +103,7 @@ def test_octomap_reads_our_bt_and_classifies_every_voxel_as_we_do(
     assert n_free == len(ours.free_centers())
 
 
+@pytest.mark.slow
 def test_octomap_reads_our_ot_with_the_same_tree(
     maps: tuple[OccupancyMap, octomap.OcTree], tmp_path: Path
 ) -> None:
@@ -120,6 +121,7 @@ def test_octomap_reads_our_ot_with_the_same_tree(
     np.testing.assert_allclose(ours.occupancy(centres), probs, rtol=1e-6)
 
 
+@pytest.mark.slow
 def test_same_scans_through_octomap_insert_point_cloud_agree(
     maps: tuple[OccupancyMap, octomap.OcTree], tmp_path: Path
 ) -> None:

@@ -32,6 +32,7 @@ def log(tmp_path_factory: pytest.TempPathFactory) -> Path:
     return path
 
 
+@pytest.mark.slow
 def test_convert_grid_writes_map_server_files_and_a_grid_channel(log: Path, tmp_path: Path) -> None:
     conv = s2w.convert(log, skip_init="auto", octree_resolution=0.1, grid=(0.25, 0.75))
     g = conv.grid
@@ -96,6 +97,7 @@ def _feed(s: s2w.Session, sim: s2w.Simulation, reference: Any) -> list[dict[str,
     return timings
 
 
+@pytest.mark.slow
 def test_session_in_time_order() -> None:
     sim = s2w.simulate(seed=3, reduced=4)
     s = s2w.Session(stable_hold=1.0)
@@ -125,6 +127,7 @@ def test_session_in_time_order() -> None:
         s.push_reference(0.0, [0.0, 0.0, 0.0])
 
 
+@pytest.mark.slow
 def test_session_with_gnss_fixes_fits_in_enu_at_the_first_fix() -> None:
     """Fixes (10 Hz, WGS84 by pymap3d from the reference positions in an ENU frame)
     instead of reference poses: the world frame is ENU at the first fix, and the
@@ -193,6 +196,7 @@ WRITER = textwrap.dedent(
 )
 
 
+@pytest.mark.slow
 def test_follow_a_growing_log_every_sample_complete(tmp_path: Path) -> None:
     src = tmp_path / "src.mcap"
     argv = ["slam2world", "simulate", "-o", str(src), "--reduced", "16", "--seed", "2"]

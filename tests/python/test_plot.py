@@ -41,6 +41,7 @@ def world_points(sim: s2w.Simulation) -> np.ndarray:
     return sim.t_world_slam.apply(np.vstack(out))
 
 
+@pytest.mark.slow
 def test_every_figure(sim: s2w.Simulation, tmp_path: Path) -> None:
     pts = world_points(sim)
     dist = s2w.point_distances(sim, pts)
@@ -118,6 +119,7 @@ def test_demo_folder_missing_is_an_error(tmp_path: Path) -> None:
     assert plot.main([]) == 2
 
 
+@pytest.mark.slow
 def test_demo_writes_its_figures(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
     import sys
 

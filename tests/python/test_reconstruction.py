@@ -357,6 +357,7 @@ def write_droid(sim: s2w.Simulation, path: Path) -> None:
     np.save(path / "intrinsics.npy", np.tile(np.array([fx, fy, cx, cy]) / 8, (n, 1)))
 
 
+@pytest.mark.slow
 def test_droid_folder_of_the_simulated_scene(tmp_path: Path) -> None:
     sim = s2w.simulate(seed=3, reduced=8)
     folder = tmp_path / "droid"

@@ -106,6 +106,7 @@ def pixel_std(png: bytes, tmp: Path) -> float:
     return float(img[..., :3].std())
 
 
+@pytest.mark.slow
 def test_demo_writes_the_octree_and_the_page(demo: Path) -> None:
     report = json.loads((demo / "report.json").read_text())
     assert report["octree"]["resolution"] == 0.1
@@ -128,6 +129,7 @@ def test_demo_writes_the_octree_and_the_page(demo: Path) -> None:
     assert data["report"] == report
 
 
+@pytest.mark.slow
 def test_demo_map_bt_reads_in_octomap_with_the_same_leaves(demo: Path) -> None:
     report = json.loads((demo / "report.json").read_text())
     tree = octomap.OcTree(0.1)
@@ -152,6 +154,7 @@ def test_demo_map_bt_reads_in_octomap_with_the_same_leaves(demo: Path) -> None:
     assert sum(round((e / 0.1) ** 3) for e in occupied) == n_fine == len(ours.occupied_centers())
 
 
+@pytest.mark.slow
 def test_summary_numbers_equal_the_reports_without_a_browser(demo: Path) -> None:
     parser = _Numbers()
     parser.feed((demo / "report.html").read_text())
@@ -175,6 +178,7 @@ def test_summary_numbers_equal_the_reports_without_a_browser(demo: Path) -> None
     np.testing.assert_allclose(got, want, atol=1e-12)
 
 
+@pytest.mark.slow
 def test_report_page_renders_in_chromium(demo: Path, browser: Browser, tmp_path: Path) -> None:
     browser.open(page_url(demo / "report.html"))
     browser.wait_for("document.body && document.body.dataset.ready !== undefined")
@@ -216,6 +220,7 @@ def test_report_page_renders_in_chromium(demo: Path, browser: Browser, tmp_path:
     assert browser.errors() == []
 
 
+@pytest.mark.slow
 def test_align_plot_on_fr2_desk(tmp_path: Path, capfd: pytest.CaptureFixture[str]) -> None:
     d = data_path("evo_tum_fr2_desk")
     est, ref = d / "fr2_desk_ORB_kf_mono.txt", d / "fr2_desk_groundtruth.txt"
@@ -245,6 +250,7 @@ def test_align_plot_on_fr2_desk(tmp_path: Path, capfd: pytest.CaptureFixture[str
     assert check_numbers(parser.rows, {"align": doc}) > 20
 
 
+@pytest.mark.slow
 def test_align_html_renders_in_chromium(tmp_path: Path, browser: Browser) -> None:
     d = data_path("evo_tum_fr2_desk")
     page = tmp_path / "align.html"
@@ -291,6 +297,7 @@ def test_conversion_write_all_writes_the_page(tmp_path: Path) -> None:
     assert check_numbers(parser.rows, {"report": report}) > 30
 
 
+@pytest.mark.slow
 def test_rerun_recording_of_a_conversion(tmp_path: Path) -> None:
     from slam2world import rerun as s2w_rerun
 

@@ -163,6 +163,7 @@ def test_outputs_of_a_conversion_never_replace_its_input(tmp_path: Path) -> None
     assert conv.report["points_non_finite"] == 0
 
 
+@pytest.mark.slow
 def test_ctrl_c_of_the_console_script_stops_the_run_and_keeps_the_outputs(
     tmp_path: Path,
 ) -> None:

@@ -61,6 +61,7 @@ def simulated(tmp_path_factory: pytest.TempPathFactory) -> Path:
     return d
 
 
+@pytest.mark.slow
 def test_convert_report_validates(simulated: Path) -> None:
     report = json.loads((simulated / "out" / "report.json").read_text())
     _validate("report", report)
@@ -73,6 +74,7 @@ def test_convert_report_validates(simulated: Path) -> None:
         _validate("report", report)
 
 
+@pytest.mark.slow
 def test_convert_report_of_the_imu_path_validates(tmp_path: Path) -> None:
     log = tmp_path / "imu.mcap"
     args = ["simulate", "-o", str(log), "--reduced", "4", "--no-reference"]
