@@ -68,7 +68,7 @@ test: export CARGO_INCREMENTAL = 0
 # Every test, the slow ones included; the benches run once each as tests.
 test-rust:
 	cargo test --lib --bins --tests -- --include-ignored
-	cargo test --benches
+	cargo test --bench '*'
 
 # The report-page tests open report.html in headless Chromium, from Debian's packages where
 # the machine has none (as root with apt); without one they skip, saying why.
