@@ -10,7 +10,8 @@ DIST ?= dist
 MANYLINUX ?= manylinux2014
 
 .PHONY: install build-tools wheel sdist demo test test-rust test-python test-install lint fmt browser \
-	bench compare fuzz fuzz-stable clean check develop
+	bench compare fuzz fuzz-stable clean check develop lint-rust lint-python test-rust-chain \
+	test-python-chain
 
 $(PY):
 	python3 -m venv $(VENV)
@@ -43,7 +44,20 @@ install: wheel
 demo: install
 	$(VENV)/bin/slam2world demo -o out/demo
 
-test: lint test-rust test-install test-python
+# Two chains at once, each serial: the Rust one (fmt, clippy, every Rust test) and the Python one
+# (the release wheel, the Python lint, the install check, the Python tests). The compilers leave
+# a core idle in each crate's serial front end, pip and the tests another: on two cores the two
+# chains take less than one after the other. Each line says its chain.
+test:
+	@( set -o pipefail; $(MAKE) --no-print-directory test-rust-chain 2>&1 | sed -u 's/^/rust   | /' ) & \
+	r=$$!; \
+	( set -o pipefail; $(MAKE) --no-print-directory test-python-chain 2>&1 | sed -u 's/^/python | /' ); \
+	p=$$?; wait $$r; q=$$?; \
+	echo "make test: the rust chain exited $$q, the python chain $$p"; \
+	[ $$p = 0 ] && [ $$q = 0 ]
+
+test-rust-chain: lint-rust test-rust
+test-python-chain: lint-python test-install test-python
 
 # The contributor loop, after each change (CONTRIBUTING.md): fmt, clippy, the Rust unit and
 # integration tests and the Python tests against a debug build installed in place, leaving out
@@ -85,10 +99,14 @@ test-python: install browser
 test-install: install
 	$(PY) tests/install/check_install.py --dist $(DIST)
 
-lint: install
+lint: lint-rust lint-python
+
+lint-rust:
 	cargo fmt --check
 	# One pass: `python` turns on `cli` too, and no code is compiled only without them.
 	cargo clippy --all-targets --features python -- -D warnings
+
+lint-python: install
 	$(PY) -m ruff check python tests benches
 	$(PY) -m ruff format --check python tests benches
 	$(PY) -m mypy python/slam2world tests/python/typing_example.py tests/install/check_install.py
