@@ -1,14 +1,8 @@
 //! `slam2world align` with the options beyond one fit, as a user runs it.
 
 use std::path::{Path, PathBuf};
-use std::process::{Command, Output};
 
-fn bin(args: &[&str]) -> Output {
-    Command::new(env!("CARGO_BIN_EXE_slam2world"))
-        .args(args)
-        .output()
-        .expect("the slam2world binary runs")
-}
+use crate::common::bin;
 
 /// Runs the binary, which must succeed, and parses its JSON output.
 fn run_json(args: &[&str]) -> serde_json::Value {

@@ -5,7 +5,7 @@
 //! conversion with that of the MCAP log of the same messages is checked in
 //! `tests/python/test_bags.py`, where both are written by independent writers.
 
-use crate::common;
+use crate::common::{self, fixture, index_pos, without_index_pos};
 
 use std::path::{Path, PathBuf};
 
@@ -13,12 +13,6 @@ use slam2world::io::container::Container;
 use slam2world::io::log::{inspect_log, read_log, Log, LogError, ReadOptions};
 use slam2world::io::rosbag::BagError;
 use slam2world::Error;
-
-fn fixture(name: &str) -> PathBuf {
-    Path::new(env!("CARGO_MANIFEST_DIR"))
-        .join("tests/data/rosbag")
-        .join(name)
-}
 
 const ROS1: [&str; 3] = ["ros1_none.bag", "ros1_bz2.bag", "ros1_lz4.bag"];
 const ROS2: [&str; 6] = [
@@ -101,25 +95,6 @@ fn ros1_bags_read_the_same_in_every_compression() {
     for log in &logs[1..] {
         assert_eq!(content(log), content(first));
     }
-}
-
-/// The bag with `index_pos` set to 0, as a recorder that did not close it leaves it.
-fn without_index_pos(bytes: &[u8]) -> Vec<u8> {
-    let key = b"index_pos=";
-    let at = bytes
-        .windows(key.len())
-        .position(|w| w == key)
-        .expect("bag header has index_pos")
-        + key.len();
-    let mut out = bytes.to_vec();
-    out[at..at + 8].fill(0);
-    out
-}
-
-fn index_pos(bytes: &[u8]) -> usize {
-    let key = b"index_pos=";
-    let at = bytes.windows(key.len()).position(|w| w == key).unwrap() + key.len();
-    u64::from_le_bytes(bytes[at..at + 8].try_into().unwrap()) as usize
 }
 
 #[test]

@@ -2,7 +2,7 @@
 //! package (`tests/data/rosbag/make_fixtures.py`), against real bags in
 //! `../shared/data` (skipped when absent), and against damaged input.
 
-use crate::common;
+use crate::common::{self, fixture, index_pos, without_index_pos};
 
 use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
@@ -18,12 +18,6 @@ use slam2world::io::messages::{ChannelInfo, Inventory, MappedScan, MessageSource
 use slam2world::io::rosbag::{BagError, Ros1Bag, Ros2Bag, Ros2Compression, Ros2Storage};
 use slam2world::io::AnyContainer;
 use slam2world::Error;
-
-fn fixture(name: &str) -> PathBuf {
-    Path::new(env!("CARGO_MANIFEST_DIR"))
-        .join("tests/data/rosbag")
-        .join(name)
-}
 
 /// One message as the fixture script wrote it.
 #[derive(Debug, Deserialize, PartialEq, Eq, Clone)]
@@ -138,25 +132,6 @@ fn ros1_compressions_give_identical_scans() {
         assert_eq!(s.channels, scans[0].channels);
         assert_eq!(records(s), records(&scans[0]));
     }
-}
-
-/// The bag with `index_pos` set to 0, as a recorder that did not close it leaves it.
-fn without_index_pos(bytes: &[u8]) -> Vec<u8> {
-    let key = b"index_pos=";
-    let at = bytes
-        .windows(key.len())
-        .position(|w| w == key)
-        .expect("bag header has index_pos")
-        + key.len();
-    let mut out = bytes.to_vec();
-    out[at..at + 8].fill(0);
-    out
-}
-
-fn index_pos(bytes: &[u8]) -> usize {
-    let key = b"index_pos=";
-    let at = bytes.windows(key.len()).position(|w| w == key).unwrap() + key.len();
-    u64::from_le_bytes(bytes[at..at + 8].try_into().unwrap()) as usize
 }
 
 fn write_tmp(dir: &tempfile::TempDir, name: &str, bytes: &[u8]) -> PathBuf {

@@ -12,20 +12,14 @@ use std::time::Duration;
 use nalgebra::{UnitQuaternion, Vector3};
 use slam2world::trajectory::Trajectory;
 
+use crate::common::{bin as run, stderr};
+
 fn bin() -> Command {
     Command::new(env!("CARGO_BIN_EXE_slam2world"))
 }
 
-fn run(args: &[&str]) -> Output {
-    bin().args(args).output().unwrap()
-}
-
 fn s(p: &Path) -> &str {
     p.to_str().unwrap()
-}
-
-fn stderr(o: &Output) -> String {
-    String::from_utf8_lossy(&o.stderr).into_owned()
 }
 
 /// One line of reasonable length, naming `what`.
