@@ -10,7 +10,7 @@ DIST ?= dist
 MANYLINUX ?= manylinux2014
 
 .PHONY: install build-tools wheel sdist demo test test-rust test-python test-install lint fmt browser \
-	bench compare fuzz fuzz-stable clean check develop lint-rust lint-python test-rust-chain \
+	bench compare fuzz fuzz-stable clean check develop lint-rust lint-python ruff test-rust-chain \
 	test-python-chain
 
 $(PY):
@@ -46,8 +46,8 @@ demo: install
 
 # Two chains at once, each serial: the Rust one (fmt, clippy, every Rust test) and the Python one
 # (the release wheel, the Python lint, the Python tests, the install check). The compilers leave
-# a core idle in each crate's serial front end, pip and pytest another: on two cores the two
-# chains take less than one after the other (874 s against 947 s on a fresh clone). The Python
+# a core idle in each crate's serial front end, pip and pytest another (fresh clones: 879, 887 and
+# 970 s against 947 s one after the other; the gain is within this machine's noise). The Python
 # tests go before the install check, whose cargo builds wait for the Rust chain's (one build
 # folder, one lock) and then use its compiled dependencies. Each line says its chain.
 test:
@@ -65,12 +65,8 @@ test-python-chain: lint-python test-python test-install
 # integration tests and the Python tests against a debug build installed in place, leaving out
 # the slow tests (cargo `#[ignore = "slow: ..."]`, pytest `-m slow`) that `make test` runs.
 # Incremental builds: a one-line change in src/ recompiles little.
-check: develop
-	cargo fmt --check
-	cargo clippy --all-targets --features python -- -D warnings
+check: lint-rust develop ruff
 	cargo test --lib --bins --test it
-	$(PY) -m ruff check python tests benches
-	$(PY) -m ruff format --check python tests benches
 	$(PY) -m pytest -q -m "not slow"
 
 # A debug build of the Python module, installed in place into .venv with the test dependencies
@@ -108,11 +104,14 @@ lint-rust:
 	# One pass: `python` turns on `cli` too, and no code is compiled only without them.
 	cargo clippy --all-targets --features python -- -D warnings
 
-lint-python: install
-	$(PY) -m ruff check python tests benches
-	$(PY) -m ruff format --check python tests benches
+lint-python: install ruff
 	$(PY) -m mypy python/slam2world tests/python/typing_example.py tests/install/check_install.py
 	$(PY) -m mypy.stubtest slam2world._slam2world --allowlist .mypy-stubtest-allowlist
+
+# ruff from the test extras: after `install` or `develop` (the prerequisites order it so).
+ruff:
+	$(PY) -m ruff check python tests benches
+	$(PY) -m ruff format --check python tests benches
 
 fmt: $(PY)
 	cargo fmt

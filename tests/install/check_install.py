@@ -474,9 +474,7 @@ def check_binary_copy(tmp: Path, env: dict[str, str], hider: Hider) -> str:
     return f"{demo_result(work / 'demo', out)}; needs {needed}"
 
 
-def check_sdist(
-    base_python: str, sdist: Path, version: str, tmp: Path, hider: Hider, target: Path
-) -> str:
+def check_sdist(base_python: str, sdist: Path, version: str, tmp: Path, hider: Hider) -> str:
     """pip builds the sdist from scratch (cargo, maturin from PyPI) and installs it."""
     with tempfile.TemporaryDirectory() as d:
         shutil.unpack_archive(sdist, d)
@@ -498,7 +496,7 @@ def check_sdist(
     # works, not how fast it runs: maturin builds the sdist's copy of the crate (another path,
     # so always compiled anew) in the dev profile, in the repository's target folder, where the
     # registry dependencies that `cargo test` compiled in that profile are used again.
-    env["CARGO_TARGET_DIR"] = str(target)
+    env["CARGO_TARGET_DIR"] = str(REPO / "target")
     env["MATURIN_PEP517_ARGS"] = "--profile dev"
     py = make_venv(base_python, tmp / "venv-sdist", env)
     t0 = time.monotonic()
@@ -556,10 +554,9 @@ def main(argv: Sequence[str] | None = None) -> int:
             c.check("wheel: mypy against the installed stub", lambda: check_mypy(dev_py, py, tmp))
         c.check("cargo binary copied elsewhere", lambda: check_binary_copy(tmp, no_rust, hider))
         if not args.skip_sdist:
-            target = REPO / "target"
             c.check(
                 "sdist built and installed in a fresh venv",
-                lambda: check_sdist(base_python, sdist, version, tmp, hider, target),
+                lambda: check_sdist(base_python, sdist, version, tmp, hider),
             )
     finally:
         if args.keep:
