@@ -11,7 +11,7 @@ MANYLINUX ?= manylinux2014
 
 .PHONY: install build-tools wheel sdist demo test test-rust test-python test-install lint fmt browser \
 	bench compare fuzz fuzz-stable clean check develop lint-rust lint-python ruff test-rust-chain \
-	test-python-chain
+	test-python-chain fmt-check
 
 $(PY):
 	python3 -m venv $(VENV)
@@ -26,7 +26,8 @@ build-tools: $(PY)
 # `python -m ziglang` through PATH, hence the venv first on it.
 wheel: build-tools sdist
 	rm -f $(DIST)/slam2world-*.whl
-	PATH="$(abspath $(VENV))/bin:$$PATH" $(PY) -m maturin build --release --zig \
+	env -u RUSTC_WORKSPACE_WRAPPER -u RUSTFLAGS PATH="$(abspath $(VENV))/bin:$$PATH" \
+		$(PY) -m maturin build --release --zig \
 		--compatibility $(MANYLINUX) --out $(DIST)
 
 sdist: build-tools
@@ -51,6 +52,7 @@ demo: install
 # tests go before the install check, whose cargo builds wait for the Rust chain's (one build
 # folder, one lock) and then use its compiled dependencies. Each line says its chain.
 test:
+	@[ -n "$(CLIPPY_DRIVER)" ] || { echo "make test: no clippy-driver (rustup component add clippy)" >&2; exit 1; }
 	@( set -o pipefail; $(MAKE) --no-print-directory test-rust-chain 2>&1 | sed -u 's/^/rust   | /' ) & \
 	r=$$!; \
 	( set -o pipefail; $(MAKE) --no-print-directory test-python-chain 2>&1 | sed -u 's/^/python | /' ); \
@@ -58,7 +60,7 @@ test:
 	echo "make test: the rust chain exited $$q, the python chain $$p"; \
 	[ $$p = 0 ] && [ $$q = 0 ]
 
-test-rust-chain: lint-rust test-rust
+test-rust-chain: fmt-check test-rust
 test-python-chain: lint-python test-python test-install
 
 # The contributor loop, after each change (CONTRIBUTING.md): fmt, clippy, the Rust unit and
@@ -77,10 +79,23 @@ develop: build-tools
 # A one-shot run keeps no incremental caches (4-5 GB that a fresh machine would never reuse).
 test: export CARGO_INCREMENTAL = 0
 
-# Every test, the slow ones included; the benches run once each as tests.
+# make test lints while it compiles instead of in a clippy pass of its own: clippy-driver wraps
+# rustc for this crate's own targets (RUSTC_WORKSPACE_WRAPPER, what `cargo clippy` sets) and
+# RUSTFLAGS=-Dwarnings makes every warning an error (the dependencies are compiled with
+# --cap-lints allow). The test build lints the library, the binary, the tests and the benches;
+# the install check's sdist build (dev profile, `python` feature) lints the bindings. So the
+# dependencies are compiled once, not once more in check mode for clippy alone. The release
+# wheel is compiled by rustc alone: clippy-driver turns MIR optimisations off.
+CLIPPY_DRIVER := $(shell command -v clippy-driver 2>/dev/null)
+test: export RUSTC_WORKSPACE_WRAPPER = $(CLIPPY_DRIVER)
+test: export RUSTFLAGS = -D warnings
+
+# Every test, the slow ones included; the benches run once each as tests. One build of every
+# target first, so that cargo compiles the benches beside the tests.
 test-rust:
+	cargo test --all-targets --no-run
 	cargo test --lib --bins --tests -- --include-ignored
-	cargo test --bench '*'
+	cargo test --benches
 
 # The report-page tests open report.html in headless Chromium, from Debian's packages where
 # the machine has none (as root with apt); without one they skip, saying why.
@@ -99,8 +114,10 @@ test-install: install
 
 lint: lint-rust lint-python
 
-lint-rust:
+fmt-check:
 	cargo fmt --check
+
+lint-rust: fmt-check
 	# One pass: `python` turns on `cli` too, and no code is compiled only without them.
 	cargo clippy --all-targets --features python -- -D warnings
 
