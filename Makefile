@@ -95,7 +95,7 @@ test: export RUSTFLAGS = -D warnings
 test-rust:
 	cargo test --all-targets --no-run
 	cargo test --lib --bins --tests -- --include-ignored
-	cargo test --benches
+	cargo test --bench '*'
 
 # The report-page tests open report.html in headless Chromium, from Debian's packages where
 # the machine has none (as root with apt); without one they skip, saying why.
