@@ -4,21 +4,21 @@
 //! `slam2world align LOG --est-topic T --ref-topic T` does the same with two
 //! pose topics of one log of any container (as `evo_ape bag LOG REF EST`).
 
-use std::path::PathBuf;
+use std::path::{Path, PathBuf};
 
 use clap::Args;
 
 use super::ape_plot;
-use super::args::{fit_text, print, print_json, FitArgs};
+use super::args::{fit_text, print, print_json, time_unit, FitArgs};
 use crate::align::dof::Dof;
 use crate::align::handeye::estimate_body_from_cam_trajectories;
 use crate::align::trajectories::align_trajectories;
 use crate::error::{Error, Result};
 use crate::io::log::{read_log, ReadOptions};
-use crate::io::text::TrajectoryFormat;
+use crate::io::text::{match_time_units, TimeUnit, TrajectoryFormat};
 use crate::pipeline::figures::FigureData;
 use crate::pipeline::html::{write_html, Page, Summary};
-use crate::pipeline::report::{AlignReport, ApeReport, FitReport, HandEyeReport};
+use crate::pipeline::report::{AlignReport, ApeReport, FitReport, HandEyeReport, TimeUnitsReport};
 use crate::trajectory::Trajectory;
 
 /// clap parser of a trajectory format.
@@ -59,6 +59,13 @@ pub struct AlignArgs {
     /// Format of REF (default: the same as --format).
     #[arg(long, value_name = "tum|euroc", value_parser = format)]
     ref_format: Option<TrajectoryFormat>,
+    /// Unit of EST's stamps (default: found from the stamps, against REF's).
+    #[arg(long, value_name = "s|ms|us|ns", value_parser = time_unit, conflicts_with = "est_topic")]
+    est_time_unit: Option<TimeUnit>,
+    /// Unit of REF's stamps (default: found from the stamps, against EST's;
+    /// nanoseconds for --ref-format euroc).
+    #[arg(long, value_name = "s|ms|us|ns", value_parser = time_unit, conflicts_with = "est_topic")]
+    ref_time_unit: Option<TimeUnit>,
     /// Print one JSON object instead of text (schema: `slam2world schema align`).
     #[arg(long)]
     json: bool,
@@ -88,7 +95,7 @@ pub struct AlignArgs {
 pub fn run(args: AlignArgs) -> Result<()> {
     let opts = args.fit.options();
     opts.check()?;
-    let (est, reference, est_name, ref_name) = inputs(&args)?;
+    let (est, reference, est_name, ref_name, time_units) = inputs(&args, opts.offset)?;
     let r = align_trajectories(&est, &reference, &opts)?;
     // The extrinsic at the offset the fit used (given plus estimated).
     let hand_eye = if args.estimate_body_from_cam {
@@ -112,6 +119,7 @@ pub fn run(args: AlignArgs) -> Result<()> {
         n_fitted: r.alignment.residuals.len(),
         max_diff: opts.max_diff,
         offset: opts.offset,
+        time_units,
         with_scale: r.dof.has_scale(),
         scale: t.scale,
         rotation: std::array::from_fn(|i| std::array::from_fn(|j| rot[(i, j)])),
@@ -152,9 +160,46 @@ pub fn run(args: AlignArgs) -> Result<()> {
     print(&(text(&report) + &written))
 }
 
-/// The estimate and the reference, from two files or from two topics of a
-/// log, with the names the report gives them (`LOG:TOPIC` for topics).
-fn inputs(args: &AlignArgs) -> Result<(Trajectory, Trajectory, String, String)> {
+/// The estimate and the reference with the names the report gives them
+/// (`LOG:TOPIC` for topics) and, for two files, the units of their stamps.
+type Inputs = (
+    Trajectory,
+    Trajectory,
+    String,
+    String,
+    Option<TimeUnitsReport>,
+);
+
+/// A trajectory file and the unit its stamps were read in: TUM stamps as
+/// they are written (seconds; every row kept, as evo reads them), EuRoC's
+/// nanoseconds.
+fn read_as_written(format: TrajectoryFormat, path: &Path) -> Result<(Trajectory, TimeUnit)> {
+    let unit = match format {
+        TrajectoryFormat::Tum => TimeUnit::Seconds,
+        TrajectoryFormat::Euroc => TimeUnit::Nanoseconds,
+    };
+    Ok((format.read(path)?, unit))
+}
+
+/// The stamps of `t`, read in `read`, as written in that unit.
+fn written(t: &Trajectory, read: TimeUnit) -> Vec<f64> {
+    t.timestamps.iter().map(|s| s * read.per_second()).collect()
+}
+
+/// `t`, read in `read`, with its stamps in seconds of `unit`.
+fn in_unit(mut t: Trajectory, read: TimeUnit, unit: TimeUnit) -> Trajectory {
+    if unit != read {
+        for s in &mut t.timestamps {
+            *s = *s * read.per_second() / unit.per_second();
+        }
+    }
+    t
+}
+
+/// The estimate and the reference, from two files (the units of their
+/// stamps found against each other, [`match_time_units`]) or from two topics
+/// of a log.
+fn inputs(args: &AlignArgs, offset: f64) -> Result<Inputs> {
     let (Some(est_topic), Some(ref_topic)) = (&args.est_topic, &args.ref_topic) else {
         let Some(reference) = &args.reference else {
             return Err(Error::invalid(
@@ -162,13 +207,34 @@ fn inputs(args: &AlignArgs) -> Result<(Trajectory, Trajectory, String, String)> 
                 "a reference file, or --est-topic and --ref-topic",
             ));
         };
-        let est = args.format.read(&args.est)?;
-        let r = args.ref_format.unwrap_or(args.format).read(reference)?;
+        let ref_format = args.ref_format.unwrap_or(args.format);
+        let (est, est_read) = read_as_written(args.format, &args.est)?;
+        let (r, ref_read) = read_as_written(ref_format, reference)?;
+        // EuRoC files are nanoseconds by their format.
+        let fixed = |format, given: Option<TimeUnit>| {
+            given.or((format == TrajectoryFormat::Euroc).then_some(TimeUnit::Nanoseconds))
+        };
+        let est_given = fixed(args.format, args.est_time_unit);
+        let ref_given = fixed(ref_format, args.ref_time_unit);
+        let (est_unit, ref_unit) = match_time_units(
+            &written(&est, est_read),
+            &written(&r, ref_read),
+            est_given,
+            ref_given,
+            offset,
+        );
+        let units = TimeUnitsReport {
+            est: est_unit.symbol().into(),
+            reference: ref_unit.symbol().into(),
+            est_detected: est_given.is_none(),
+            ref_detected: ref_given.is_none(),
+        };
         return Ok((
-            est,
-            r,
+            in_unit(est, est_read, est_unit),
+            in_unit(r, ref_read, ref_unit),
             args.est.display().to_string(),
             reference.display().to_string(),
+            Some(units),
         ));
     };
     let log = read_log(
@@ -183,7 +249,7 @@ fn inputs(args: &AlignArgs) -> Result<(Trajectory, Trajectory, String, String)> 
     )?;
     let named = |t: &str| format!("{}:{t}", args.est.display());
     match (log.frames, log.reference) {
-        (Some(est), Some(r)) => Ok((est, r, named(est_topic), named(ref_topic))),
+        (Some(est), Some(r)) => Ok((est, r, named(est_topic), named(ref_topic), None)),
         // read_log gives both topics it was asked for (or an error).
         _ => Err(Error::invalid(
             "--est-topic/--ref-topic",
@@ -203,6 +269,16 @@ fn text(r: &AlignReport) -> String {
         "matched {} pairs of {} EST and {} REF poses (max_diff {} s, offset {} s); fitted {}\n",
         r.n_pairs, r.n_est, r.n_ref, r.max_diff, r.offset, r.n_fitted
     );
+    if let Some(u) = &r.time_units {
+        let how = |found: bool| if found { "found" } else { "given" };
+        s += &format!(
+            "stamps read in {} for EST ({}), {} for REF ({})\n",
+            u.est,
+            how(u.est_detected),
+            u.reference,
+            how(u.ref_detected)
+        );
+    }
     s += &format!(
         "T_ref_est ({}):\n",
         match r.fit.dof {

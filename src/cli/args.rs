@@ -16,6 +16,11 @@ use crate::error::{cut, Error, Result};
 use crate::geometry::Sim3;
 use crate::trajectory::Association;
 
+/// clap parser of a time unit (`s`, `ms`, `us`, `ns`).
+pub(crate) fn time_unit(s: &str) -> std::result::Result<crate::io::text::TimeUnit, String> {
+    crate::io::text::TimeUnit::parse(s).map_err(|e| e.to_string())
+}
+
 /// clap parser: a finite number.
 pub(crate) fn finite(s: &str) -> std::result::Result<f64, String> {
     match s.trim().parse::<f64>() {

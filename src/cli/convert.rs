@@ -16,7 +16,9 @@ use std::path::PathBuf;
 use clap::Args;
 use indicatif::{ProgressBar, ProgressDrawTarget, ProgressStyle};
 
-use super::args::{finite, non_negative, parse_transform, positive, print, FitArgs, GnssArgs};
+use super::args::{
+    finite, non_negative, parse_transform, positive, print, time_unit, FitArgs, GnssArgs,
+};
 use crate::cloud::PointFilter;
 use crate::defaults;
 use crate::error::{Error, Result};
@@ -35,10 +37,6 @@ use crate::pipeline::{convert_source_bounded, ConvertOptions};
 
 fn reference_format(s: &str) -> std::result::Result<ReferenceFormat, String> {
     s.parse().map_err(|e: Error| e.to_string())
-}
-
-fn time_unit(s: &str) -> std::result::Result<TimeUnit, String> {
-    TimeUnit::parse(s).map_err(|e| e.to_string())
 }
 
 fn colmap_format(s: &str) -> std::result::Result<ColmapFormat, String> {

@@ -374,28 +374,150 @@ pub struct TextInfo {
 /// as a finer unit: give the unit for those.
 pub fn detect_time_unit(stamps: &[f64]) -> TimeUnit {
     let max = stamps.iter().fold(0.0f64, |m, t| m.max(t.abs()));
-    let mut dt: Vec<f64> = stamps
-        .windows(2)
-        .map(|w| w[1] - w[0])
-        .filter(|d| *d > 0.0)
-        .collect();
-    let median = if dt.is_empty() {
-        None
-    } else {
-        let mid = dt.len() / 2;
-        dt.select_nth_unstable_by(mid, f64::total_cmp);
-        Some(dt[mid])
-    };
-    let spacing = |u: TimeUnit| {
-        let s = u.seconds();
-        max * s <= 4.2e9 && median.is_none_or(|d| (1e-5..=10.0).contains(&(d * s)))
-    };
+    let median = median_step(stamps);
+    let spacing = |u: TimeUnit| max * u.seconds() <= 4.2e9 && camera_like(median, u);
     let epoch = |u: TimeUnit| (1e8..=4.2e9).contains(&(max * u.seconds()));
     let pick = |rule: &dyn Fn(TimeUnit) -> bool| TimeUnit::ALL.into_iter().find(|&u| rule(u));
     pick(&|u| spacing(u) && epoch(u))
         .or_else(|| pick(&spacing))
         .or_else(|| pick(&epoch))
         .unwrap_or(TimeUnit::Seconds)
+}
+
+/// The median positive step of `stamps`; none with fewer than two distinct stamps.
+fn median_step(stamps: &[f64]) -> Option<f64> {
+    let mut dt: Vec<f64> = stamps
+        .windows(2)
+        .map(|w| w[1] - w[0])
+        .filter(|d| *d > 0.0)
+        .collect();
+    if dt.is_empty() {
+        return None;
+    }
+    let mid = dt.len() / 2;
+    dt.select_nth_unstable_by(mid, f64::total_cmp);
+    Some(dt[mid])
+}
+
+/// Whether a median step read in `unit` is one of a camera, an IMU or a
+/// ground truth: 10 µs to 10 s (100 kHz to 0.1 Hz); no step passes.
+fn camera_like(median: Option<f64>, unit: TimeUnit) -> bool {
+    median.is_none_or(|d| (1e-5..=10.0).contains(&(d * unit.seconds())))
+}
+
+/// The factor between neighbouring units (s, ms, µs, ns).
+const UNIT_STEP: f64 = 1e3;
+
+/// The median steps, seconds, of the streams an estimate and a reference
+/// come in: 0.2 ms (a 5 kHz IMU or motion capture) to 60 s (keyframes a
+/// minute apart).
+const PAIR_STEP: std::ops::RangeInclusive<f64> = 2e-4..=60.0;
+
+/// A 30 Hz camera's step, seconds: the middle of the steps on a log scale.
+const TYPICAL_STEP: f64 = 1.0 / 30.0;
+
+/// How much the time spans `a` and `b` (first, last) share: the length of
+/// their intersection over that of their union, 1 for the same span, 0 for
+/// spans apart; two single stamps at the same time count as 1.
+fn span_overlap(a: (f64, f64), b: (f64, f64)) -> f64 {
+    let inter = a.1.min(b.1) - a.0.max(b.0);
+    let union = a.1.max(b.1) - a.0.min(b.0);
+    if union > 0.0 {
+        inter.max(0.0) / union
+    } else if inter == 0.0 {
+        1.0
+    } else {
+        0.0
+    }
+}
+
+/// The units of two trajectories' stamps that record the same motion (an
+/// estimate and its reference), each judged against the other.
+///
+/// `est` and `reference` are the stamps as written; `est_given` and
+/// `ref_given` are units the caller knows (they stay as given). Read in the
+/// right units, the two time spans (the estimate's shifted by `offset`
+/// seconds) lie over each other: their intersection is at least `1000^-1/2`
+/// (3 %) of their union. That bound is the geometric middle between one span
+/// read twice (1) and a span read in a neighbouring unit against its true one
+/// (1/1000 at most), so it holds for any run length, rate or clock base.
+/// Every combination of units (given ones fixed) that passes is a candidate;
+/// the one giving more sides a sensor's median step wins (0.2 ms to 60 s),
+/// then the one reading more sides as Unix time (1973 to 2103), then the one
+/// that keeps more sides at their own unit (the given one, or [`detect_time_unit`] of its
+/// stamps), then the larger overlap, then the one whose steps lie nearer a
+/// 30 Hz camera's on a log scale (both sides read a unit off alike overlap as
+/// much). Two files on one clock from 0, both read a
+/// unit off alike, overlap as well as read right: only their steps tell them
+/// apart, and a file too sparse for a camera-like step (keyframes over 10 s
+/// apart) beside a partner whose step misleads cannot be told. When no
+/// combination passes (clocks apart by more than the run, which an offset
+/// estimate is for) or a side is empty, the own units stand and the
+/// association says what it sees.
+pub fn match_time_units(
+    est: &[f64],
+    reference: &[f64],
+    est_given: Option<TimeUnit>,
+    ref_given: Option<TimeUnit>,
+    offset: f64,
+) -> (TimeUnit, TimeUnit) {
+    let own_est = est_given.unwrap_or_else(|| detect_time_unit(est));
+    let own_ref = ref_given.unwrap_or_else(|| detect_time_unit(reference));
+    let (Some(&e0), Some(&e1), Some(&r0), Some(&r1)) =
+        (est.first(), est.last(), reference.first(), reference.last())
+    else {
+        return (own_est, own_ref);
+    };
+    let overlap = |ue: TimeUnit, ur: TimeUnit| {
+        let (se, sr) = (ue.per_second(), ur.per_second());
+        span_overlap((e0 / se + offset, e1 / se + offset), (r0 / sr, r1 / sr))
+    };
+    let enough = UNIT_STEP.sqrt().recip();
+    let choices = |given: Option<TimeUnit>| match given {
+        Some(u) => vec![u],
+        None => TimeUnit::ALL.to_vec(),
+    };
+    // A side read in a unit: whether its median step is one of a sensor's
+    // (PAIR_STEP) and whether its last stamp is Unix time (1973 to 2103).
+    let reading = |stamps: &[f64], step: Option<f64>, u: TimeUnit| {
+        let max = stamps.iter().fold(0.0f64, |m, t| m.max(t.abs())) * u.seconds();
+        let sensor = step.is_none_or(|d| PAIR_STEP.contains(&(d * u.seconds())));
+        (
+            usize::from(sensor),
+            usize::from((1e8..=4.2e9).contains(&max)),
+        )
+    };
+    let (step_est, step_ref) = (median_step(est), median_step(reference));
+    // ((sensor steps, Unix clocks, sides at their own unit), overlap, units)
+    let mut passing = Vec::new();
+    for ue in choices(est_given) {
+        for ur in choices(ref_given) {
+            let o = overlap(ue, ur);
+            if o >= enough {
+                let (se, ee) = reading(est, step_est, ue);
+                let (sr, er) = reading(reference, step_ref, ur);
+                let own = usize::from(ue == own_est) + usize::from(ur == own_ref);
+                passing.push(((se + sr, ee + er, own), o, ue, ur));
+            }
+        }
+    }
+    let Some(top) = passing.iter().map(|c| c.0).max() else {
+        return (own_est, own_ref);
+    };
+    passing.retain(|c| c.0 == top);
+    let most = passing.iter().fold(0.0f64, |m, c| m.max(c.1));
+    // Read a unit off alike, both steps move 1000-fold: the tie goes to the
+    // steps nearer a 30 Hz camera's, on a log scale.
+    let off_typical = |step: Option<f64>, u: TimeUnit| {
+        step.map_or(0.0, |d| (d * u.seconds() / TYPICAL_STEP).log10().abs())
+    };
+    let off =
+        |c: &(_, f64, TimeUnit, TimeUnit)| off_typical(step_est, c.2) + off_typical(step_ref, c.3);
+    passing
+        .into_iter()
+        .filter(|c| c.1 >= most * (1.0 - 1e-9))
+        .min_by(|a, b| off(a).total_cmp(&off(b)))
+        .map_or((own_est, own_ref), |c| (c.2, c.3))
 }
 
 /// Lines of at most [`MAX_LINE_BYTES`], read without holding more than one;

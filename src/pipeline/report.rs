@@ -917,6 +917,22 @@ impl HandEyeReport {
     }
 }
 
+/// The units of the stamps of `align EST REF`'s two files.
+#[derive(Clone, Debug, PartialEq, Serialize, JsonSchema)]
+pub struct TimeUnitsReport {
+    /// EST's unit: `s`, `ms`, `us` or `ns`.
+    pub est: String,
+    /// REF's unit.
+    #[serde(rename = "ref")]
+    pub reference: String,
+    /// Whether EST's unit was found from the stamps (false: given by
+    /// `--est-time-unit`).
+    pub est_detected: bool,
+    /// Whether REF's unit was found from the stamps (false: given by
+    /// `--ref-time-unit`, or the EuRoC format's nanoseconds).
+    pub ref_detected: bool,
+}
+
 /// What `align --json` prints.
 #[derive(Clone, Debug, PartialEq, Serialize, JsonSchema)]
 pub struct AlignReport {
@@ -937,6 +953,10 @@ pub struct AlignReport {
     pub max_diff: f64,
     /// Seconds given to add to the EST stamps.
     pub offset: f64,
+    /// The units the two files' stamps were read in (none for two topics of a
+    /// log, whose stamps are nanoseconds).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub time_units: Option<TimeUnitsReport>,
     /// Whether the scale was fitted (`sim3`, `scale+4dof`); the dof is in `fit`.
     pub with_scale: bool,
     /// Scale of `T_ref_est`.

@@ -146,3 +146,116 @@ fn real_data_matches_evo_numbers() {
     assert!((v["scale"].as_f64().unwrap() / 0.9796982521745786 - 1.0).abs() < 1e-9);
     assert!((v["ape"]["rmse"].as_f64().unwrap() - 0.083841).abs() < 5e-7);
 }
+
+/// ORB-SLAM3's keyframes of EuRoC MH01 (`kf_*.txt`, nanoseconds) against the
+/// ground truth in seconds, and the same file rewritten in ms, µs and s:
+/// every one aligns with no flag, reads in its unit and gives one fit.
+#[test]
+fn stamp_units_are_found_against_the_reference() {
+    let (Some(kf), Some(gt)) = (
+        data("euroc_mh01_orbslam3_mono", "kf_dataset-MH01_mono.txt"),
+        data("euroc_mh01_orbslam3_mono", "MH_01_easy.txt"),
+    ) else {
+        return;
+    };
+    let dir = tempfile::tempdir().unwrap();
+    let text = std::fs::read_to_string(&kf).unwrap();
+    let mut fits = Vec::new();
+    for (unit, per_ns) in [("ns", 1.0), ("us", 1e-3), ("ms", 1e-6), ("s", 1e-9)] {
+        let est = if unit == "ns" {
+            kf.clone()
+        } else {
+            let f = dir.path().join(format!("kf_{unit}.txt"));
+            let rows: String = text
+                .lines()
+                .map(|l| {
+                    let (t, rest) = l.split_once(' ').unwrap();
+                    // From the integer nanoseconds, so each variant is exact in its unit.
+                    let ns: f64 = t.parse().unwrap();
+                    format!("{} {rest}\n", ns * per_ns)
+                })
+                .collect();
+            std::fs::write(&f, rows).unwrap();
+            f
+        };
+        let o = bin(&[
+            "align",
+            est.to_str().unwrap(),
+            gt.to_str().unwrap(),
+            "--json",
+        ]);
+        assert_eq!(o.status.code(), Some(0), "{unit}: {}", stderr(&o));
+        let v: serde_json::Value = serde_json::from_slice(&o.stdout).unwrap();
+        assert_eq!(v["time_units"]["est"], unit);
+        assert_eq!(v["time_units"]["ref"], "s");
+        assert_eq!(v["time_units"]["est_detected"], true);
+        let text = bin(&["align", est.to_str().unwrap(), gt.to_str().unwrap()]);
+        assert!(
+            String::from_utf8_lossy(&text.stdout).contains(&format!(
+                "stamps read in {unit} for EST (found), s for REF (found)"
+            )),
+            "{}",
+            String::from_utf8_lossy(&text.stdout)
+        );
+        fits.push((
+            v["n_pairs"].as_u64().unwrap(),
+            v["scale"].as_f64().unwrap(),
+            v["ape"]["rmse"].as_f64().unwrap(),
+        ));
+    }
+    let (n, scale, rmse) = fits[0];
+    assert!(n > 100, "{n} pairs");
+    for (k, &(m, s, r)) in fits.iter().enumerate() {
+        assert_eq!(m, n, "variant {k}");
+        assert!(
+            (s / scale - 1.0).abs() < 1e-6 && (r - rmse).abs() < 1e-6,
+            "variant {k}: {s} {r} against {scale} {rmse}"
+        );
+    }
+    // A unit given wrong: the one refusal, naming the likely cause.
+    let o = bin(&[
+        "align",
+        kf.to_str().unwrap(),
+        gt.to_str().unwrap(),
+        "--est-time-unit",
+        "s",
+    ]);
+    assert_eq!(o.status.code(), Some(1));
+    assert!(
+        stderr(&o).contains("look like nanoseconds"),
+        "{}",
+        stderr(&o)
+    );
+    // Given right, the same fit, reported as given.
+    let o = bin(&[
+        "align",
+        kf.to_str().unwrap(),
+        gt.to_str().unwrap(),
+        "--est-time-unit",
+        "ns",
+        "--json",
+    ]);
+    assert_eq!(o.status.code(), Some(0), "{}", stderr(&o));
+    let v: serde_json::Value = serde_json::from_slice(&o.stdout).unwrap();
+    assert_eq!(v["time_units"]["est_detected"], false);
+    assert_eq!(v["scale"].as_f64().unwrap(), scale);
+    // A day later: no unit explains it, so the refusal says what it sees.
+    let later = dir.path().join("gt_later.txt");
+    let rows: String = std::fs::read_to_string(&gt)
+        .unwrap()
+        .lines()
+        .filter(|l| !l.starts_with('#'))
+        .map(|l| {
+            let (t, rest) = l.split_once(' ').unwrap();
+            format!("{} {rest}\n", t.parse::<f64>().unwrap() + 86400.0)
+        })
+        .collect();
+    std::fs::write(&later, rows).unwrap();
+    let o = bin(&["align", kf.to_str().unwrap(), later.to_str().unwrap()]);
+    assert_eq!(o.status.code(), Some(1));
+    let e = stderr(&o);
+    assert!(
+        e.contains("do not overlap") && e.lines().count() == 1,
+        "{e}"
+    );
+}

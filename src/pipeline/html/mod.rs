@@ -709,6 +709,25 @@ fn align_cards(r: &AlignReport, figures: &FigureData) -> Vec<Card> {
         ),
     );
     p.row("fitted", p.count("n_fitted", r.n_fitted));
+    if let Some(u) = &r.time_units {
+        let how = |found: bool| {
+            if found {
+                "found from the stamps"
+            } else {
+                "given"
+            }
+        };
+        p.row(
+            "stamps read in",
+            format!(
+                "EST {} ({}), REF {} ({})",
+                esc(&u.est),
+                how(u.est_detected),
+                esc(&u.reference),
+                how(u.ref_detected)
+            ),
+        );
+    }
     p.row(
         "EST poses without a REF pose within max_diff",
         derived_count("est_unmatched", r.n_est - r.n_pairs.min(r.n_est)),
