@@ -953,6 +953,14 @@ class TextInfo:
 def read_trajectory(
     path: _Path, *, time_unit: str | None = None
 ) -> tuple[Trajectory, TextInfo]: ...
+def match_time_units(
+    est_stamps: _ArrayLike,
+    ref_stamps: _ArrayLike,
+    *,
+    est_unit: str | None = None,
+    ref_unit: str | None = None,
+    offset: float = 0.0,
+) -> tuple[str, str]: ...
 
 @final
 class Reconstruction:

@@ -1,12 +1,13 @@
-//! Trajectory files as SLAM systems write them, for Python: `read_trajectory`
-//! and `TextInfo`.
+//! Trajectory files as SLAM systems write them, for Python: `read_trajectory`,
+//! `TextInfo` and `match_time_units`.
 
 use std::path::PathBuf;
 
 use pyo3::prelude::*;
 
+use super::arrays::vec_f64;
 use super::trajectory::PyTrajectory;
-use crate::io::text::{read_trajectory, Delimiter, TextInfo, TimeUnit};
+use crate::io::text::{match_time_units, read_trajectory, Delimiter, TextInfo, TimeUnit};
 
 /// What `read_trajectory` found out about a file.
 #[pyclass(name = "TextInfo", module = "slam2world._slam2world", frozen)]
@@ -76,8 +77,41 @@ fn read_trajectory_py(
     Ok((PyTrajectory { inner: t.into() }, PyTextInfo { inner: info }))
 }
 
+/// The units ("s", "ms", "us", "ns") of an estimate's and a reference's
+/// stamps as written, each judged against the other: the combination whose
+/// time spans overlap (the estimate's shifted by `offset` seconds), as
+/// `slam2world align EST REF` reads two files. `est_unit` / `ref_unit` fix a
+/// side. Returns `(est_unit, ref_unit)`; divide the stamps by 1, 1e3, 1e6 or
+/// 1e9 for seconds.
+#[pyfunction(name = "match_time_units")]
+#[pyo3(signature = (est_stamps, ref_stamps, *, est_unit=None, ref_unit=None, offset=0.0))]
+fn match_time_units_py(
+    est_stamps: &Bound<'_, PyAny>,
+    ref_stamps: &Bound<'_, PyAny>,
+    est_unit: Option<&str>,
+    ref_unit: Option<&str>,
+    offset: f64,
+) -> PyResult<(&'static str, &'static str)> {
+    let est = vec_f64(est_stamps, "est_stamps", None)?;
+    let reference = vec_f64(ref_stamps, "ref_stamps", None)?;
+    if !offset.is_finite() {
+        return Err(
+            crate::Error::invalid("offset", format!("must be finite, got {offset}")).into(),
+        );
+    }
+    let (ue, ur) = match_time_units(
+        &est,
+        &reference,
+        est_unit.map(TimeUnit::parse).transpose()?,
+        ref_unit.map(TimeUnit::parse).transpose()?,
+        offset,
+    );
+    Ok((ue.symbol(), ur.symbol()))
+}
+
 pub fn register(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_class::<PyTextInfo>()?;
     m.add_function(wrap_pyfunction!(read_trajectory_py, m)?)?;
+    m.add_function(wrap_pyfunction!(match_time_units_py, m)?)?;
     Ok(())
 }

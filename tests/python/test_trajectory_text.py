@@ -1,5 +1,5 @@
 """``read_trajectory``: time units detected on the real files, CSV, repeated
-stamps, and the override."""
+stamps, and the override; ``match_time_units``: two sides read against each other."""
 
 from __future__ import annotations
 
@@ -36,3 +36,24 @@ def test_csv_and_repeated_stamps(tmp_path: Path) -> None:
     p.write_text("0 0 0 0 0 0 0 1\n" + "#" * 70000 + "\n")
     with pytest.raises(s2w.FormatError, match="longer than"):
         s2w.read_trajectory(p)
+
+
+def test_match_time_units_reads_each_side_against_the_other(data: Any) -> None:
+    kf = data.path("euroc_mh01_orbslam3_mono", "kf_dataset-MH01_mono.txt")
+    gt = data.path("euroc_mh01_orbslam3_mono", "MH_01_easy.txt")
+    est = s2w.Trajectory.read_tum(kf).timestamps
+    ref = s2w.Trajectory.read_tum(gt).timestamps
+    assert s2w.match_time_units(est, ref) == ("ns", "s")
+    assert s2w.match_time_units(est / 1e3, ref) == ("us", "s")
+    # Stamps from 0: milliseconds at 20 Hz against seconds at 200 Hz.
+    ms = np.arange(0.0, 60_000.0, 50.0)
+    s = np.arange(0.0, 60.0, 0.005)
+    assert s2w.match_time_units(ms, s) == ("ms", "s")
+    assert s2w.match_time_units(s, ms) == ("s", "ms")
+    # A side given stays as given; an offset in seconds moves the estimate.
+    assert s2w.match_time_units(est, ref, est_unit="s") == ("s", "s")
+    assert s2w.match_time_units(ref + 86400.0, ref, offset=-86400.0) == ("s", "s")
+    with pytest.raises(s2w.InvalidInputError, match="time_unit"):
+        s2w.match_time_units(est, ref, ref_unit="minutes")
+    with pytest.raises(s2w.Slam2WorldError):
+        s2w.match_time_units([0.0, float("nan")], ref)
