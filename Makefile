@@ -11,7 +11,7 @@ MANYLINUX ?= manylinux2014
 
 .PHONY: install build-tools wheel sdist demo test test-rust test-python test-install lint fmt browser \
 	bench compare fuzz fuzz-stable clean check develop lint-rust lint-python ruff test-rust-chain \
-	test-python-chain fmt-check
+	test-python-chain fmt-check stages
 
 $(PY):
 	python3 -m venv $(VENV)
@@ -45,10 +45,10 @@ install: wheel
 demo: install
 	$(VENV)/bin/slam2world demo -o out/demo
 
-# Two chains at once, each serial: the Rust one (fmt, clippy, every Rust test) and the Python one
-# (the release wheel, the Python lint, the Python tests, the install check). The compilers leave
-# a core idle in each crate's serial front end, pip and pytest another (fresh clones: 879, 887 and
-# 970 s against 947 s one after the other; the gain is within this machine's noise). The Python
+# Two chains at once, each serial: the Rust one (fmt, every Rust test, linted as they compile) and
+# the Python one (the release wheel, the Python lint, the Python tests, the install check). The
+# compilers leave a core idle in each crate's serial front end, pip and pytest another (fresh
+# clones: 707 s; 879-970 s with a clippy pass of its own). The Python
 # tests go before the install check, whose cargo builds wait for the Rust chain's (one build
 # folder, one lock) and then use its compiled dependencies. Each line says its chain.
 test:
@@ -137,6 +137,13 @@ fmt: $(PY)
 
 bench:
 	cargo bench
+
+# The start-up stage rule scored on SCENARIOS runs of the scenario family (seeds never used in
+# development): the distributions of its errors against the truth (tests/it/stages.rs).
+SCENARIOS ?= 200
+stages:
+	SLAM2WORLD_SCENARIOS=$(SCENARIOS) cargo test --release --test it \
+		stages::the_batch_cut_scored_over_the_scenario_family -- --include-ignored --nocapture
 
 compare: install
 	$(PY) benches/compare.py
