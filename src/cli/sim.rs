@@ -50,6 +50,10 @@ pub struct RunArgs {
     /// Switch every error off (no scale wander, no noise).
     #[arg(long)]
     noiseless: bool,
+    /// Run SEED of the scenario family instead of the paper's run: stage lengths, rates,
+    /// noise and start-up drawn from ranges that cover real systems (see `sim::scenario`).
+    #[arg(long, value_name = "SEED", conflicts_with_all = ["seed", "reduced"])]
+    scenario: Option<u64>,
     /// Set a simulation parameter (a `SimConfig` field), e.g. `--set scale_drift=0.001`.
     #[arg(long = "set", value_name = "NAME=VALUE")]
     set: Vec<String>,
@@ -57,11 +61,14 @@ pub struct RunArgs {
 
 impl RunArgs {
     fn config(&self) -> Result<SimConfig> {
-        let mut cfg = SimConfig {
-            seed: self.seed,
-            ..SimConfig::default()
-        }
-        .reduced(self.reduced as usize);
+        let mut cfg = match self.scenario {
+            Some(seed) => SimConfig::scenario(seed),
+            None => SimConfig {
+                seed: self.seed,
+                ..SimConfig::default()
+            }
+            .reduced(self.reduced as usize),
+        };
         if self.noiseless {
             cfg = cfg.noiseless();
         }

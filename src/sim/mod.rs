@@ -10,6 +10,7 @@ pub mod evaluate;
 pub mod imu;
 pub mod path;
 pub mod render;
+pub mod scenario;
 pub mod scene;
 pub mod slam;
 

@@ -38,5 +38,6 @@ mod rosbag;
 mod safety;
 mod sim;
 mod sim_cli;
+mod stages;
 mod trajectory;
 mod trajectory_text;

@@ -121,3 +121,41 @@ fn bad_arguments_exit_with_one_line() {
     ]);
     assert_eq!(code, 1);
 }
+
+#[test]
+fn simulate_scenario_draws_a_run_and_its_truth_says_what_was_drawn() {
+    let dir = tempfile::tempdir().unwrap();
+    let log = dir.path().join("s.mcap");
+    assert_eq!(run(&["simulate", "-o", s(&log), "--scenario", "5"]), 0);
+    let truth: serde_json::Value =
+        serde_json::from_slice(&std::fs::read(dir.path().join("s.truth.json")).unwrap()).unwrap();
+    let drawn = slam2world::sim::SimConfig::scenario(5);
+    // Every drawn value (serde_json reads floats to within an ulp).
+    let want = serde_json::to_value(&drawn).unwrap();
+    let want = want.as_object().unwrap();
+    assert_eq!(truth["config"].as_object().unwrap().len(), want.len());
+    for (k, v) in want {
+        let got = &truth["config"][k];
+        match (v.as_f64(), got.as_f64()) {
+            (Some(a), Some(b)) => assert!((a - b).abs() <= 1e-15 * a.abs(), "{k}: {b} for {a}"),
+            _ => assert_eq!(got, v, "{k}"),
+        }
+    }
+    assert_eq!(truth["stages"]["stable_start"], drawn.stable_start);
+    let read = slam2world::io::read_mcap(&log, &Default::default()).unwrap();
+    assert_eq!(read.keyframes.len(), drawn.n_keyframes);
+    // The family is not the paper's run, and --seed / --reduced belong to that run.
+    assert_ne!(drawn, slam2world::sim::SimConfig::default());
+    assert_eq!(
+        run(&[
+            "simulate",
+            "-o",
+            s(&log),
+            "--scenario",
+            "5",
+            "--reduced",
+            "2"
+        ]),
+        2
+    );
+}
