@@ -91,11 +91,13 @@ test: export RUSTC_WORKSPACE_WRAPPER = $(CLIPPY_DRIVER)
 test: export RUSTFLAGS = -D warnings
 
 # Every test, the slow ones included; the benches run once each as tests. One build of every
-# target first, so that cargo compiles the benches beside the tests.
+# target first, so that cargo compiles the benches beside the tests; the benches run before the
+# long integration tests, while nothing else (the install check's sdist build) holds the build
+# folder's lock.
 test-rust:
 	cargo test --all-targets --no-run
-	cargo test --lib --bins --tests -- --include-ignored
 	cargo test --bench '*'
+	cargo test --lib --bins --tests -- --include-ignored
 
 # The report-page tests open report.html in headless Chromium, from Debian's packages where
 # the machine has none (as root with apt); without one they skip, saying why.

@@ -9,8 +9,9 @@ the sdist into ``dist/``:
   then ``slam2world demo`` (reduced) and a short ``slam2world.align`` there, with the source tree
   hidden where the kernel lets us (a private mount namespace with an empty tmpfs over it), and
   ``mypy --strict`` against the installed stub;
-- the ``slam2world`` binary built by cargo, copied to an empty folder: ``simulate``, ``convert``
-  and ``demo`` there, nothing read from the source tree, no libpython linked;
+- the ``slam2world`` binary built by cargo (the one the integration tests run), copied to an
+  empty folder: ``simulate``, ``convert`` and ``demo`` there, nothing read from the source
+  tree, no libpython linked;
 - the sdist: built and installed by pip in another fresh venv (this one compiles, with cargo),
   then the same short use.
 
@@ -441,9 +442,14 @@ def check_mypy(dev_py: Path, venv_py: Path, tmp: Path) -> str:
 
 
 def cargo_binary() -> Path:
-    """The `slam2world` binary as cargo builds it (`cargo build`, shared with `cargo test`)."""
+    """The `slam2world` binary that cargo builds for the integration tests (`cargo test`).
+
+    It is the one `make test` has built already: `cargo build --bin` would resolve the
+    dependencies' features without the dev-dependencies' and compile the crate and part of
+    its dependencies once more (the release wheel's build covers that resolution).
+    """
     out = run(
-        ["cargo", "build", "--bin", "slam2world", "--message-format=json-render-diagnostics"],
+        ["cargo", "test", "--no-run", "--test", "it", "--message-format=json-render-diagnostics"],
         cwd=REPO,
         timeout=3600,
     )
@@ -451,9 +457,10 @@ def cargo_binary() -> Path:
         if line.startswith("{"):
             msg = json.loads(line)
             if msg.get("reason") == "compiler-artifact" and msg.get("executable"):
-                if msg["target"]["name"] == "slam2world":
+                target = msg["target"]
+                if target["name"] == "slam2world" and target["kind"] == ["bin"]:
                     return Path(msg["executable"])
-    raise CheckFailed(f"cargo build reported no slam2world executable:\n{out[-2000:]}")
+    raise CheckFailed(f"cargo test --no-run reported no slam2world executable:\n{out[-2000:]}")
 
 
 def check_binary_copy(tmp: Path, env: dict[str, str], hider: Hider) -> str:
