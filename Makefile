@@ -48,7 +48,7 @@ demo: install
 # Two chains at once, each serial: the Rust one (fmt, every Rust test, linted as they compile) and
 # the Python one (the release wheel, the Python lint, the Python tests, the install check). The
 # compilers leave a core idle in each crate's serial front end, pip and pytest another (fresh
-# clones: 707 s; 879-970 s with a clippy pass of its own). The Python
+# clones: 667 and 707 s; 879-970 s with a clippy pass of its own). The Python
 # tests go before the install check, whose cargo builds wait for the Rust chain's (one build
 # folder, one lock) and then use its compiled dependencies. Each line says its chain.
 test:
