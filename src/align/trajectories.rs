@@ -318,11 +318,23 @@ fn shifted(t: &Trajectory, d: f64) -> Trajectory {
 /// Scale factors of consecutive pairs, a zero SLAM step carrying the previous
 /// factor (so that indices stay pair indices).
 fn factors(src: &[Vector3<f64>], dst: &[Vector3<f64>]) -> Vec<f64> {
-    let mut out = Vec::with_capacity(src.len().saturating_sub(1));
+    factors_over(src, dst, 1)
+}
+
+/// The scale factors of pairs `baseline` apart, `p_k` from pair `k` to pair
+/// `k + baseline` (`n − baseline` factors), a zero SLAM step carrying the
+/// previous factor.
+pub(crate) fn factors_over(
+    src: &[Vector3<f64>],
+    dst: &[Vector3<f64>],
+    baseline: usize,
+) -> Vec<f64> {
+    let b = baseline.max(1);
+    let mut out = Vec::with_capacity(src.len().saturating_sub(b));
     let mut last = f64::NAN;
-    for k in 0..src.len().saturating_sub(1) {
-        let ds = (src[k + 1] - src[k]).norm_squared();
-        let dr = (dst[k + 1] - dst[k]).norm_squared();
+    for k in 0..src.len().saturating_sub(b) {
+        let ds = (src[k + b] - src[k]).norm_squared();
+        let dr = (dst[k + b] - dst[k]).norm_squared();
         let p = dr / ds;
         if p.is_finite() && p > 0.0 {
             last = p;

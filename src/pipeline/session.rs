@@ -64,7 +64,7 @@ use crate::map::{Grid2d, MapParams, OccupancyMap};
 use crate::trajectory::Association;
 
 use super::gnss::GnssOptions;
-use super::startup::{cut_of_pairs, LiveCut};
+use super::startup::{cut_of_pairs, LiveCut, LIVE_MAX_GAP};
 
 /// Seconds of stable stage the detection must see before it is reported.
 pub const STABLE_HOLD_S: f64 = 5.0;
@@ -820,6 +820,24 @@ impl Session {
         Some(at.map(|k| (self.ref_pos[k], 1.0)))
     }
 
+    /// The reference position at a tracked frame's stamp `t`, as the batch
+    /// cut takes it ([`super::startup::live_pairs`]): interpolated at
+    /// `t + offset` between two reference positions at most [`LIVE_MAX_GAP`]
+    /// apart. `None` while the reference has not reached that time,
+    /// `Some(None)` when there is none there.
+    fn live_reference_at(&self, t: f64, all: bool) -> Option<Option<Vector3<f64>>> {
+        let r = &self.ref_times;
+        let t = t + self.opts.align.offset;
+        if t > *r.last()? {
+            return if all { Some(None) } else { None };
+        }
+        Some(
+            crate::trajectory::bracket(r, t, LIVE_MAX_GAP)
+                .ok()
+                .map(|(i, k, a)| self.ref_pos[i].lerp(&self.ref_pos[k], a)),
+        )
+    }
+
     fn match_pending(&mut self, all: bool) {
         if self.ref_times.is_empty() {
             return;
@@ -828,9 +846,9 @@ impl Session {
         let mut keep = Vec::new();
         let mut matched = Vec::new();
         for (time, slam) in std::mem::take(&mut self.pending_frames) {
-            match self.reference_at(time, all) {
+            match self.live_reference_at(time, all) {
                 None => keep.push((time, slam)),
-                Some(Some((r, _))) => matched.push((time, slam, r)),
+                Some(Some(r)) => matched.push((time, slam, r)),
                 Some(None) => {}
             }
         }

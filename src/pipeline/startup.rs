@@ -1,7 +1,7 @@
 //! The start-up cut from live frames: where a log carries the tracked pose of
 //! every frame as the SLAM published it (LSD-SLAM's `/lsd_slam/liveframes`),
 //! the three start-up stages are found in the scale factors `p_k` of the live
-//! frames matched with the reference — the tracking is what shows the
+//! frames paired with the reference (interpolated at their stamps) — the tracking is what shows the
 //! start-up's scale error; the keyframes' optimised poses have it removed —
 //! and the keyframe pairs stamped before the stable stage's first live frame
 //! are left out of the fit.
@@ -10,10 +10,40 @@
 //! (`pipeline::session`) both cut through [`cut_of_pairs`], so that a
 //! session fed a whole log ends on the batch cut.
 
-use crate::align::stages::{detect_stages, Stages};
-use crate::align::trajectories::{fit_scale_factors, TrajectoryAlignOptions};
+use crate::align::stages::{detect_stages, diff_sigma, Stages};
+use crate::align::trajectories::{factors_over, fit_scale_factors, TrajectoryAlignOptions};
 use crate::error::Result;
-use crate::trajectory::{matched_pairs_with, Trajectory};
+use nalgebra::Vector3;
+
+use crate::trajectory::{bracket, matched_pairs_with, Trajectory};
+
+/// Per-factor noise of `ln p_k` that the stage factors are brought under by
+/// a longer baseline ([`stage_factors`]): noisy steps bias `ln p_k` by about
+/// half its variance, more where the motion is slow, and a bias that follows
+/// the speed would pass for a move of the level.
+pub const FACTOR_NOISE: f64 = 0.1;
+
+/// Fewest factors per pair of baseline (the baseline is at most `n / 100`).
+const PAIRS_PER_BASELINE: usize = 100;
+
+/// The scale factors the stages are found in, from matched pairs of SLAM
+/// (`src`) and reference (`dst`) positions: those of consecutive pairs where
+/// their `ln` has a noise under [`FACTOR_NOISE`], else of pairs `K` apart,
+/// `K` the smallest that brings the noise under it (noise falls as `1/K`
+/// while the steps' own noise dominates; `K ≤ n / 100`). Returns the factors
+/// (`p_k` from pair `k` to `k + K`) and `K`.
+pub fn stage_factors(src: &[Vector3<f64>], dst: &[Vector3<f64>]) -> (Vec<f64>, usize) {
+    let p = fit_scale_factors(src, dst);
+    let x: Vec<f64> = p.iter().map(|v| v.ln()).filter(|v| v.is_finite()).collect();
+    let noise = diff_sigma(&x[x.len() / 2..]);
+    let most = (src.len() / PAIRS_PER_BASELINE).max(1);
+    let k = ((noise / FACTOR_NOISE).ceil() as usize).clamp(1, most);
+    if k == 1 {
+        (p, 1)
+    } else {
+        (factors_over(src, dst, k), k)
+    }
+}
 
 /// The stages found in the live frames and the time the stable stage starts.
 #[derive(Clone, Debug, PartialEq)]
@@ -25,60 +55,109 @@ pub struct LiveCut {
     pub stable_time: f64,
     /// SLAM stamp of the live frame where the converging stretch starts.
     pub converging_time: f64,
-    /// Live frames matched with a reference pose.
+    /// The stamps the stable start may lie between ([`Stages::stable_range`]).
+    pub stable_range: (f64, f64),
+    /// The stamps the converging start may lie between.
+    pub converging_range: (f64, f64),
+    /// Live frames paired with the reference.
     pub pairs: usize,
+    /// Pairs between the two ends of a factor ([`stage_factors`]).
+    pub baseline: usize,
 }
 
 impl LiveCut {
     /// One line saying what is cut and why.
     pub fn describe(&self) -> String {
         format!(
-            "live frames: converging from {:.3} s, stable from {:.3} s ({} matched live frames; {})",
+            "live frames: converging from {:.3} s ({:.3}..{:.3}), stable from {:.3} s \
+             ({:.3}..{:.3}) ({} paired live frames, factors over {} pairs; {})",
             self.converging_time,
+            self.converging_range.0,
+            self.converging_range.1,
             self.stable_time,
+            self.stable_range.0,
+            self.stable_range.1,
             self.pairs,
+            self.baseline,
             self.stages.describe()
         )
     }
 }
 
 /// The stages of the live frames `(time, SLAM position, reference position)`
-/// of matched pairs in time order; the errors of [`detect_stages`] (too few).
+/// of matched pairs in time order, taken as a whole run; the errors of
+/// [`detect_stages`] (too few).
 pub fn cut_of_pairs(
     times: &[f64],
     slam: &[nalgebra::Vector3<f64>],
     reference: &[nalgebra::Vector3<f64>],
 ) -> Result<LiveCut> {
-    let stages = detect_stages(&fit_scale_factors(slam, reference))?;
+    let (p, baseline) = stage_factors(slam, reference);
+    cut_of(times, detect_stages(&p)?, baseline)
+}
+
+fn cut_of(times: &[f64], stages: Stages, baseline: usize) -> Result<LiveCut> {
     // Factor k is the step from pair k to k + 1: the stable stage starts at pair
     // `stable_start` (the same index rule as the keyframe cut of `skip_init auto`).
     let at = |k: usize| times[k.min(times.len() - 1)];
     Ok(LiveCut {
         stable_time: at(stages.stable_start),
         converging_time: at(stages.converging_start),
+        stable_range: (at(stages.stable_range.0), at(stages.stable_range.1)),
+        converging_range: (at(stages.converging_range.0), at(stages.converging_range.1)),
         pairs: times.len(),
+        baseline,
         stages,
     })
 }
 
-/// The live frames of `live` matched with `reference` (the fit's association
-/// rule, `max_diff` and `offset`) and the stages in their scale factors.
+/// Longest gap between two reference poses that the reference is
+/// interpolated over at a live frame's stamp (as for GNSS fixes).
+pub const LIVE_MAX_GAP: f64 = crate::defaults::GNSS_MAX_GAP;
+
+/// The live frames of `live` with the reference interpolated at each one's
+/// stamp plus `offset` (between two poses at most [`LIVE_MAX_GAP`] apart;
+/// frames outside are left out): `(time, SLAM position, reference
+/// position)`. Interpolated, not the nearest pose: a reference slower than
+/// the frames, or not in step with them, would otherwise give steps of
+/// unequal durations on the two sides, and factors that swing with them.
+pub fn live_pairs(
+    live: &Trajectory,
+    reference: &Trajectory,
+    offset: f64,
+) -> (Vec<f64>, Vec<Vector3<f64>>, Vec<Vector3<f64>>) {
+    let mut out = (Vec::new(), Vec::new(), Vec::new());
+    for (t, p) in live.timestamps.iter().zip(&live.positions) {
+        if let Ok((i, k, a)) = bracket(&reference.timestamps, t + offset, LIVE_MAX_GAP) {
+            out.0.push(*t);
+            out.1.push(*p);
+            out.2
+                .push(reference.positions[i].lerp(&reference.positions[k], a));
+        }
+    }
+    out
+}
+
+/// The stages in the scale factors of the live frames of `live` paired with
+/// `reference` ([`live_pairs`], with `align.offset`); too few pairs: the
+/// errors of [`detect_stages`] and [`Error::Unmatched`].
 pub fn live_cut(
     live: &Trajectory,
     reference: &Trajectory,
     align: &TrajectoryAlignOptions,
 ) -> Result<LiveCut> {
-    let pairs = matched_pairs_with(
-        live,
-        reference,
-        align.max_diff,
-        align.offset,
-        3,
-        align.association,
-    )?;
-    let times: Vec<f64> = pairs.iter().map(|&(s, _)| live.timestamps[s]).collect();
-    let slam: Vec<_> = pairs.iter().map(|&(s, _)| live.positions[s]).collect();
-    let refp: Vec<_> = pairs.iter().map(|&(_, r)| reference.positions[r]).collect();
+    let (times, slam, refp) = live_pairs(live, reference, align.offset);
+    if times.len() < 3 {
+        // The association's own error says why (spans, likely cause).
+        matched_pairs_with(
+            live,
+            reference,
+            align.max_diff,
+            align.offset,
+            3,
+            align.association,
+        )?;
+    }
     cut_of_pairs(&times, &slam, &refp)
 }
 

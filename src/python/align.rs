@@ -821,7 +821,7 @@ impl PyStages {
     fn noise(&self) -> f64 {
         self.inner.noise
     }
-    /// Rolling window, factors.
+    /// Factors per block (the stages are fitted to block medians of `ln p_k`).
     #[getter]
     fn window(&self) -> usize {
         self.inner.window

@@ -373,6 +373,7 @@ fn gnss_run(unknown: Option<usize>) {
         .state()
         .stable_reported_at
         .expect("stable reported");
+    eprintln!("GNSS run ({unknown:?} without a covariance): stable reported at {at} s");
     assert!((TRUE_STABLE_S..=TRUE_STABLE_S + 10.0).contains(&at), "{at}");
     if let Some(t) = unknown_time {
         assert!(at < t, "{at} {t}");

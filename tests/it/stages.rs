@@ -5,8 +5,9 @@
 //! `convert --skip-init auto` does) and where the truth says, and fitted from
 //! both cuts.
 //!
-//! `cargo test --test it stages::` scores [`DEV_SEEDS`] (20 runs) and checks what the
-//! rule must never do; `make stages` scores `SLAM2WORLD_SCENARIOS` runs from
+//! `cargo test --test it stages:: -- --include-ignored` scores [`DEV_SEEDS`] (20 runs)
+//! and checks what the rule must never do (cut more than 25 % of the span early) and
+//! that 90 % of the runs are close; `make stages` scores `SLAM2WORLD_SCENARIOS` runs from
 //! seed [`REPORT_SEEDS`] on (200 by default; seeds not used in development)
 //! and prints the distributions against issue 38's bar: the stable start
 //! within ±max(1 s, 10 % of the converging span) of the truth in ≥ 95 % of
@@ -119,9 +120,14 @@ fn summary(runs: &[Outcome]) -> (f64, f64) {
     let close = runs.iter().filter(|o| o.close()).count() as f64 / n;
     let far_early = runs.iter().filter(|o| o.far_early()).count();
     let fit_ok = runs.iter().filter(|o| o.fit_ok()).count() as f64 / n;
+    let no_fit = runs
+        .iter()
+        .filter(|o| !o.scale_error_auto.is_finite())
+        .count();
     println!(
         "{} runs: stable start within ±max(1 s, 10 % span) {:.1} % (bar 95 %), more than 25 % of \
-         the span early {far_early} (bar 0), scale error ≤ 1.2× the true cut's {:.1} % (bar 95 %)",
+         the span early {far_early} (bar 0), scale error ≤ 1.2× the true cut's {:.1} % (bar 95 %), \
+         too few pairs left to fit after the cut {no_fit}",
         runs.len(),
         100.0 * close,
         100.0 * fit_ok,
@@ -180,9 +186,20 @@ fn the_batch_cut_scored_over_the_scenario_family() {
         Some(n) => (REPORT_SEEDS..REPORT_SEEDS + n).collect(),
         None => DEV_SEEDS.collect(),
     };
+    let report = report_runs().is_some();
     let runs: Vec<Outcome> = seeds.into_par_iter().map(outcome).collect();
-    summary(&runs);
+    let (close, _) = summary(&runs);
+    if report {
+        // The report prints the distributions; the bar is read from them.
+        return;
+    }
     check_sane(&runs);
+    // The bar's hard half: never more than 25 % of the converging span early
+    // (an early cut fits start-up scale into the transform); and most runs
+    // within ±max(1 s, 10 % of the span) of the true stable start.
+    let early: Vec<&Outcome> = runs.iter().filter(|o| o.far_early()).collect();
+    assert!(early.is_empty(), "cut early: {early:?}");
+    assert!(close >= 0.9, "{close}");
     // The true cut's fit recovers the scale: the family's noise leaves the
     // fit its ground (a run too noisy for any cut would score nothing).
     let good = runs.iter().filter(|o| o.scale_error_true < 0.05).count();

@@ -91,7 +91,9 @@ def test_detect_stages_on_synthetic_factors() -> None:
     level[ramp] = np.log(2.0) + (np.log(9.0) - np.log(2.0)) * (k[ramp] - 300) / 400
     p = np.exp(level + rng.normal(scale=0.1, size=k.size))
     st = s2w.detect_stages(p)
-    assert 500 < st.stable_start <= 720
+    # A straight ramp over 300..700: its kinks are rounded by the smooth step the rule
+    # fits, so the stable start lands after 700 (never before), within a quarter of the span.
+    assert 700 <= st.stable_start <= 800
     assert 200 <= st.converging_start < 400
     assert abs(st.stable_level - 9.0) < 0.3
     assert "stable from" in st.describe()

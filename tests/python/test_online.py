@@ -199,7 +199,8 @@ WRITER = textwrap.dedent(
 @pytest.mark.slow
 def test_follow_a_growing_log_every_sample_complete(tmp_path: Path) -> None:
     src = tmp_path / "src.mcap"
-    argv = ["slam2world", "simulate", "-o", str(src), "--reduced", "16", "--seed", "2"]
+    # Long enough to leave three keyframes or more after the start-up cut.
+    argv = ["slam2world", "simulate", "-o", str(src), "--reduced", "8", "--seed", "2"]
     assert s2w._slam2world.run_cli(argv) == 0
     growing, out = tmp_path / "live.mcap", tmp_path / "out"
     writer = subprocess.Popen([sys.executable, "-c", WRITER, str(src), str(growing)])
