@@ -373,30 +373,56 @@ pub struct TextInfo {
 /// `3e11, 3e11 + 3.3e7, …` → ns. Relative stamps more than 10 s apart read
 /// as a finer unit: give the unit for those.
 pub fn detect_time_unit(stamps: &[f64]) -> TimeUnit {
-    let max = stamps.iter().fold(0.0f64, |m, t| m.max(t.abs()));
-    let median = median_step(stamps);
-    let spacing = |u: TimeUnit| max * u.seconds() <= 4.2e9 && camera_like(median, u);
-    let epoch = |u: TimeUnit| (1e8..=4.2e9).contains(&(max * u.seconds()));
-    let pick = |rule: &dyn Fn(TimeUnit) -> bool| TimeUnit::ALL.into_iter().find(|&u| rule(u));
-    pick(&|u| spacing(u) && epoch(u))
-        .or_else(|| pick(&spacing))
-        .or_else(|| pick(&epoch))
-        .unwrap_or(TimeUnit::Seconds)
+    Stamps::of(stamps).own_unit()
 }
 
-/// The median positive step of `stamps`; none with fewer than two distinct stamps.
-fn median_step(stamps: &[f64]) -> Option<f64> {
-    let mut dt: Vec<f64> = stamps
-        .windows(2)
-        .map(|w| w[1] - w[0])
-        .filter(|d| *d > 0.0)
-        .collect();
-    if dt.is_empty() {
-        return None;
+/// Seconds that are Unix time: 1973 to 2103.
+const UNIX_SECONDS: std::ops::RangeInclusive<f64> = 1e8..=4.2e9;
+
+/// What the unit rules look at in a file's stamps: the largest magnitude and
+/// the median positive step (none with fewer than two distinct stamps).
+#[derive(Clone, Copy, Debug)]
+struct Stamps {
+    max: f64,
+    step: Option<f64>,
+}
+
+impl Stamps {
+    fn of(stamps: &[f64]) -> Stamps {
+        let mut dt: Vec<f64> = stamps
+            .windows(2)
+            .map(|w| w[1] - w[0])
+            .filter(|d| *d > 0.0)
+            .collect();
+        let step = if dt.is_empty() {
+            None
+        } else {
+            let mid = dt.len() / 2;
+            dt.select_nth_unstable_by(mid, f64::total_cmp);
+            Some(dt[mid])
+        };
+        Stamps {
+            max: stamps.iter().fold(0.0f64, |m, t| m.max(t.abs())),
+            step,
+        }
     }
-    let mid = dt.len() / 2;
-    dt.select_nth_unstable_by(mid, f64::total_cmp);
-    Some(dt[mid])
+
+    /// Whether the stamps read in `u` are Unix time.
+    fn unix(self, u: TimeUnit) -> bool {
+        UNIX_SECONDS.contains(&(self.max * u.seconds()))
+    }
+
+    /// The unit of [`detect_time_unit`] (see there).
+    fn own_unit(self) -> TimeUnit {
+        let spacing = |u: TimeUnit| {
+            self.max * u.seconds() <= *UNIX_SECONDS.end() && camera_like(self.step, u)
+        };
+        let pick = |rule: &dyn Fn(TimeUnit) -> bool| TimeUnit::ALL.into_iter().find(|&u| rule(u));
+        pick(&|u| spacing(u) && self.unix(u))
+            .or_else(|| pick(&spacing))
+            .or_else(|| pick(&|u| self.unix(u)))
+            .unwrap_or(TimeUnit::Seconds)
+    }
 }
 
 /// Whether a median step read in `unit` is one of a camera, an IMU or a
@@ -461,8 +487,9 @@ pub fn match_time_units(
     ref_given: Option<TimeUnit>,
     offset: f64,
 ) -> (TimeUnit, TimeUnit) {
-    let own_est = est_given.unwrap_or_else(|| detect_time_unit(est));
-    let own_ref = ref_given.unwrap_or_else(|| detect_time_unit(reference));
+    let (est_stamps, ref_stamps) = (Stamps::of(est), Stamps::of(reference));
+    let own_est = est_given.unwrap_or_else(|| est_stamps.own_unit());
+    let own_ref = ref_given.unwrap_or_else(|| ref_stamps.own_unit());
     let (Some(&e0), Some(&e1), Some(&r0), Some(&r1)) =
         (est.first(), est.last(), reference.first(), reference.last())
     else {
@@ -478,24 +505,21 @@ pub fn match_time_units(
         None => TimeUnit::ALL.to_vec(),
     };
     // A side read in a unit: whether its median step is one of a sensor's
-    // (PAIR_STEP) and whether its last stamp is Unix time (1973 to 2103).
-    let reading = |stamps: &[f64], step: Option<f64>, u: TimeUnit| {
-        let max = stamps.iter().fold(0.0f64, |m, t| m.max(t.abs())) * u.seconds();
-        let sensor = step.is_none_or(|d| PAIR_STEP.contains(&(d * u.seconds())));
-        (
-            usize::from(sensor),
-            usize::from((1e8..=4.2e9).contains(&max)),
-        )
+    // (PAIR_STEP) and whether it is Unix time.
+    let reading = |side: Stamps, u: TimeUnit| {
+        let sensor = side
+            .step
+            .is_none_or(|d| PAIR_STEP.contains(&(d * u.seconds())));
+        (usize::from(sensor), usize::from(side.unix(u)))
     };
-    let (step_est, step_ref) = (median_step(est), median_step(reference));
     // ((sensor steps, Unix clocks, sides at their own unit), overlap, units)
     let mut passing = Vec::new();
     for ue in choices(est_given) {
         for ur in choices(ref_given) {
             let o = overlap(ue, ur);
             if o >= enough {
-                let (se, ee) = reading(est, step_est, ue);
-                let (sr, er) = reading(reference, step_ref, ur);
+                let (se, ee) = reading(est_stamps, ue);
+                let (sr, er) = reading(ref_stamps, ur);
                 let own = usize::from(ue == own_est) + usize::from(ur == own_ref);
                 passing.push(((se + sr, ee + er, own), o, ue, ur));
             }
@@ -511,8 +535,9 @@ pub fn match_time_units(
     let off_typical = |step: Option<f64>, u: TimeUnit| {
         step.map_or(0.0, |d| (d * u.seconds() / TYPICAL_STEP).log10().abs())
     };
-    let off =
-        |c: &(_, f64, TimeUnit, TimeUnit)| off_typical(step_est, c.2) + off_typical(step_ref, c.3);
+    let off = |c: &(_, f64, TimeUnit, TimeUnit)| {
+        off_typical(est_stamps.step, c.2) + off_typical(ref_stamps.step, c.3)
+    };
     passing
         .into_iter()
         .filter(|c| c.1 >= most * (1.0 - 1e-9))

@@ -784,11 +784,8 @@ impl Session {
         let t = t + offset;
         let last = *r.last()?;
         if matches!(self.reference, Reference::Fixes(_)) {
-            if t > last {
-                return if all { Some(None) } else { None };
-            }
             // Before the first fix or inside a gap: none (fixes come in order).
-            let Ok((i, k, a)) = crate::trajectory::bracket(r, t, self.opts.gnss.max_gap) else {
+            let Some((i, k, a)) = self.bracket_at(t, self.opts.gnss.max_gap, all)? else {
                 return Some(None);
             };
             let p = self.ref_pos[i].lerp(&self.ref_pos[k], a);
@@ -820,22 +817,25 @@ impl Session {
         Some(at.map(|k| (self.ref_pos[k], 1.0)))
     }
 
-    /// The reference position at a tracked frame's stamp `t`, as the batch
-    /// cut takes it ([`super::startup::live_pairs`]): interpolated at
-    /// `t + offset` between two reference positions at most [`LIVE_MAX_GAP`]
-    /// apart. `None` while the reference has not reached that time,
-    /// `Some(None)` when there is none there.
-    fn live_reference_at(&self, t: f64, all: bool) -> Option<Option<Vector3<f64>>> {
+    /// Where the reference samples bracket `t` (offset applied already): the
+    /// two samples at most `max_gap` apart and the fraction between them
+    /// ([`crate::trajectory::bracket`]). `None` while the reference has not
+    /// reached `t` (unless `all`), `Some(None)` when there are none.
+    fn bracket_at(&self, t: f64, max_gap: f64, all: bool) -> Option<Option<(usize, usize, f64)>> {
         let r = &self.ref_times;
-        let t = t + self.opts.align.offset;
         if t > *r.last()? {
             return if all { Some(None) } else { None };
         }
-        Some(
-            crate::trajectory::bracket(r, t, LIVE_MAX_GAP)
-                .ok()
-                .map(|(i, k, a)| self.ref_pos[i].lerp(&self.ref_pos[k], a)),
-        )
+        Some(crate::trajectory::bracket(r, t, max_gap).ok())
+    }
+
+    /// The reference position at a tracked frame's stamp `t`, as the batch
+    /// cut takes it ([`super::startup::live_pairs`]): interpolated at
+    /// `t + offset` between two reference samples at most [`LIVE_MAX_GAP`]
+    /// apart ([`Session::bracket_at`]).
+    fn live_reference_at(&self, t: f64, all: bool) -> Option<Option<Vector3<f64>>> {
+        let b = self.bracket_at(t + self.opts.align.offset, LIVE_MAX_GAP, all)?;
+        Some(b.map(|(i, k, a)| self.ref_pos[i].lerp(&self.ref_pos[k], a)))
     }
 
     fn match_pending(&mut self, all: bool) {

@@ -1,8 +1,8 @@
 //! The start-up cut from live frames: where a log carries the tracked pose of
 //! every frame as the SLAM published it (LSD-SLAM's `/lsd_slam/liveframes`),
 //! the three start-up stages are found in the scale factors `p_k` of the live
-//! frames paired with the reference (interpolated at their stamps) — the tracking is what shows the
-//! start-up's scale error; the keyframes' optimised poses have it removed —
+//! frames paired with the reference (interpolated at their stamps) — the
+//! tracking is what shows the start-up's scale error; the keyframes' optimised poses have it removed —
 //! and the keyframe pairs stamped before the stable stage's first live frame
 //! are left out of the fit.
 //!
@@ -10,12 +10,12 @@
 //! (`pipeline::session`) both cut through [`cut_of_pairs`], so that a
 //! session fed a whole log ends on the batch cut.
 
+use nalgebra::Vector3;
+
 use crate::align::stages::{detect_stages, diff_sigma, Stages};
 use crate::align::trajectories::{factors_over, fit_scale_factors, TrajectoryAlignOptions};
 use crate::error::Result;
-use nalgebra::Vector3;
-
-use crate::trajectory::{bracket, matched_pairs_with, Trajectory};
+use crate::trajectory::{matched_pairs_with, Trajectory};
 
 /// Per-factor noise of `ln p_k` that the stage factors are brought under by
 /// a longer baseline ([`stage_factors`]): noisy steps bias `ln p_k` by about
@@ -89,8 +89,8 @@ impl LiveCut {
 /// [`detect_stages`] (too few).
 pub fn cut_of_pairs(
     times: &[f64],
-    slam: &[nalgebra::Vector3<f64>],
-    reference: &[nalgebra::Vector3<f64>],
+    slam: &[Vector3<f64>],
+    reference: &[Vector3<f64>],
 ) -> Result<LiveCut> {
     let (p, baseline) = stage_factors(slam, reference);
     cut_of(times, detect_stages(&p)?, baseline)
@@ -115,27 +115,25 @@ fn cut_of(times: &[f64], stages: Stages, baseline: usize) -> Result<LiveCut> {
 /// interpolated over at a live frame's stamp (as for GNSS fixes).
 pub const LIVE_MAX_GAP: f64 = crate::defaults::GNSS_MAX_GAP;
 
+/// Live frames paired with the reference: their stamps, SLAM positions and
+/// the reference positions at those stamps.
+pub type LivePairs = (Vec<f64>, Vec<Vector3<f64>>, Vec<Vector3<f64>>);
+
 /// The live frames of `live` with the reference interpolated at each one's
 /// stamp plus `offset` (between two poses at most [`LIVE_MAX_GAP`] apart;
-/// frames outside are left out): `(time, SLAM position, reference
-/// position)`. Interpolated, not the nearest pose: a reference slower than
-/// the frames, or not in step with them, would otherwise give steps of
-/// unequal durations on the two sides, and factors that swing with them.
-pub fn live_pairs(
-    live: &Trajectory,
-    reference: &Trajectory,
-    offset: f64,
-) -> (Vec<f64>, Vec<Vector3<f64>>, Vec<Vector3<f64>>) {
-    let mut out = (Vec::new(), Vec::new(), Vec::new());
-    for (t, p) in live.timestamps.iter().zip(&live.positions) {
-        if let Ok((i, k, a)) = bracket(&reference.timestamps, t + offset, LIVE_MAX_GAP) {
-            out.0.push(*t);
-            out.1.push(*p);
-            out.2
-                .push(reference.positions[i].lerp(&reference.positions[k], a));
-        }
-    }
-    out
+/// frames outside are left out, [`Trajectory::interpolate_where_covered`]):
+/// `(time, SLAM position, reference position)`. Interpolated, not the
+/// nearest pose: a reference slower than the frames, or not in step with
+/// them, would otherwise give steps of unequal durations on the two sides,
+/// and factors that swing with them.
+pub fn live_pairs(live: &Trajectory, reference: &Trajectory, offset: f64) -> Result<LivePairs> {
+    let at: Vec<f64> = live.timestamps.iter().map(|t| t + offset).collect();
+    let r = reference.interpolate_where_covered(&at, LIVE_MAX_GAP)?;
+    Ok((
+        r.kept.iter().map(|&j| live.timestamps[j]).collect(),
+        r.kept.iter().map(|&j| live.positions[j]).collect(),
+        r.trajectory.positions,
+    ))
 }
 
 /// The stages in the scale factors of the live frames of `live` paired with
@@ -146,7 +144,7 @@ pub fn live_cut(
     reference: &Trajectory,
     align: &TrajectoryAlignOptions,
 ) -> Result<LiveCut> {
-    let (times, slam, refp) = live_pairs(live, reference, align.offset);
+    let (times, slam, refp) = live_pairs(live, reference, align.offset)?;
     if times.len() < 3 {
         // The association's own error says why (spans, likely cause).
         matched_pairs_with(

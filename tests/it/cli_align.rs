@@ -147,6 +147,21 @@ fn real_data_matches_evo_numbers() {
     assert!((v["ape"]["rmse"].as_f64().unwrap() - 0.083841).abs() < 5e-7);
 }
 
+/// The TUM file `from` written to `to` with each stamp `t` as `f(t)`
+/// (comment lines left out).
+fn restamped(from: &Path, to: &Path, f: impl Fn(f64) -> f64) {
+    let rows: String = std::fs::read_to_string(from)
+        .unwrap()
+        .lines()
+        .filter(|l| !l.starts_with('#'))
+        .map(|l| {
+            let (t, rest) = l.split_once(' ').unwrap();
+            format!("{} {rest}\n", f(t.parse().unwrap()))
+        })
+        .collect();
+    std::fs::write(to, rows).unwrap();
+}
+
 /// ORB-SLAM3's keyframes of EuRoC MH01 (`kf_*.txt`, nanoseconds) against the
 /// ground truth in seconds, and the same file rewritten in ms, µs and s:
 /// every one aligns with no flag, reads in its unit and gives one fit.
@@ -159,23 +174,14 @@ fn stamp_units_are_found_against_the_reference() {
         return;
     };
     let dir = tempfile::tempdir().unwrap();
-    let text = std::fs::read_to_string(&kf).unwrap();
     let mut fits = Vec::new();
     for (unit, per_ns) in [("ns", 1.0), ("us", 1e-3), ("ms", 1e-6), ("s", 1e-9)] {
         let est = if unit == "ns" {
             kf.clone()
         } else {
             let f = dir.path().join(format!("kf_{unit}.txt"));
-            let rows: String = text
-                .lines()
-                .map(|l| {
-                    let (t, rest) = l.split_once(' ').unwrap();
-                    // From the integer nanoseconds, so each variant is exact in its unit.
-                    let ns: f64 = t.parse().unwrap();
-                    format!("{} {rest}\n", ns * per_ns)
-                })
-                .collect();
-            std::fs::write(&f, rows).unwrap();
+            // From the integer nanoseconds, so each variant is exact in its unit.
+            restamped(&kf, &f, |ns| ns * per_ns);
             f
         };
         let o = bin(&[
@@ -241,16 +247,7 @@ fn stamp_units_are_found_against_the_reference() {
     assert_eq!(v["scale"].as_f64().unwrap(), scale);
     // A day later: no unit explains it, so the refusal says what it sees.
     let later = dir.path().join("gt_later.txt");
-    let rows: String = std::fs::read_to_string(&gt)
-        .unwrap()
-        .lines()
-        .filter(|l| !l.starts_with('#'))
-        .map(|l| {
-            let (t, rest) = l.split_once(' ').unwrap();
-            format!("{} {rest}\n", t.parse::<f64>().unwrap() + 86400.0)
-        })
-        .collect();
-    std::fs::write(&later, rows).unwrap();
+    restamped(&gt, &later, |t| t + 86400.0);
     let o = bin(&["align", kf.to_str().unwrap(), later.to_str().unwrap()]);
     assert_eq!(o.status.code(), Some(1));
     let e = stderr(&o);
