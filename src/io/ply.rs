@@ -402,7 +402,8 @@ fn to_byte(v: f64, kind: Scalar) -> u8 {
 }
 
 /// Reads the vertices of a PLY file (any of the three formats) as a point cloud;
-/// keyframe ids are `-1`.
+/// keyframe ids are `-1`. A file that declares `element vertex 0` (what the
+/// writers write when every point was dropped) reads as an empty cloud.
 pub fn read_ply(path: impl AsRef<Path>) -> Result<PointCloud> {
     let path = path.as_ref();
     // A regular file is read whole (its size bounds the memory); a device or
@@ -420,13 +421,6 @@ pub fn read_ply(path: impl AsRef<Path>) -> Result<PointCloud> {
     let Some(vi) = header.elements.iter().position(|e| e.name == "vertex") else {
         return Err(Error::parse(path, 0, "no `vertex` element"));
     };
-    if header.elements[vi].count == 0 {
-        return Err(Error::parse(
-            path,
-            0,
-            "no points in the file (element vertex 0)",
-        ));
-    }
     let layout = vertex_layout(path, &header.elements[vi])?;
     match header.format {
         Format::Ascii => read_ascii(path, &bytes, &header, vi, &layout),

@@ -206,6 +206,14 @@ pub fn write_tum(traj: &Trajectory, path: impl AsRef<Path>) -> Result<()> {
 pub fn tum_bytes(traj: &Trajectory) -> Result<Vec<u8>> {
     use std::fmt::Write as _;
     traj.check_lengths()?;
+    // A TUM file has no count in it: one with no rows reads as a wrong file to
+    // every reader (this one and evo), so none is written.
+    if traj.is_empty() {
+        return Err(Error::invalid(
+            "trajectory",
+            "no poses to write (a TUM file without rows is refused by its readers)",
+        ));
+    }
     let mut s = String::with_capacity(64 * (traj.len() + 1));
     s.push_str("# timestamp tx ty tz qx qy qz qw\n");
     for i in 0..traj.len() {

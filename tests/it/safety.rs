@@ -384,6 +384,13 @@ fn paths_that_are_no_log_and_files_that_are_no_text_say_what_they_are() {
     let o = transform_cloud(&empty, &est, &reference, &d.join("w.ply"));
     assert_eq!(o.status.code(), Some(1));
     one_line_naming(&o, "no points");
+    // A PLY that declares no vertices is an empty cloud: carried over, it stays one.
+    let none = d.join("none.ply");
+    slam2world::io::ply::write_ply(&none, &slam2world::cloud::PointCloud::default()).unwrap();
+    let out = d.join("none_world.ply");
+    let o = transform_cloud(&none, &est, &reference, &out);
+    assert!(o.status.success(), "{}", stderr(&o));
+    assert!(slam2world::io::ply::read_ply(&out).unwrap().is_empty());
     // --max-offset beyond the data: the argument named, the number short.
     let o = run(&[
         "align",

@@ -105,18 +105,20 @@ def test_text_and_paths_that_are_not_utf8(tmp_path: Path) -> None:
     assert code == 1
 
 
-def test_empty_clouds_are_refused_like_empty_ply(tmp_path: Path) -> None:
+def test_text_without_points_is_refused_and_a_ply_declaring_none_is_empty(tmp_path: Path) -> None:
+    # Nothing in a text file says it is meant to be empty: a wrong file is the likelier reading.
     empty = tmp_path / "empty.txt"
     empty.write_text("# nothing\n\n")
     with pytest.raises(s2w.FormatError, match="no points"):
         s2w.read_xyz_text(empty)
+    # A PLY header that declares no vertices is an empty cloud (what the writers write when
+    # every point was dropped), read back as such.
     ply = tmp_path / "empty.ply"
     ply.write_bytes(
         b"ply\nformat binary_little_endian 1.0\nelement vertex 0\n"
         b"property float x\nproperty float y\nproperty float z\nend_header\n"
     )
-    with pytest.raises(s2w.FormatError, match="no points"):
-        s2w.read_ply(ply)
+    assert len(s2w.read_ply(ply)) == 0
 
 
 def test_sim3_apply_of_a_huge_broadcast_view_raises_memory_error() -> None:
