@@ -3,20 +3,27 @@
 //! print it with the absolute position error statistics (as `evo_ape … -as`).
 //! `slam2world align LOG --est-topic T --ref-topic T` does the same with two
 //! pose topics of one log of any container (as `evo_ape bag LOG REF EST`).
+//! A REF of GNSS fixes (`align EST FIXES`, `align LOG --est-topic T
+//! --gnss-topic G`) is fitted in ENU at `--origin`, as `convert` fits it.
 
 use std::path::{Path, PathBuf};
 
 use clap::Args;
 
 use super::ape_plot;
-use super::args::{fit_text, print, print_json, time_unit, FitArgs};
+use super::args::{
+    finite, fit_text, gnss_format, gnss_text, print, print_json, time_unit, FitArgs, GnssFitArgs,
+};
 use crate::align::dof::Dof;
 use crate::align::handeye::estimate_body_from_cam_trajectories;
-use crate::align::trajectories::align_trajectories;
+use crate::align::trajectories::align_trajectories_weighted;
 use crate::error::{Error, Result};
+use crate::geo::GnssFixes;
+use crate::io::gnss::{read_gnss, GnssFormat};
 use crate::io::log::{read_log, ReadOptions};
 use crate::io::text::{match_time_units, TimeUnit, TrajectoryFormat};
 use crate::pipeline::figures::FigureData;
+use crate::pipeline::gnss;
 use crate::pipeline::html::{write_html, Page, Summary};
 use crate::pipeline::report::{AlignReport, ApeReport, FitReport, HandEyeReport, TimeUnitsReport};
 use crate::trajectory::Trajectory;
@@ -40,13 +47,27 @@ pub struct AlignArgs {
     #[arg(
         long,
         value_name = "TOPIC",
-        requires = "ref_topic",
+        requires = "log_reference",
         conflicts_with = "reference"
     )]
     est_topic: Option<String>,
     /// The reference's pose topic in LOG.
-    #[arg(long, value_name = "TOPIC", requires = "est_topic")]
+    #[arg(
+        long,
+        value_name = "TOPIC",
+        requires = "est_topic",
+        group = "log_reference"
+    )]
     ref_topic: Option<String>,
+    /// The reference's GNSS topic in LOG (`sensor_msgs/NavSatFix`,
+    /// `foxglove.LocationFix`): the fit is then in ENU at `--origin`.
+    #[arg(
+        long,
+        value_name = "TOPIC",
+        requires = "est_topic",
+        group = "log_reference"
+    )]
+    gnss_topic: Option<String>,
     /// TF parent frame of the reference, when --ref-topic is a tf2_msgs/TFMessage topic.
     #[arg(long, requires = "ref_topic")]
     tf_parent: Option<String>,
@@ -56,9 +77,19 @@ pub struct AlignArgs {
     /// Format of EST (and of REF unless --ref-format is given): tum or euroc.
     #[arg(long, value_name = "tum|euroc", default_value = "tum", value_parser = format)]
     format: TrajectoryFormat,
-    /// Format of REF (default: the same as --format).
-    #[arg(long, value_name = "tum|euroc", value_parser = format)]
+    /// Format of REF (default: GNSS fixes when REF holds NMEA sentences or
+    /// `time, lat, lon, alt[, covariance]` rows, else the same as --format).
+    #[arg(long, value_name = "tum|euroc", value_parser = format, conflicts_with = "gnss_format")]
     ref_format: Option<TrajectoryFormat>,
+    /// REF is a file of GNSS fixes in this format (default: found from its
+    /// first lines): CSV / TXT `time, lat, lon, alt[, covariance]` (degrees;
+    /// metres above the WGS84 ellipsoid) or NMEA (GGA, with GST accuracy).
+    #[arg(long, value_name = "csv|nmea", value_parser = gnss_format)]
+    gnss_format: Option<GnssFormat>,
+    /// Metres added to every height of a GNSS REF file (the geoid
+    /// separation, for heights above mean sea level).
+    #[arg(long, value_name = "M", default_value_t = 0.0, allow_hyphen_values = true, value_parser = finite)]
+    geoid_offset: f64,
     /// Unit of EST's stamps (default: found from the stamps, against REF's).
     #[arg(long, value_name = "s|ms|us|ns", value_parser = time_unit, conflicts_with = "est_topic")]
     est_time_unit: Option<TimeUnit>,
@@ -89,14 +120,52 @@ pub struct AlignArgs {
     html: Option<PathBuf>,
     #[command(flatten)]
     fit: FitArgs,
+    #[command(flatten)]
+    gnss: GnssFitArgs,
 }
 
 /// Runs the command; prints to stdout.
 pub fn run(args: AlignArgs) -> Result<()> {
     let opts = args.fit.options();
     opts.check()?;
-    let (est, reference, est_name, ref_name, time_units) = inputs(&args, opts.offset)?;
-    let r = align_trajectories(&est, &reference, &opts)?;
+    let Inputs {
+        est,
+        reference,
+        est_name,
+        ref_name,
+        time_units,
+    } = inputs(&args, opts.offset)?;
+    // Fixes are the reference in ENU at the origin, interpolated at the
+    // estimate's stamps, weighted and with the lever arm, as `convert` fits them.
+    let (reference, gnss) = match reference {
+        Reference::Poses(r) => (std::sync::Arc::new(r), None),
+        Reference::Fixes(fixes, source) => {
+            if args.estimate_body_from_cam {
+                return Err(Error::invalid(
+                    "--estimate-body-from-cam",
+                    "needs the reference's orientations, and GNSS fixes have none",
+                ));
+            }
+            let mut g = gnss::reference(
+                &fixes,
+                &est,
+                &args.gnss.options(),
+                opts.offset,
+                opts.estimate_offset.is_none(),
+                opts.body_from_cam.as_ref(),
+            )?;
+            match source {
+                FixSource::File(p) => g.report.file = Some(p),
+                FixSource::Topic(t) => g.report.topic = Some(t),
+            }
+            (g.trajectory.clone(), Some(g))
+        }
+    };
+    let (fit_opts, weights) = match &gnss {
+        Some(g) => g.fit_options(&opts),
+        None => (opts.clone(), None),
+    };
+    let r = align_trajectories_weighted(&est, &reference, weights, &fit_opts)?;
     // The extrinsic at the offset the fit used (given plus estimated).
     let hand_eye = if args.estimate_body_from_cam {
         Some(estimate_body_from_cam_trajectories(
@@ -129,6 +198,7 @@ pub fn run(args: AlignArgs) -> Result<()> {
         ape: ApeReport::from(&r.ape),
         fit: FitReport::of(&r, args.fit.confidence),
         body_from_cam_estimate: hand_eye.as_ref().map(|(he, n)| HandEyeReport::of(he, *n)),
+        gnss: gnss.map(|g| g.report),
     };
     let mut written = String::new();
     if args.plot || args.save_plot.is_some() {
@@ -160,15 +230,29 @@ pub fn run(args: AlignArgs) -> Result<()> {
     print(&(text(&report) + &written))
 }
 
-/// The estimate and the reference with the names the report gives them
-/// (`LOG:TOPIC` for topics) and, for two files, the units of their stamps.
-type Inputs = (
-    Trajectory,
-    Trajectory,
-    String,
-    String,
-    Option<TimeUnitsReport>,
-);
+/// What `align` fits: the estimate and the reference, with the names the
+/// report gives them (`LOG:TOPIC` for topics) and, for two files, the units
+/// of their stamps.
+struct Inputs {
+    est: Trajectory,
+    reference: Reference,
+    est_name: String,
+    ref_name: String,
+    time_units: Option<TimeUnitsReport>,
+}
+
+/// The reference: poses, or GNSS fixes (which `gnss::reference` turns into
+/// ENU positions at the estimate's stamps).
+enum Reference {
+    Poses(Trajectory),
+    Fixes(GnssFixes, FixSource),
+}
+
+/// Where the fixes came from (the report names it).
+enum FixSource {
+    File(PathBuf),
+    Topic(String),
+}
 
 /// A trajectory file and the unit its stamps were read in: TUM stamps as
 /// they are written (seconds; every row kept, as evo reads them), EuRoC's
@@ -197,18 +281,47 @@ fn in_unit(mut t: Trajectory, read: TimeUnit, unit: TimeUnit) -> Trajectory {
 }
 
 /// The estimate and the reference, from two files (the units of their
-/// stamps found against each other, [`match_time_units`]) or from two topics
-/// of a log.
+/// stamps found against each other, [`match_time_units`]; REF poses or GNSS
+/// fixes) or from two topics of a log.
 fn inputs(args: &AlignArgs, offset: f64) -> Result<Inputs> {
-    let (Some(est_topic), Some(ref_topic)) = (&args.est_topic, &args.ref_topic) else {
+    let Some(est_topic) = &args.est_topic else {
         let Some(reference) = &args.reference else {
             return Err(Error::invalid(
                 "REF",
-                "a reference file, or --est-topic and --ref-topic",
+                "a reference file, or --est-topic and --ref-topic or --gnss-topic",
             ));
         };
-        let ref_format = args.ref_format.unwrap_or(args.format);
+        let fixes_format = match (args.gnss_format, args.ref_format) {
+            (Some(f), _) => Some(f),
+            (None, None) => GnssFormat::sniff_text(reference)?,
+            (None, Some(_)) => None,
+        };
         let (est, est_read) = read_as_written(args.format, &args.est)?;
+        if let Some(format) = fixes_format {
+            let fixes = read_gnss(reference, Some(format), args.geoid_offset)?;
+            // Fix times are seconds (Unix, or of the day for NMEA without a date).
+            let est_given = args.est_time_unit;
+            let (est_unit, _) = match_time_units(
+                &written(&est, est_read),
+                &fixes.times,
+                est_given,
+                Some(TimeUnit::Seconds),
+                offset,
+            );
+            return Ok(Inputs {
+                est: in_unit(est, est_read, est_unit),
+                reference: Reference::Fixes(fixes, FixSource::File(reference.clone())),
+                est_name: args.est.display().to_string(),
+                ref_name: reference.display().to_string(),
+                time_units: Some(TimeUnitsReport {
+                    est: est_unit.symbol().into(),
+                    reference: TimeUnit::Seconds.symbol().into(),
+                    est_detected: est_given.is_none(),
+                    ref_detected: false,
+                }),
+            });
+        }
+        let ref_format = args.ref_format.unwrap_or(args.format);
         let (r, ref_read) = read_as_written(ref_format, reference)?;
         // EuRoC files are nanoseconds by their format.
         let fixed = |format, given: Option<TimeUnit>| {
@@ -229,32 +342,47 @@ fn inputs(args: &AlignArgs, offset: f64) -> Result<Inputs> {
             est_detected: est_given.is_none(),
             ref_detected: ref_given.is_none(),
         };
-        return Ok((
-            in_unit(est, est_read, est_unit),
-            in_unit(r, ref_read, ref_unit),
-            args.est.display().to_string(),
-            reference.display().to_string(),
-            Some(units),
-        ));
+        return Ok(Inputs {
+            est: in_unit(est, est_read, est_unit),
+            reference: Reference::Poses(in_unit(r, ref_read, ref_unit)),
+            est_name: args.est.display().to_string(),
+            ref_name: reference.display().to_string(),
+            time_units: Some(units),
+        });
     };
     let log = read_log(
         &args.est,
         &ReadOptions {
             est_topic: Some(est_topic.clone()),
-            pose_topic: Some(ref_topic.clone()),
+            pose_topic: args.ref_topic.clone(),
+            gnss_topic: args.gnss_topic.clone(),
             tf_parent: args.tf_parent.clone(),
             tf_child: args.tf_child.clone(),
             ..ReadOptions::default()
         },
     )?;
     let named = |t: &str| format!("{}:{t}", args.est.display());
-    match (log.frames, log.reference) {
-        (Some(est), Some(r)) => Ok((est, r, named(est_topic), named(ref_topic), None)),
-        // read_log gives both topics it was asked for (or an error).
+    let reference = match (&args.gnss_topic, log.reference, log.gnss) {
+        (Some(topic), _, Some(fixes)) => Some((
+            Reference::Fixes(fixes, FixSource::Topic(topic.clone())),
+            topic,
+        )),
+        (None, Some(r), _) => args.ref_topic.as_ref().map(|t| (Reference::Poses(r), t)),
+        _ => None,
+    };
+    match (log.frames, reference) {
+        (Some(est), Some((reference, ref_topic))) => Ok(Inputs {
+            est,
+            reference,
+            est_name: named(est_topic),
+            ref_name: named(ref_topic),
+            time_units: None,
+        }),
+        // read_log gives the topics it was asked for (or an error).
         _ => Err(Error::invalid(
             "--est-topic/--ref-topic",
             format!(
-                "{}: the log gave no poses for both topics",
+                "{}: the log gave no data for both topics",
                 args.est.display()
             ),
         )),
@@ -308,6 +436,9 @@ fn text(r: &AlignReport) -> String {
         "APE (m) over {} pairs: rmse {:.6}  mean {:.6}  median {:.6}  std {:.6}  min {:.6}  max {:.6}\n",
         a.n_pairs, a.rmse, a.mean, a.median, a.std, a.min, a.max
     );
+    if let Some(g) = &r.gnss {
+        s += &gnss_text(g);
+    }
     s += &fit_text(&r.fit);
     if let Some(he) = &r.body_from_cam_estimate {
         let b = he.translation;

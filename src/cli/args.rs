@@ -301,6 +301,63 @@ pub(crate) fn print_json<T: serde::Serialize>(value: &T) -> Result<()> {
     print(&text)
 }
 
+/// How GNSS fixes become the reference of a fit (`convert`, `align`).
+#[derive(Args, Debug, Clone)]
+pub struct GnssFitArgs {
+    /// ENU origin of a GNSS reference: `first` (fix), `mean` (ECEF centroid)
+    /// or `LAT,LON,ALT` (degrees, metres above the ellipsoid).
+    #[arg(long, value_name = "first|mean|LAT,LON,ALT", default_value = defaults::ORIGIN, allow_hyphen_values = true, value_parser = origin)]
+    pub origin: crate::geo::Origin,
+    /// The GNSS antenna in the body frame (`T_body_antenna`, metres; the body
+    /// is the SLAM camera unless `--body-from-cam` is given).
+    #[arg(long, num_args = 3, value_names = ["X", "Y", "Z"], allow_hyphen_values = true, value_parser = finite)]
+    pub lever_arm: Option<Vec<f64>>,
+    /// Fit every GNSS pair with the same weight (default: 1/σ² from each
+    /// fix's covariance, when every fix has one).
+    #[arg(long)]
+    pub no_gnss_weights: bool,
+    /// Largest time between two fixes that a reference position interpolated
+    /// at a SLAM stamp bridges, seconds.
+    #[arg(long, value_name = "S", default_value_t = defaults::GNSS_MAX_GAP, value_parser = positive)]
+    pub gnss_max_gap: f64,
+}
+
+impl GnssFitArgs {
+    /// The GNSS options.
+    pub fn options(&self) -> crate::pipeline::gnss::GnssOptions {
+        crate::pipeline::gnss::GnssOptions {
+            origin: self.origin,
+            lever_arm: self
+                .lever_arm
+                .as_ref()
+                .map(|v| nalgebra::Vector3::new(v[0], v[1], v[2])),
+            weights: !self.no_gnss_weights,
+            max_gap: self.gnss_max_gap,
+        }
+    }
+}
+
+/// The line `convert` and `align` print of a GNSS reference.
+pub fn gnss_text(g: &crate::pipeline::report::GnssReport) -> String {
+    format!(
+        "GNSS {}: {} fixes ({} without a fix dropped), world = ENU at lat {:.7} lon {:.7} alt {:.3} m ({}), {}{}\n",
+        g.topic
+            .clone()
+            .or_else(|| g.file.as_ref().map(|p| p.display().to_string()))
+            .unwrap_or_default(),
+        g.fixes,
+        g.dropped_no_fix,
+        g.origin[0],
+        g.origin[1],
+        g.origin[2],
+        g.origin_rule,
+        g.utm_zone
+            .as_ref()
+            .map_or(String::new(), |z| format!("UTM zone {z}")),
+        if g.weighted { ", weighted by covariance" } else { "" }
+    )
+}
+
 /// The GNSS reference and the georeferenced outputs of `convert`.
 #[derive(Args, Debug, Clone)]
 pub struct GnssArgs {
@@ -321,22 +378,9 @@ pub struct GnssArgs {
     /// pose topic.
     #[arg(long, value_name = "TOPIC", conflicts_with = "pose_topic")]
     pub gnss_topic: Option<String>,
-    /// ENU origin of a GNSS reference: `first` (fix), `mean` (ECEF centroid)
-    /// or `LAT,LON,ALT` (degrees, metres above the ellipsoid).
-    #[arg(long, value_name = "first|mean|LAT,LON,ALT", default_value = defaults::ORIGIN, allow_hyphen_values = true, value_parser = origin)]
-    pub origin: crate::geo::Origin,
-    /// The GNSS antenna in the body frame (`T_body_antenna`, metres; the body
-    /// is the SLAM camera unless `--body-from-cam` is given).
-    #[arg(long, num_args = 3, value_names = ["X", "Y", "Z"], allow_hyphen_values = true, value_parser = finite)]
-    pub lever_arm: Option<Vec<f64>>,
-    /// Fit every GNSS pair with the same weight (default: 1/σ² from each
-    /// fix's covariance, when every fix has one).
-    #[arg(long)]
-    pub no_gnss_weights: bool,
-    /// Largest time between two fixes that a reference position interpolated
-    /// at a SLAM stamp bridges, seconds.
-    #[arg(long, value_name = "S", default_value_t = defaults::GNSS_MAX_GAP, value_parser = positive)]
-    pub gnss_max_gap: f64,
+    /// Origin, lever arm, weights and interpolation of the fixes.
+    #[command(flatten)]
+    pub fit: GnssFitArgs,
     /// Write `cloud.las` (the default with a GNSS reference; refused without one).
     #[arg(long, conflicts_with = "no_las")]
     pub las: bool,
@@ -354,7 +398,7 @@ pub struct GnssArgs {
     pub crs: crate::geo::GeoCrs,
 }
 
-fn gnss_format(s: &str) -> std::result::Result<crate::io::gnss::GnssFormat, String> {
+pub(crate) fn gnss_format(s: &str) -> std::result::Result<crate::io::gnss::GnssFormat, String> {
     crate::io::gnss::GnssFormat::parse(s).map_err(|e| e.to_string())
 }
 
@@ -369,15 +413,7 @@ fn crs(s: &str) -> std::result::Result<crate::geo::GeoCrs, String> {
 impl GnssArgs {
     /// The GNSS options.
     pub fn options(&self) -> crate::pipeline::gnss::GnssOptions {
-        crate::pipeline::gnss::GnssOptions {
-            origin: self.origin,
-            lever_arm: self
-                .lever_arm
-                .as_ref()
-                .map(|v| nalgebra::Vector3::new(v[0], v[1], v[2])),
-            weights: !self.no_gnss_weights,
-            max_gap: self.gnss_max_gap,
-        }
+        self.fit.options()
     }
 
     /// The georeferenced outputs.

@@ -17,7 +17,7 @@ use clap::Args;
 use indicatif::{ProgressBar, ProgressDrawTarget, ProgressStyle};
 
 use super::args::{
-    finite, non_negative, parse_transform, positive, print, time_unit, FitArgs, GnssArgs,
+    finite, gnss_text, non_negative, parse_transform, positive, print, time_unit, FitArgs, GnssArgs,
 };
 use crate::cloud::PointFilter;
 use crate::defaults;
@@ -358,23 +358,7 @@ pub fn run(args: &ConvertArgs) -> Result<()> {
         );
     }
     if let Some(g) = &r.gnss {
-        s += &format!(
-            "GNSS {}: {} fixes ({} without a fix dropped), world = ENU at lat {:.7} lon {:.7} alt {:.3} m ({}), {}{}\n",
-            g.topic
-                .clone()
-                .or_else(|| g.file.as_ref().map(|p| p.display().to_string()))
-                .unwrap_or_default(),
-            g.fixes,
-            g.dropped_no_fix,
-            g.origin[0],
-            g.origin[1],
-            g.origin[2],
-            g.origin_rule,
-            g.utm_zone
-                .as_ref()
-                .map_or(String::new(), |z| format!("UTM zone {z}")),
-            if g.weighted { ", weighted by covariance" } else { "" }
-        );
+        s += &gnss_text(g);
     }
     if let Some(g) = &r.grid {
         s += &format!(

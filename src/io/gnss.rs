@@ -84,6 +84,48 @@ impl GnssFormat {
             GnssFormat::Csv
         })
     }
+
+    /// The format of a text file of fixes, `None` for a file that is none
+    /// (a trajectory file): NMEA as [`GnssFormat::detect`] finds it; CSV when
+    /// the first row that is no comment or header has 4, 7 or 13 fields with
+    /// a latitude and longitude in range (a TUM or EuRoC row has 8 or 17).
+    pub fn sniff_text(path: &Path) -> Result<Option<Self>> {
+        match Self::detect(path)? {
+            GnssFormat::Nmea => return Ok(Some(GnssFormat::Nmea)),
+            GnssFormat::Mcap => return Ok(None),
+            GnssFormat::Csv => {}
+        }
+        let mut head = Vec::with_capacity(8192);
+        File::open(path)
+            .map_err(|e| Error::io(path, e))?
+            .take(8192)
+            .read_to_end(&mut head)
+            .map_err(|e| Error::io(path, e))?;
+        let text = String::from_utf8_lossy(&head);
+        let mut first = true;
+        for line in text.lines() {
+            let t = line.trim();
+            if t.is_empty() || t.starts_with('#') {
+                continue;
+            }
+            let tokens: Vec<&str> = if t.contains(',') {
+                t.split(',').map(str::trim).collect()
+            } else {
+                t.split_whitespace().collect()
+            };
+            let values: Vec<Option<f64>> = tokens.iter().map(|s| s.parse::<f64>().ok()).collect();
+            if first && values.iter().all(Option::is_none) {
+                first = false; // a header
+                continue;
+            }
+            let in_range = matches!(
+                values.get(1..3),
+                Some([Some(lat), Some(lon)]) if lat.abs() <= 90.0 && lon.abs() <= 180.0
+            );
+            return Ok((matches!(tokens.len(), 4 | 7 | 13) && in_range).then_some(GnssFormat::Csv));
+        }
+        Ok(None)
+    }
 }
 
 /// A line reader that refuses lines longer than [`MAX_LINE`].
@@ -490,6 +532,36 @@ mod tests {
     fn with_checksum(body: &str) -> String {
         let c = body.bytes().fold(0u8, |a, b| a ^ b);
         format!("${body}*{c:02X}")
+    }
+
+    #[test]
+    fn fixes_are_told_from_trajectories_by_their_rows() {
+        let dir = tempfile::tempdir().unwrap();
+        let sniff = |name: &str, text: &str| {
+            let p = dir.path().join(name);
+            std::fs::write(&p, text).unwrap();
+            GnssFormat::sniff_text(&p).unwrap()
+        };
+        let gga =
+            with_checksum("GPGGA,124637.60,4811.5214,N,01137.1672,E,4,12,0.6,494.6,M,47.5,M,,");
+        assert_eq!(sniff("a.nmea", &format!("{gga}\n")), Some(GnssFormat::Nmea));
+        assert_eq!(
+            sniff("a.csv", "time,lat,lon,alt\n1.0,48.1,11.5,520\n"),
+            Some(GnssFormat::Csv)
+        );
+        assert_eq!(
+            sniff("b.csv", "# fixes\n1.0 48.1 11.5 520 1 1 4\n"),
+            Some(GnssFormat::Csv)
+        );
+        // TUM and EuRoC rows, and four columns that are no latitude and longitude.
+        assert_eq!(
+            sniff("tum.txt", "# t x y z qx qy qz qw\n1 48 11 5 0 0 0 1\n"),
+            None
+        );
+        let euroc = format!("#timestamp,x\n1403636579758555392{}\n", ",0.5".repeat(16));
+        assert_eq!(sniff("gt.csv", &euroc), None);
+        assert_eq!(sniff("xyz.txt", "1.0 120.5 -300.2 4\n"), None);
+        assert_eq!(sniff("empty.txt", "# nothing\n"), None);
     }
 
     #[test]

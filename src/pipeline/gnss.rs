@@ -30,6 +30,7 @@ use nalgebra::{UnitQuaternion, Vector3};
 use super::report::GnssReport;
 use super::source::{Recording, Source};
 use super::startup::{cut_of_pairs, LiveCut};
+use crate::align::trajectories::TrajectoryAlignOptions;
 use crate::error::{Error, Result};
 use crate::geo::{EnuFrame, GeoCrs, GnssFixes, Origin, UtmZone};
 use crate::geometry::Sim3;
@@ -236,6 +237,25 @@ pub struct GnssReference {
     pub noise: f64,
     /// What the report says of it (the fit's figures filled in later).
     pub report: GnssReport,
+}
+
+impl GnssReference {
+    /// `align` fitted against this reference: the antenna as the known
+    /// extrinsic, the fixes' noise as the reference noise unless one is
+    /// stated; with the pairs' weights (none for a robust fit, whose IRLS
+    /// weighs the pairs itself).
+    pub fn fit_options(
+        &self,
+        align: &TrajectoryAlignOptions,
+    ) -> (TrajectoryAlignOptions, Option<&[f64]>) {
+        let mut o = align.clone();
+        o.body_from_cam = self.antenna_from_cam;
+        if o.checks.reference_noise.is_none() {
+            o.checks.reference_noise = Some(self.noise);
+        }
+        let weights = self.weights.as_deref().filter(|_| align.robust.is_none());
+        (o, weights)
+    }
 }
 
 /// The fixes as the reference of `slam` (sorted SLAM poses): ENU at the

@@ -484,13 +484,11 @@ fn convert_with(rec: &Recording, motion: Motion<'_>, opts: &ConvertOptions) -> R
     let gnss_opts;
     let (reference, weights, opts) = match &gnss_ref {
         Some(g) => {
-            let mut o = opts.clone();
-            o.align.body_from_cam = g.antenna_from_cam;
-            if o.align.checks.reference_noise.is_none() {
-                o.align.checks.reference_noise = Some(g.noise);
-            }
-            gnss_opts = o;
-            let w = g.weights.as_deref().filter(|_| opts.align.robust.is_none());
+            let (align, w) = g.fit_options(&opts.align);
+            gnss_opts = ConvertOptions {
+                align,
+                ..opts.clone()
+            };
             (Some(g.trajectory.clone()), w, &gnss_opts)
         }
         None => (rec.reference.clone().or(loaded), None, opts),

@@ -976,6 +976,9 @@ pub struct AlignReport {
     /// The estimated camera–body extrinsic, with `--estimate-body-from-cam`.
     #[serde(skip_serializing_if = "Option::is_none")]
     pub body_from_cam_estimate: Option<HandEyeReport>,
+    /// The GNSS reference (fixes, ENU origin, weights), when REF is fixes.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub gnss: Option<GnssReport>,
 }
 
 /// A transform without its matrix (the inertial initialisation's report).

@@ -15,6 +15,7 @@ mod beyond_sim;
 mod bounded;
 mod bt_mutation;
 mod cli_align;
+mod cli_align_gnss;
 mod cli_align_options;
 mod cli_beyond;
 mod cli_imu;

@@ -461,7 +461,12 @@ fn gnss_card(doc: &'static str, g: &GnssReport) -> Card {
             c.count("gnss.dropped_no_fix", g.dropped_no_fix)
         ),
     );
-    c.note = "x east, y north, z up (metres); T_world_slam is T_enu_slam.".into();
+    c.note = if doc == "align" {
+        "x east, y north, z up (metres); T_ref_est is T_enu_est."
+    } else {
+        "x east, y north, z up (metres); T_world_slam is T_enu_slam."
+    }
+    .into();
     c
 }
 
@@ -735,6 +740,9 @@ fn align_cards(r: &AlignReport, figures: &FigureData) -> Vec<Card> {
     p.row("estimate", esc(&r.est));
     p.row("reference", esc(&r.reference));
     cards.push(p);
+    if let Some(g) = &r.gnss {
+        cards.push(gnss_card(doc, g));
+    }
     cards.extend(fit_cards(doc, &r.fit, figures));
     cards
 }
