@@ -16,9 +16,10 @@ pub const OFFSET: f64 = 0.0;
 pub const MAX_OFFSET: f64 = 0.5;
 /// Largest reference gap bridged by interpolation, seconds.
 pub const MAX_GAP: f64 = 0.1;
-/// Largest time between two GNSS fixes that a reference position
-/// interpolated at a SLAM stamp bridges, seconds (2.5 periods of a 5 Hz receiver).
-pub const GNSS_MAX_GAP: f64 = 0.5;
+/// Fix intervals (the fixes' median interval) that a reference position
+/// interpolated at a SLAM stamp bridges unless a gap in seconds is given:
+/// a dropout of up to four fixes (0.5 s at 10 Hz, 5 s at 1 Hz).
+pub const GNSS_GAP_STEPS: f64 = 5.0;
 /// Where the ENU origin of a GNSS reference is put (`first`, `mean`, or a position).
 pub const ORIGIN: &str = "first";
 /// CRS of the georeferenced cloud (`utm`: the zone of the ENU origin; `ecef`).
@@ -121,7 +122,6 @@ pub const TABLE: &[(&str, Value)] = &[
     ("offset", Value::Float(OFFSET)),
     ("max_offset", Value::Float(MAX_OFFSET)),
     ("max_gap", Value::Float(MAX_GAP)),
-    ("gnss_max_gap", Value::Float(GNSS_MAX_GAP)),
     ("convert.origin", Value::Str(ORIGIN)),
     ("convert.crs", Value::Str(CRS)),
     ("level", Value::Float(CONFIDENCE)),

@@ -743,7 +743,7 @@ class Session:
         rebuild_tolerance: float | None = None,
         origin: str | tuple[float, float, float] = "first",
         gnss_weights: bool = True,
-        gnss_max_gap: float = 0.5,
+        gnss_max_gap: float | None = None,
     ) -> Session: ...
     def push_reference(
         self, time: float, position: _ArrayLike, orientation_xyzw: _ArrayLike | None = None
@@ -826,7 +826,7 @@ def convert(
     origin: str | tuple[float, float, float] = "first",
     lever_arm: Sequence[float] | None = None,
     gnss_weights: bool = True,
-    gnss_max_gap: float = 0.5,
+    gnss_max_gap: float | None = None,
     las: bool | None = None,
     laz: bool = False,
     pcd: bool = False,

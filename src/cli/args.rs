@@ -317,9 +317,10 @@ pub struct GnssFitArgs {
     #[arg(long)]
     pub no_gnss_weights: bool,
     /// Largest time between two fixes that a reference position interpolated
-    /// at a SLAM stamp bridges, seconds.
-    #[arg(long, value_name = "S", default_value_t = defaults::GNSS_MAX_GAP, value_parser = positive)]
-    pub gnss_max_gap: f64,
+    /// at a SLAM stamp bridges, seconds (default: five of the fixes' median
+    /// intervals, a dropout of up to four fixes).
+    #[arg(long, value_name = "S", value_parser = positive)]
+    pub gnss_max_gap: Option<f64>,
 }
 
 impl GnssFitArgs {

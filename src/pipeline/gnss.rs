@@ -9,8 +9,10 @@
 //!   `(lat, lon, alt)` ([`Origin`]).
 //! - Pairing: the fixes are interpolated linearly (in ENU) at the SLAM stamps
 //!   (plus the offset) where two fixes at most `max_gap` seconds apart bracket
-//!   the stamp, so a 5 Hz receiver pairs every keyframe without the error of
-//!   a nearest-stamp match; with `estimate_offset` the fixes are used as they
+//!   the stamp (by default five of the fixes' median intervals: a 1 Hz
+//!   receiver pairs as a 10 Hz one does, across a dropout of up to four
+//!   fixes), so every keyframe is paired without the error of a nearest-stamp
+//!   match; with `estimate_offset` the fixes are used as they
 //!   are (the offset search needs the reference's own stamps).
 //! - Weights: with a covariance on every fix, each pair weighs
 //!   `1 / σ̄²`, σ̄² the mean per-axis variance interpolated like the positions
@@ -47,8 +49,9 @@ pub struct GnssOptions {
     /// Weigh the pairs by the fixes' covariances (when every fix has one).
     pub weights: bool,
     /// Largest time between two fixes that an interpolated reference
-    /// position bridges, seconds ([`crate::defaults::GNSS_MAX_GAP`]).
-    pub max_gap: f64,
+    /// position bridges, seconds; `None`: [`crate::defaults::GNSS_GAP_STEPS`]
+    /// times the fixes' median interval ([`GnssOptions::max_gap_for`]).
+    pub max_gap: Option<f64>,
 }
 
 impl Default for GnssOptions {
@@ -57,12 +60,29 @@ impl Default for GnssOptions {
             origin: Origin::First,
             lever_arm: None,
             weights: true,
-            max_gap: crate::defaults::GNSS_MAX_GAP,
+            max_gap: None,
         }
     }
 }
 
 impl GnssOptions {
+    /// The gap bridged between fixes stamped `times` (sorted): the given
+    /// one, else [`crate::defaults::GNSS_GAP_STEPS`] times their median
+    /// interval (the given default's rule needs two fixes; with fewer any gap
+    /// is as good as none).
+    pub fn max_gap_for(&self, times: &[f64]) -> f64 {
+        if let Some(g) = self.max_gap {
+            return g;
+        }
+        let mut d: Vec<f64> = times.windows(2).map(|w| w[1] - w[0]).collect();
+        if d.is_empty() {
+            return f64::INFINITY;
+        }
+        let m = d.len() / 2;
+        let (_, median, _) = d.select_nth_unstable_by(m, f64::total_cmp);
+        crate::defaults::GNSS_GAP_STEPS * *median
+    }
+
     /// Checks the lever arm (finite) and `max_gap` (finite, `> 0`).
     pub fn check(&self) -> Result<()> {
         if let Some(l) = &self.lever_arm {
@@ -73,14 +93,16 @@ impl GnssOptions {
                 ));
             }
         }
-        if !(self.max_gap.is_finite() && self.max_gap > 0.0) {
-            return Err(Error::invalid(
-                "gnss_max_gap",
-                format!(
-                    "must be a finite number of seconds > 0, got {}",
-                    crate::error::num(self.max_gap)
-                ),
-            ));
+        if let Some(g) = self.max_gap {
+            if !(g.is_finite() && g > 0.0) {
+                return Err(Error::invalid(
+                    "gnss_max_gap",
+                    format!(
+                        "must be a finite number of seconds > 0, got {}",
+                        crate::error::num(g)
+                    ),
+                ));
+            }
         }
         if let Origin::Given(g) = &self.origin {
             crate::geo::Geodetic::try_new(g.lat, g.lon, g.alt)?;
@@ -271,13 +293,14 @@ pub fn reference(
     body_from_cam: Option<&Sim3>,
 ) -> Result<GnssReference> {
     opts.check()?;
+    let max_gap = opts.max_gap_for(&fixes.times);
     let track = fixes.to_enu(&opts.origin)?;
     let weights = if opts.weights { track.weights } else { None };
     let (trajectory, weights, interpolated) = if interpolate {
         let times: Vec<f64> = slam.timestamps.iter().map(|t| t + offset).collect();
         let at = track
             .trajectory
-            .interpolate_where_covered(&times, opts.max_gap)?;
+            .interpolate_where_covered(&times, max_gap)?;
         let w = match &weights {
             Some(w) => {
                 // The mean variance interpolated like the positions.
@@ -286,7 +309,7 @@ pub fn reference(
                     w.iter().map(|w| Vector3::new(1.0 / w, 0.0, 0.0)).collect(),
                     None,
                 )?;
-                let v = var.interpolate(&at.trajectory.timestamps, opts.max_gap)?;
+                let v = var.interpolate(&at.trajectory.timestamps, max_gap)?;
                 Some(v.positions.iter().map(|p| 1.0 / p.x).collect())
             }
             None => None,
@@ -297,13 +320,13 @@ pub fn reference(
                 need: 3,
                 slam_span: span(&times),
                 reference_span: span(&track.trajectory.timestamps),
-                max_diff: opts.max_gap,
+                max_diff: max_gap,
                 offset,
                 cause: format!(
                     "GNSS fixes interpolated at the SLAM stamps: only {} of {} stamps lie between two fixes at most {} s apart",
                     at.trajectory.len(),
                     times.len(),
-                    opts.max_gap
+                    max_gap
                 ),
             });
         }
@@ -355,7 +378,7 @@ pub fn reference(
             })
         }),
         interpolated,
-        max_gap: opts.max_gap,
+        max_gap,
         topic: None,
         file: None,
         outputs: Vec::new(),
@@ -398,7 +421,7 @@ pub fn live_cut(
     let times: Vec<f64> = live.timestamps.iter().map(|t| t + offset).collect();
     let at = track
         .trajectory
-        .interpolate_where_covered(&times, opts.max_gap)?;
+        .interpolate_where_covered(&times, opts.max_gap_for(&fixes.times))?;
     let stamps: Vec<f64> = at.kept.iter().map(|&j| live.timestamps[j]).collect();
     let slam: Vec<Vector3<f64>> = at.kept.iter().map(|&j| live.positions[j]).collect();
     cut_of_pairs(&stamps, &slam, &at.trajectory.positions)
@@ -456,6 +479,48 @@ mod tests {
         let slam = Trajectory::try_new(late, vec![Vector3::zeros(); 20], None).unwrap();
         assert!(matches!(
             reference(&f, &slam, &GnssOptions::default(), 0.0, true, None),
+            Err(Error::Unmatched { .. })
+        ));
+    }
+
+    #[test]
+    fn the_gap_bridged_is_given_or_five_median_fix_intervals() {
+        let auto = GnssOptions::default();
+        // 1 Hz with one dropout of 3 s: the median interval is 1 s.
+        let times = [0.0, 1.0, 2.0, 5.0, 6.0, 7.0];
+        assert_eq!(auto.max_gap_for(&times), 5.0);
+        assert_eq!(auto.max_gap_for(&[0.0, 0.1, 0.2]), 5.0 * 0.1);
+        assert_eq!(auto.max_gap_for(&[3.0]), f64::INFINITY);
+        let given = GnssOptions {
+            max_gap: Some(0.5),
+            ..GnssOptions::default()
+        };
+        assert_eq!(given.max_gap_for(&times), 0.5);
+        let bad = GnssOptions {
+            max_gap: Some(0.0),
+            ..GnssOptions::default()
+        };
+        assert!(bad.check().is_err());
+        // A 1 Hz receiver pairs every stamp between its fixes by default, none with 0.5 s.
+        let f = GnssFixes::from_fixes(
+            (0..30).map(|i| GnssFix {
+                time: i as f64,
+                lat: 48.0 + i as f64 * 1e-4,
+                lon: 11.0,
+                alt: 500.0,
+                covariance: None,
+                status: FixStatus::Single,
+            }),
+            TimeBase::Source,
+        )
+        .unwrap();
+        let times: Vec<f64> = (0..50).map(|i| 0.25 + i as f64 * 0.5).collect();
+        let slam = Trajectory::try_new(times, vec![Vector3::zeros(); 50], None).unwrap();
+        let r = reference(&f, &slam, &auto, 0.0, true, None).unwrap();
+        assert_eq!(r.trajectory.len(), 50);
+        assert_eq!(r.report.max_gap, 5.0);
+        assert!(matches!(
+            reference(&f, &slam, &given, 0.0, true, None),
             Err(Error::Unmatched { .. })
         ));
     }

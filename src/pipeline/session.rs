@@ -785,7 +785,9 @@ impl Session {
         let last = *r.last()?;
         if matches!(self.reference, Reference::Fixes(_)) {
             // Before the first fix or inside a gap: none (fixes come in order).
-            let Some((i, k, a)) = self.bracket_at(t, self.opts.gnss.max_gap, all)? else {
+            // The gap from the fixes so far, unless one is given.
+            let gap = self.opts.gnss.max_gap_for(&self.ref_times);
+            let Some((i, k, a)) = self.bracket_at(t, gap, all)? else {
                 return Some(None);
             };
             let p = self.ref_pos[i].lerp(&self.ref_pos[k], a);
@@ -830,11 +832,15 @@ impl Session {
     }
 
     /// The reference position at a tracked frame's stamp `t`, as the batch
-    /// cut takes it ([`super::startup::live_pairs`]): interpolated at
-    /// `t + offset` between two reference samples at most [`LIVE_MAX_GAP`]
-    /// apart ([`Session::bracket_at`]).
+    /// cut takes it ([`super::startup::live_pairs`], [`super::gnss::live_cut`]):
+    /// interpolated at `t + offset` between two reference samples at most
+    /// [`LIVE_MAX_GAP`] apart (fixes: the keyframes' gap) ([`Session::bracket_at`]).
     fn live_reference_at(&self, t: f64, all: bool) -> Option<Option<Vector3<f64>>> {
-        let b = self.bracket_at(t + self.opts.align.offset, LIVE_MAX_GAP, all)?;
+        let gap = match self.reference {
+            Reference::Fixes(_) => self.opts.gnss.max_gap_for(&self.ref_times),
+            _ => LIVE_MAX_GAP,
+        };
+        let b = self.bracket_at(t + self.opts.align.offset, gap, all)?;
         Some(b.map(|(i, k, a)| self.ref_pos[i].lerp(&self.ref_pos[k], a)))
     }
 

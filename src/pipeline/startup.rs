@@ -113,7 +113,7 @@ fn cut_of(times: &[f64], stages: Stages, baseline: usize) -> Result<LiveCut> {
 
 /// Longest gap between two reference poses that the reference is
 /// interpolated over at a live frame's stamp (as for GNSS fixes).
-pub const LIVE_MAX_GAP: f64 = crate::defaults::GNSS_MAX_GAP;
+pub const LIVE_MAX_GAP: f64 = 0.5;
 
 /// Live frames paired with the reference: their stamps, SLAM positions and
 /// the reference positions at those stamps.

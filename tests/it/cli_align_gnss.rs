@@ -220,6 +220,53 @@ fn fourseasons_vio_against_its_rtk_nmea_as_convert_fits_it() {
 }
 
 #[test]
+fn a_one_hz_receiver_pairs_as_a_ten_hz_one() {
+    let (Some(vio), Some(nmea)) = (
+        data("fourseasons_sample", "result.txt"),
+        data("fourseasons_sample", "septentrio.nmea"),
+    ) else {
+        return;
+    };
+    // The 10 Hz log cut to the sentences of whole seconds: what most receivers log.
+    let dir = tempfile::tempdir().unwrap();
+    let one_hz = dir.path().join("1hz.nmea");
+    let text = String::from_utf8_lossy(&std::fs::read(&nmea).unwrap()).into_owned();
+    let whole: String = text
+        .lines()
+        .filter(|l| {
+            l.split(',')
+                .nth(1)
+                .is_some_and(|t| t.len() > 7 && t[7..].bytes().all(|b| b == b'0'))
+        })
+        .map(|l| format!("{l}\n"))
+        .collect();
+    std::fs::write(&one_hz, whole).unwrap();
+    let ten = json(&["align", s(&vio), s(&nmea), "--json"]);
+    let one = json(&["align", s(&vio), s(&one_hz), "--json"]);
+    assert!(
+        one["gnss"]["fixes"].as_u64().unwrap() < 400,
+        "{}",
+        one["gnss"]
+    );
+    assert!((one["gnss"]["max_gap"].as_f64().unwrap() - 5.0).abs() < 1e-6);
+    // Every VIO pose within the fixes' span is paired; the fit is the 10 Hz one's.
+    assert!(
+        one["n_pairs"].as_u64().unwrap() > 9900,
+        "{}",
+        one["n_pairs"]
+    );
+    let (s1, s10) = (
+        one["scale"].as_f64().unwrap(),
+        ten["scale"].as_f64().unwrap(),
+    );
+    assert!((s1 / s10 - 1.0).abs() < 1e-3, "{s1} {s10}");
+    // A gap given in seconds holds: 0.5 s bridges no 1 s interval.
+    let o = bin(&["align", s(&vio), s(&one_hz), "--gnss-max-gap", "0.5"]);
+    assert_eq!(o.status.code(), Some(1));
+    assert!(stderr(&o).contains("at most 0.5 s apart"), "{}", stderr(&o));
+}
+
+#[test]
 fn husky_wheel_odometry_against_its_fix_topic_as_convert_fits_it() {
     let Some(bag) = data("ros1_husky_gps", "test1.bag") else {
         return;
