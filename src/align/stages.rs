@@ -228,7 +228,25 @@ impl Fit {
             }
         }
         let theta = a.try_inverse().map_or_else(Vector3::zeros, |inv| inv * b);
-        let rss = (syy - theta.dot(&b)).max(0.0);
+        // Each block of the step and the stable stage costs its squared
+        // residual up to the penalty (a block far off the model is an outlier
+        // here as in the start stage, so that heavy tails do not make the
+        // start stage the cheaper explanation), and the drift its ridge.
+        let _ = syy;
+        let rss = self.y[c..]
+            .iter()
+            .enumerate()
+            .map(|(i, v)| {
+                let j = c + i;
+                let model = if j < e {
+                    theta[0] + theta[1] * w(i)
+                } else {
+                    theta[0] + theta[2] * (j - e) as f64
+                };
+                ((v - model) * (v - model)).min(self.penalty)
+            })
+            .sum::<f64>()
+            + ridge * theta[2] * theta[2];
         // The start stage: its blocks about the step's start level, each
         // costing at most the penalty (a wild start is anything), and one
         // unit of noise more than a stable block would (where the two
@@ -241,6 +259,121 @@ impl Fit {
         let params = if e > 0 { 2.0 } else { 0.0 };
         (rss + pre + self.penalty * params, theta)
     }
+}
+
+/// The scale factors of pairs `baseline` apart, `p_k` from pair `k` to pair
+/// `k + baseline` (`n − baseline` factors), a zero SLAM step carrying the
+/// previous factor.
+pub(crate) fn factors_over(
+    src: &[Vector3<f64>],
+    dst: &[Vector3<f64>],
+    baseline: usize,
+) -> Vec<f64> {
+    let b = baseline.max(1);
+    let mut out = Vec::with_capacity(src.len().saturating_sub(b));
+    let mut last = f64::NAN;
+    for k in 0..src.len().saturating_sub(b) {
+        let ds = (src[k + b] - src[k]).norm_squared();
+        let dr = (dst[k + b] - dst[k]).norm_squared();
+        let p = dr / ds;
+        if p.is_finite() && p > 0.0 {
+            last = p;
+        }
+        out.push(last);
+    }
+    // Leading gaps take the first valid factor.
+    if let Some(first) = out.iter().copied().find(|v| v.is_finite()) {
+        for v in out.iter_mut() {
+            if !v.is_finite() {
+                *v = first;
+            } else {
+                break;
+            }
+        }
+    }
+    out
+}
+
+/// Share of the median step (SLAM and reference alike) below which a scale
+/// factor is left out of the stages: over a step that short (a standstill,
+/// a slow turn in place) the positions' noise is most of the step and drives
+/// `p_k` towards the ratio of the two noises, a level the run never has.
+pub const SHORT_STEP: f64 = 0.25;
+
+/// The factors (`p_k` from pair `k` to `k + baseline` of `src`, `dst`) whose
+/// steps are at least [`SHORT_STEP`] of their median on both sides; every
+/// factor when fewer than [`MIN_FACTORS`] would be left.
+pub fn moving_factors(src: &[Vector3<f64>], dst: &[Vector3<f64>], baseline: usize) -> Vec<usize> {
+    let b = baseline.max(1);
+    let n = src.len().min(dst.len()).saturating_sub(b);
+    let steps =
+        |v: &[Vector3<f64>]| -> Vec<f64> { (0..n).map(|k| (v[k + b] - v[k]).norm()).collect() };
+    let (s, d) = (steps(src), steps(dst));
+    let floor = |v: &[f64]| SHORT_STEP * median_in_place(&mut v.to_vec());
+    if n == 0 {
+        return Vec::new();
+    }
+    let (fs, fd) = (floor(&s), floor(&d));
+    let keep: Vec<usize> = (0..n).filter(|&k| s[k] >= fs && d[k] >= fd).collect();
+    if keep.len() < MIN_FACTORS {
+        (0..n).collect()
+    } else {
+        keep
+    }
+}
+
+/// [`detect_stages`] on the factors `p[keep[i]]` only (`keep` ascending, as
+/// [`moving_factors`] gives it), with every index of the result an index
+/// into `p` again (`n` is `p.len()`).
+pub fn detect_stages_of(p: &[f64], keep: &[usize]) -> Result<Stages> {
+    let kept: Vec<f64> = keep.iter().map(|&k| p[k]).collect();
+    let mut st = detect_stages(&kept)?;
+    let at = |i: usize| keep[i.min(keep.len() - 1)];
+    st.converging_start = at(st.converging_start);
+    st.stable_start = at(st.stable_start);
+    st.converging_range = (at(st.converging_range.0), at(st.converging_range.1));
+    st.stable_range = (at(st.stable_range.0), at(st.stable_range.1));
+    st.n = p.len();
+    Ok(st)
+}
+
+/// Per-factor noise of `ln p_k` that the stage factors are brought under by
+/// a longer baseline ([`stage_factors`]): noisy steps bias `ln p_k` by about
+/// half its variance, more where the motion is slow, and a bias that follows
+/// the speed would pass for a move of the level.
+pub const FACTOR_NOISE: f64 = 0.1;
+
+/// Fewest factors per pair of baseline (the baseline is at most `n / 100`).
+const PAIRS_PER_BASELINE: usize = 100;
+
+/// The scale factors the stages are found in, from matched pairs of SLAM
+/// (`src`) and reference (`dst`) positions: those of consecutive pairs where
+/// their `ln` has a noise under [`FACTOR_NOISE`], else of pairs `K` apart,
+/// `K` the smallest that brings the noise under it (noise falls as `1/K`
+/// while the steps' own noise dominates; `K ≤ n / 100`). Returns the factors
+/// (`p_k` from pair `k` to `k + K`) and `K`.
+pub fn stage_factors(src: &[Vector3<f64>], dst: &[Vector3<f64>]) -> (Vec<f64>, usize) {
+    let p = factors_over(src, dst, 1);
+    let x: Vec<f64> = p.iter().map(|v| v.ln()).filter(|v| v.is_finite()).collect();
+    let noise = diff_sigma(&x[x.len() / 2..]);
+    let most = (src.len() / PAIRS_PER_BASELINE).max(1);
+    let k = ((noise / FACTOR_NOISE).ceil() as usize).clamp(1, most);
+    if k == 1 {
+        (p, 1)
+    } else {
+        (factors_over(src, dst, k), k)
+    }
+}
+
+/// The stages of matched pairs of SLAM (`src`) and reference (`dst`)
+/// positions in time order, taken as a whole run: [`detect_stages`] on the
+/// [`stage_factors`] whose steps are long enough to measure the scale
+/// ([`moving_factors`]); indices are factor indices, factor `k` running from
+/// pair `k` to pair `k + K`. Returns the stages and `K`.
+pub fn stages_of_pairs(src: &[Vector3<f64>], dst: &[Vector3<f64>]) -> Result<(Stages, usize)> {
+    let (p, baseline) = stage_factors(src, dst);
+    let keep = moving_factors(src, dst, baseline);
+    Ok((detect_stages_of(&p, &keep)?, baseline))
 }
 
 /// Finds the stages in the scale factors `p` of a whole run (see the module
@@ -445,5 +578,67 @@ mod tests {
             .collect();
         let s = detect_stages(&p).unwrap();
         assert_eq!(s.stable_start, 0);
+    }
+
+    /// A level with white noise and heavy tails (one block in twenty far
+    /// off, as small steps give a real run): nothing is a start-up.
+    #[test]
+    fn heavy_tails_without_a_start_up_keep_everything() {
+        use rand::{Rng, SeedableRng};
+        use rand_distr::StandardNormal;
+        let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(38);
+        let p: Vec<f64> = (0..2000)
+            .map(|_| {
+                let z: f64 = rng.sample(StandardNormal);
+                let wild = if rng.random::<f64>() < 0.05 {
+                    if rng.random::<bool>() {
+                        2.0
+                    } else {
+                        -2.0
+                    }
+                } else {
+                    0.0
+                };
+                (1.2 + 0.05 * z + wild).exp()
+            })
+            .collect();
+        let s = detect_stages(&p).unwrap();
+        assert!(s.stable_start <= 20, "{}", s.describe());
+    }
+
+    /// A run that ends standing still: the steps under a quarter of the
+    /// median are left out, and the stages are not found in them.
+    #[test]
+    fn a_standstill_at_the_end_is_no_stage() {
+        use rand::SeedableRng;
+        use rand_distr::{Distribution, Normal};
+        let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(7);
+        let noise = Normal::new(0.0, 2e-4).unwrap();
+        let mut n3 = || {
+            Vector3::new(
+                noise.sample(&mut rng),
+                noise.sample(&mut rng),
+                noise.sample(&mut rng),
+            )
+        };
+        // 1000 pairs moving 1 cm a step, then 200 still; the SLAM at half scale.
+        let truth: Vec<Vector3<f64>> = (0..1200)
+            .map(|k| Vector3::new(0.01 * k.min(1000) as f64, 0.0, 0.0))
+            .collect();
+        let dst: Vec<Vector3<f64>> = truth.iter().map(|p| p + n3()).collect();
+        let src: Vec<Vector3<f64>> = truth.iter().map(|p| p * 0.5 + n3()).collect();
+        let keep = moving_factors(&src, &dst, 1);
+        assert!(
+            keep.iter().all(|&k| k < 1000),
+            "{:?}",
+            &keep[keep.len() - 3..]
+        );
+        let (st, _) = stages_of_pairs(&src, &dst).unwrap();
+        assert!(st.stable_start <= 50, "{}", st.describe());
+        // Without the filter, the standstill's factors (noise over noise) are a level of their own.
+        let (p, _) = stage_factors(&src, &dst);
+        let all: Vec<usize> = (0..p.len()).collect();
+        let unfiltered = detect_stages_of(&p, &all).unwrap();
+        assert!(unfiltered.stable_start > 900, "{}", unfiltered.describe());
     }
 }

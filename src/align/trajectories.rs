@@ -20,7 +20,7 @@ use super::covariance::{covariance, Covariance};
 use super::dof::{align_dof, align_dof_robust, covariance_dof, Anchor, Dof, DofOptions};
 use super::handeye::{align_with_extrinsic_by, align_with_orientations_dof, body_positions};
 use super::robust::RobustOptions;
-use super::stages::{detect_stages, Stages};
+use super::stages::{factors_over, stages_of_pairs, Stages};
 use super::time_offset::{estimate_time_offset, TimeOffset, TimeOffsetOptions};
 use super::{AlignMethod, Alignment};
 use crate::defaults;
@@ -34,7 +34,7 @@ pub enum SkipInit {
     /// Fit every pair.
     #[default]
     None,
-    /// Drop the start-up stages found by [`detect_stages`] in the scale factors.
+    /// Drop the start-up stages found by [`detect_stages`](super::stages::detect_stages) in the scale factors.
     Auto,
     /// Drop the first `n` matched pairs.
     First(usize),
@@ -315,51 +315,12 @@ fn shifted(t: &Trajectory, d: f64) -> Trajectory {
     }
 }
 
-/// Scale factors of consecutive pairs, a zero SLAM step carrying the previous
-/// factor (so that indices stay pair indices).
-fn factors(src: &[Vector3<f64>], dst: &[Vector3<f64>]) -> Vec<f64> {
-    factors_over(src, dst, 1)
-}
-
-/// The scale factors of pairs `baseline` apart, `p_k` from pair `k` to pair
-/// `k + baseline` (`n − baseline` factors), a zero SLAM step carrying the
-/// previous factor.
-pub(crate) fn factors_over(
-    src: &[Vector3<f64>],
-    dst: &[Vector3<f64>],
-    baseline: usize,
-) -> Vec<f64> {
-    let b = baseline.max(1);
-    let mut out = Vec::with_capacity(src.len().saturating_sub(b));
-    let mut last = f64::NAN;
-    for k in 0..src.len().saturating_sub(b) {
-        let ds = (src[k + b] - src[k]).norm_squared();
-        let dr = (dst[k + b] - dst[k]).norm_squared();
-        let p = dr / ds;
-        if p.is_finite() && p > 0.0 {
-            last = p;
-        }
-        out.push(last);
-    }
-    // Leading gaps take the first valid factor.
-    if let Some(first) = out.iter().copied().find(|v| v.is_finite()) {
-        for v in out.iter_mut() {
-            if !v.is_finite() {
-                *v = first;
-            } else {
-                break;
-            }
-        }
-    }
-    out
-}
-
 /// The scale factors of consecutive matched pairs as the start-up detection
 /// sees them: `p_k = ‖dst_{k+1} − dst_k‖² / ‖src_{k+1} − src_k‖²` (`src` SLAM
 /// positions, `dst` reference positions, metres), a zero SLAM step carrying
 /// the previous factor so that `k` stays a pair index; `n − 1` factors.
 pub fn fit_scale_factors(src: &[Vector3<f64>], dst: &[Vector3<f64>]) -> Vec<f64> {
-    factors(src, dst)
+    factors_over(src, dst, 1)
 }
 
 fn orientations<'a>(t: &'a Trajectory, what: &str) -> Result<&'a [UnitQuaternion<f64>]> {
@@ -416,7 +377,7 @@ fn fit_range(
             format!("the first {k} matched pairs dropped as asked"),
         ),
         SkipInit::Auto => {
-            let st = detect_stages(&factors(src, dst))?;
+            let (st, _) = stages_of_pairs(src, dst)?;
             let why = format!(
                 "the first {} matched pairs dropped: {}",
                 st.stable_start,

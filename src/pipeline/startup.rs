@@ -12,38 +12,12 @@
 
 use nalgebra::Vector3;
 
-use crate::align::stages::{detect_stages, diff_sigma, Stages};
-use crate::align::trajectories::{factors_over, fit_scale_factors, TrajectoryAlignOptions};
+use crate::align::stages::{stages_of_pairs, Stages};
+use crate::align::trajectories::TrajectoryAlignOptions;
 use crate::error::Result;
 use crate::trajectory::{matched_pairs_with, Trajectory};
 
-/// Per-factor noise of `ln p_k` that the stage factors are brought under by
-/// a longer baseline ([`stage_factors`]): noisy steps bias `ln p_k` by about
-/// half its variance, more where the motion is slow, and a bias that follows
-/// the speed would pass for a move of the level.
-pub const FACTOR_NOISE: f64 = 0.1;
-
-/// Fewest factors per pair of baseline (the baseline is at most `n / 100`).
-const PAIRS_PER_BASELINE: usize = 100;
-
-/// The scale factors the stages are found in, from matched pairs of SLAM
-/// (`src`) and reference (`dst`) positions: those of consecutive pairs where
-/// their `ln` has a noise under [`FACTOR_NOISE`], else of pairs `K` apart,
-/// `K` the smallest that brings the noise under it (noise falls as `1/K`
-/// while the steps' own noise dominates; `K ≤ n / 100`). Returns the factors
-/// (`p_k` from pair `k` to `k + K`) and `K`.
-pub fn stage_factors(src: &[Vector3<f64>], dst: &[Vector3<f64>]) -> (Vec<f64>, usize) {
-    let p = fit_scale_factors(src, dst);
-    let x: Vec<f64> = p.iter().map(|v| v.ln()).filter(|v| v.is_finite()).collect();
-    let noise = diff_sigma(&x[x.len() / 2..]);
-    let most = (src.len() / PAIRS_PER_BASELINE).max(1);
-    let k = ((noise / FACTOR_NOISE).ceil() as usize).clamp(1, most);
-    if k == 1 {
-        (p, 1)
-    } else {
-        (factors_over(src, dst, k), k)
-    }
-}
+pub use crate::align::stages::{stage_factors, FACTOR_NOISE};
 
 /// The stages found in the live frames and the time the stable stage starts.
 #[derive(Clone, Debug, PartialEq)]
@@ -86,14 +60,14 @@ impl LiveCut {
 
 /// The stages of the live frames `(time, SLAM position, reference position)`
 /// of matched pairs in time order, taken as a whole run; the errors of
-/// [`detect_stages`] (too few).
+/// [`detect_stages`](crate::align::stages::detect_stages) (too few).
 pub fn cut_of_pairs(
     times: &[f64],
     slam: &[Vector3<f64>],
     reference: &[Vector3<f64>],
 ) -> Result<LiveCut> {
-    let (p, baseline) = stage_factors(slam, reference);
-    cut_of(times, detect_stages(&p)?, baseline)
+    let (stages, baseline) = stages_of_pairs(slam, reference)?;
+    cut_of(times, stages, baseline)
 }
 
 fn cut_of(times: &[f64], stages: Stages, baseline: usize) -> Result<LiveCut> {
@@ -138,7 +112,7 @@ pub fn live_pairs(live: &Trajectory, reference: &Trajectory, offset: f64) -> Res
 
 /// The stages in the scale factors of the live frames of `live` paired with
 /// `reference` ([`live_pairs`], with `align.offset`); too few pairs: the
-/// errors of [`detect_stages`] and [`Error::Unmatched`].
+/// errors of [`detect_stages`](crate::align::stages::detect_stages) and [`Error::Unmatched`].
 pub fn live_cut(
     live: &Trajectory,
     reference: &Trajectory,
