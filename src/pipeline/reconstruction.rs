@@ -45,7 +45,7 @@ use crate::io::colmap::{
     NamedPosition,
 };
 use crate::io::droid::{filter_consistent, read_droid, DepthFilter};
-use crate::io::text::{read_euroc, read_trajectory, TimeUnit};
+use crate::io::text::{match_time_units, read_euroc, read_trajectory, TimeUnit};
 use crate::io::ReadOptions;
 use crate::trajectory::Trajectory;
 
@@ -618,7 +618,8 @@ pub fn read_reference(spec: &ReferenceSpec) -> Result<(Reference, ReferenceFileI
 pub fn attach_reference(rec: &mut Recording, spec: &ReferenceSpec) -> Result<()> {
     let (reference, mut info) = read_reference(spec)?;
     match reference {
-        Reference::Poses(t) => {
+        Reference::Poses(mut t) => {
+            match_reference_unit(rec, &mut t, &mut info);
             if let Some(r) = &rec.source.reconstruction {
                 if r.frame_times == FrameTimes::ImageRank {
                     let example = rec
@@ -652,6 +653,40 @@ pub fn attach_reference(rec: &mut Recording, spec: &ReferenceSpec) -> Result<()>
     rec.source.reference_path = Some(spec.path.clone());
     rec.source.reference_file = Some(info);
     Ok(())
+}
+
+/// A reference file's stamp unit found against the SLAM stamps, as `align`
+/// finds it ([`match_time_units`]): where the reference's unit was detected
+/// from its own stamps alone, the unit that makes the two time spans overlap
+/// replaces it (relative stamps in milliseconds read as seconds, say). The
+/// SLAM stamps keep the unit they were read in.
+fn match_reference_unit(rec: &Recording, t: &mut Trajectory, info: &mut ReferenceFileInfo) {
+    let Some(text) = info.text.as_mut().filter(|x| x.unit_detected) else {
+        return;
+    };
+    let slam_unit = rec
+        .source
+        .reconstruction
+        .as_ref()
+        .and_then(|r| r.slam_text.as_ref())
+        .map_or(TimeUnit::Seconds, |x| x.unit);
+    let Some(frames) = rec.frames.as_ref().filter(|f| !f.is_empty()) else {
+        return;
+    };
+    let written =
+        |v: &[f64], u: TimeUnit| -> Vec<f64> { v.iter().map(|s| s * u.per_second()).collect() };
+    let (_, unit) = match_time_units(
+        &written(&frames.timestamps, slam_unit),
+        &written(&t.timestamps, text.unit),
+        Some(slam_unit),
+        None,
+        0.0,
+    );
+    if unit != text.unit {
+        let k = text.unit.per_second() / unit.per_second();
+        t.timestamps.iter_mut().for_each(|s| *s *= k);
+        text.unit = unit;
+    }
 }
 
 /// A COLMAP recording whose frames leave out images (a rig's shared stamps)

@@ -350,3 +350,41 @@ fn automatic_options_give_the_hand_set_fit_on_real_pairs() {
         );
     }
 }
+
+/// `convert` finds a reference file's stamp unit against the SLAM stamps as
+/// `align` does: MH01's ORB-SLAM3 keyframes in seconds from the start and its
+/// ground truth in milliseconds from the start (read alone, steps of 5 look
+/// like seconds) are paired in ms, the report says so, and the fit is the
+/// one of the original files.
+#[test]
+fn convert_reads_the_reference_unit_against_the_slam_stamps() {
+    let (Some(kf), Some(gt)) = (
+        data("euroc_mh01_orbslam3_mono", "kf_dataset-MH01_mono.txt"),
+        data("euroc_mh01_orbslam3_mono", "MH_01_easy.txt"),
+    ) else {
+        return;
+    };
+    let dir = tempfile::tempdir().unwrap();
+    let t0 = 1_403_636_579.763_555_5;
+    let (kf_rel, gt_ms) = (dir.path().join("kf.txt"), dir.path().join("gt.txt"));
+    restamped(&kf, &kf_rel, |t| t * 1e-9 - t0);
+    restamped(&gt, &gt_ms, |t| (t - t0) * 1e3);
+    let out = dir.path().join("out");
+    let o = bin(&[
+        "convert",
+        kf_rel.to_str().unwrap(),
+        "--reference",
+        gt_ms.to_str().unwrap(),
+        "-o",
+        out.to_str().unwrap(),
+    ]);
+    assert_eq!(o.status.code(), Some(0), "{}", stderr(&o));
+    let r: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(out.join("report.json")).unwrap()).unwrap();
+    let text = &r["reference_file"]["text"];
+    assert_eq!(text["unit"], "ms", "{text}");
+    assert_eq!(text["unit_detected"], true);
+    let scale = r["t_world_slam"]["scale"].as_f64().unwrap();
+    // PROVENANCE.md (evo -as, keyframes): scale 5.148581120866326.
+    assert!((scale / 5.148581120866326 - 1.0).abs() < 1e-6, "{scale}");
+}
