@@ -93,11 +93,14 @@ pub fn read_name_positions(path: &Path) -> Result<Vec<NamedPosition>> {
 
 /// The time (seconds) an image name stands for, if it is a time stamp: the
 /// file name without folders and extension (`cam0/1403636579763555584.png` →
-/// `1403636579763555584`) that is either 16 to 20 digits (nanoseconds, as
-/// EuRoC names its images; converted exactly to the nearest `f64` second) or
-/// digits with one decimal point (seconds, as TUM RGB-D does:
-/// `1305031102.175304.png`). Anything else (`frame_0001.jpg`, `00.jpg`) is not
-/// a stamp.
+/// `1403636579763555584`) that is either digits or digits with one decimal
+/// point (seconds, as TUM RGB-D does: `1305031102.175304.png`). Digits are
+/// read in the one unit that makes them Unix time (1973 to 2103): seconds (10
+/// digits), milliseconds (13), microseconds (16) or nanoseconds (19, as EuRoC
+/// names its images); digits that are no Unix time in any unit are
+/// nanoseconds when there are 16 to 20 of them (a clock since boot), else no
+/// stamp. Integers convert exactly to the nearest `f64` second. Anything else
+/// (`frame_0001.jpg`, `00.jpg`) is not a stamp.
 pub fn image_name_time(name: &str) -> Option<f64> {
     let file = name.rsplit(['/', '\\']).next().unwrap_or(name);
     let stem = match file.rfind('.') {
@@ -115,10 +118,15 @@ pub fn image_name_time(name: &str) -> Option<f64> {
         return None;
     }
     match dots {
-        0 if (16..=20).contains(&stem.len()) => {
-            let ns: u128 = stem.parse().ok()?;
-            let (s, rem) = (ns / 1_000_000_000, ns % 1_000_000_000);
-            Some(s as f64 + rem as f64 * 1e-9)
+        0 if stem.len() <= 20 => {
+            let v: u128 = stem.parse().ok()?;
+            // Ticks per second of the unit that makes the value Unix time.
+            let per_second = [1u128, 1_000, 1_000_000, 1_000_000_000]
+                .into_iter()
+                .find(|&k| (100_000_000..=4_200_000_000).contains(&(v / k)))
+                .or_else(|| (16..=20).contains(&stem.len()).then_some(1_000_000_000))?;
+            let (s, rem) = (v / per_second, v % per_second);
+            Some(s as f64 + rem as f64 / per_second as f64)
         }
         1 if !stem.starts_with('.') && !stem.ends_with('.') => stem.parse().ok(),
         _ => None,
@@ -141,6 +149,16 @@ mod tests {
             image_name_time("1305031102.175304"),
             Some(1305031102.175304)
         );
+        // Unix time in milliseconds, microseconds and whole seconds; a clock since boot in ns.
+        let ms = image_name_time("1403636579763.jpg").unwrap();
+        assert!((ms - 1_403_636_579.763).abs() < 1e-6, "{ms}");
+        let us = image_name_time("img/1403636579763555.png").unwrap();
+        assert!((us - 1_403_636_579.763_555).abs() < 1e-6, "{us}");
+        assert_eq!(image_name_time("1403636579.png"), Some(1_403_636_579.0));
+        let boot = image_name_time("0000123456789012345.png").unwrap();
+        assert!((boot - 123_456_789.012_345).abs() < 1e-6, "{boot}");
+        assert_eq!(image_name_time("000123.png"), None);
+        assert_eq!(image_name_time("123456789012345678901.png"), None);
         assert_eq!(image_name_time("00.jpg"), None);
         assert_eq!(image_name_time("frame_000123.png"), None);
         assert_eq!(image_name_time("1403636579763555584_left.png"), None);
