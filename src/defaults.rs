@@ -16,10 +16,11 @@ pub const OFFSET: f64 = 0.0;
 pub const MAX_OFFSET: f64 = 0.5;
 /// Largest reference gap bridged by interpolation, seconds.
 pub const MAX_GAP: f64 = 0.1;
-/// Fix intervals (the fixes' median interval) that a reference position
-/// interpolated at a SLAM stamp bridges unless a gap in seconds is given:
-/// a dropout of up to four fixes (0.5 s at 10 Hz, 5 s at 1 Hz).
-pub const GNSS_GAP_STEPS: f64 = 5.0;
+/// Reference intervals (the reference's median interval) that a reference
+/// position interpolated at a SLAM stamp bridges unless a gap in seconds is
+/// given: a dropout of up to four samples (GNSS fixes: 0.5 s at 10 Hz, 5 s at
+/// 1 Hz; the live frames' reference poses: 25 ms at 200 Hz).
+pub const GAP_STEPS: f64 = 5.0;
 /// Where the ENU origin of a GNSS reference is put (`first`, `mean`, or a position).
 pub const ORIGIN: &str = "first";
 /// CRS of the georeferenced cloud (`utm`: the zone of the ENU origin; `ecef`).

@@ -97,6 +97,19 @@ type Bracket = (usize, usize, f64);
 /// The poses around `t` in sorted stamps `ts`: `(i, k, a)` with `t` at
 /// fraction `a` from stamp `i` to stamp `k` (`i == k` at a stamp), or why
 /// there are none (before the first, after the last, a gap over `max_gap`).
+/// The gap a reference stamped `times` (sorted) is interpolated over by
+/// default: [`crate::defaults::GAP_STEPS`] of its median interval (infinite
+/// with fewer than two samples, where there is nothing to bridge).
+pub fn gap_of(times: &[f64]) -> f64 {
+    let mut d: Vec<f64> = times.windows(2).map(|w| w[1] - w[0]).collect();
+    if d.is_empty() {
+        return f64::INFINITY;
+    }
+    let m = d.len() / 2;
+    let (_, median, _) = d.select_nth_unstable_by(m, f64::total_cmp);
+    crate::defaults::GAP_STEPS * *median
+}
+
 pub(crate) fn bracket(ts: &[f64], t: f64, max_gap: f64) -> std::result::Result<Bracket, String> {
     let n = ts.len();
     if n == 0 {

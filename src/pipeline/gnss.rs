@@ -49,7 +49,7 @@ pub struct GnssOptions {
     /// Weigh the pairs by the fixes' covariances (when every fix has one).
     pub weights: bool,
     /// Largest time between two fixes that an interpolated reference
-    /// position bridges, seconds; `None`: [`crate::defaults::GNSS_GAP_STEPS`]
+    /// position bridges, seconds; `None`: [`crate::defaults::GAP_STEPS`]
     /// times the fixes' median interval ([`GnssOptions::max_gap_for`]).
     pub max_gap: Option<f64>,
 }
@@ -67,20 +67,14 @@ impl Default for GnssOptions {
 
 impl GnssOptions {
     /// The gap bridged between fixes stamped `times` (sorted): the given
-    /// one, else [`crate::defaults::GNSS_GAP_STEPS`] times their median
+    /// one, else [`crate::defaults::GAP_STEPS`] times their median
     /// interval (the given default's rule needs two fixes; with fewer any gap
     /// is as good as none).
     pub fn max_gap_for(&self, times: &[f64]) -> f64 {
         if let Some(g) = self.max_gap {
             return g;
         }
-        let mut d: Vec<f64> = times.windows(2).map(|w| w[1] - w[0]).collect();
-        if d.is_empty() {
-            return f64::INFINITY;
-        }
-        let m = d.len() / 2;
-        let (_, median, _) = d.select_nth_unstable_by(m, f64::total_cmp);
-        crate::defaults::GNSS_GAP_STEPS * *median
+        crate::trajectory::gap_of(times)
     }
 
     /// Checks the lever arm (finite) and `max_gap` (finite, `> 0`).

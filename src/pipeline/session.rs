@@ -64,7 +64,7 @@ use crate::map::{Grid2d, MapParams, OccupancyMap};
 use crate::trajectory::Association;
 
 use super::gnss::GnssOptions;
-use super::startup::{cut_of_pairs, LiveCut, LIVE_MAX_GAP};
+use super::startup::{cut_of_pairs, LiveCut};
 
 /// Seconds of stable stage the detection must see before it is reported.
 pub const STABLE_HOLD_S: f64 = 5.0;
@@ -834,11 +834,12 @@ impl Session {
     /// The reference position at a tracked frame's stamp `t`, as the batch
     /// cut takes it ([`super::startup::live_pairs`], [`super::gnss::live_cut`]):
     /// interpolated at `t + offset` between two reference samples at most
-    /// [`LIVE_MAX_GAP`] apart (fixes: the keyframes' gap) ([`Session::bracket_at`]).
+    /// [`crate::trajectory::gap_of`] the reference so far apart (fixes: the
+    /// keyframes' gap, which is the same unless one is given) ([`Session::bracket_at`]).
     fn live_reference_at(&self, t: f64, all: bool) -> Option<Option<Vector3<f64>>> {
         let gap = match self.reference {
             Reference::Fixes(_) => self.opts.gnss.max_gap_for(&self.ref_times),
-            _ => LIVE_MAX_GAP,
+            _ => crate::trajectory::gap_of(&self.ref_times),
         };
         let b = self.bracket_at(t + self.opts.align.offset, gap, all)?;
         Some(b.map(|(i, k, a)| self.ref_pos[i].lerp(&self.ref_pos[k], a)))

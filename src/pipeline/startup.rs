@@ -15,7 +15,7 @@ use nalgebra::Vector3;
 use crate::align::stages::{stages_of_pairs, Stages};
 use crate::align::trajectories::TrajectoryAlignOptions;
 use crate::error::Result;
-use crate::trajectory::{matched_pairs_with, Trajectory};
+use crate::trajectory::{gap_of, matched_pairs_with, Trajectory};
 
 pub use crate::align::stages::{stage_factors, FACTOR_NOISE};
 
@@ -85,16 +85,12 @@ fn cut_of(times: &[f64], stages: Stages, baseline: usize) -> Result<LiveCut> {
     })
 }
 
-/// Longest gap between two reference poses that the reference is
-/// interpolated over at a live frame's stamp (as for GNSS fixes).
-pub const LIVE_MAX_GAP: f64 = 0.5;
-
 /// Live frames paired with the reference: their stamps, SLAM positions and
 /// the reference positions at those stamps.
 pub type LivePairs = (Vec<f64>, Vec<Vector3<f64>>, Vec<Vector3<f64>>);
 
 /// The live frames of `live` with the reference interpolated at each one's
-/// stamp plus `offset` (between two poses at most [`LIVE_MAX_GAP`] apart;
+/// stamp plus `offset` (between two poses at most [`gap_of`] the reference apart;
 /// frames outside are left out, [`Trajectory::interpolate_where_covered`]):
 /// `(time, SLAM position, reference position)`. Interpolated, not the
 /// nearest pose: a reference slower than the frames, or not in step with
@@ -102,7 +98,7 @@ pub type LivePairs = (Vec<f64>, Vec<Vector3<f64>>, Vec<Vector3<f64>>);
 /// and factors that swing with them.
 pub fn live_pairs(live: &Trajectory, reference: &Trajectory, offset: f64) -> Result<LivePairs> {
     let at: Vec<f64> = live.timestamps.iter().map(|t| t + offset).collect();
-    let r = reference.interpolate_where_covered(&at, LIVE_MAX_GAP)?;
+    let r = reference.interpolate_where_covered(&at, gap_of(&reference.timestamps))?;
     Ok((
         r.kept.iter().map(|&j| live.timestamps[j]).collect(),
         r.kept.iter().map(|&j| live.positions[j]).collect(),
@@ -153,4 +149,37 @@ pub fn pairs_before(
         .iter()
         .filter(|&&(s, _)| slam.timestamps[s] < time)
         .count())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// A reference of any rate pairs every live frame between its samples: a
+    /// 1 Hz one (no frame lay between two poses 0.5 s apart before the gap
+    /// followed the rate) as a 200 Hz one; a dropout of more than five
+    /// intervals is not bridged.
+    #[test]
+    fn live_frames_pair_with_a_reference_of_any_rate() {
+        let line = |times: Vec<f64>| {
+            let p = times.iter().map(|&t| Vector3::new(t, 0.0, 0.0)).collect();
+            Trajectory::try_new(times, p, None).unwrap()
+        };
+        let live = line((0..600).map(|k| k as f64 / 30.0).collect());
+        for rate in [1.0, 200.0] {
+            let reference = line(
+                (0..=(20.0 * rate) as usize)
+                    .map(|k| k as f64 / rate)
+                    .collect(),
+            );
+            let (times, slam, refp) = live_pairs(&live, &reference, 0.0).unwrap();
+            assert_eq!(times.len(), 600, "{rate} Hz");
+            assert!(slam.iter().zip(&refp).all(|(a, b)| (a - b).norm() < 1e-12));
+        }
+        // 1 Hz with 8 s missing: the frames inside the dropout are left out.
+        let sparse = line([0.0, 1.0, 2.0, 3.0, 11.0, 12.0, 13.0].to_vec());
+        let (times, _, _) = live_pairs(&live, &sparse, 0.0).unwrap();
+        assert!(times.iter().all(|&t| t <= 3.0 || t >= 11.0));
+        assert_eq!(times.len(), 91 + 61);
+    }
 }
