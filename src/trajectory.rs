@@ -110,6 +110,45 @@ pub fn gap_of(times: &[f64]) -> f64 {
     crate::defaults::GAP_STEPS * *median
 }
 
+/// [`gap_of`] of stamps that come one at a time (strictly increasing): the
+/// median interval kept by two heaps, `O(log n)` a stamp, so that a live
+/// session need not go over every interval again at each sample.
+#[derive(Clone, Debug, Default)]
+pub(crate) struct GapOfStream {
+    last: Option<f64>,
+    /// The smaller half of the intervals (max-heap), `len / 2` of them.
+    lower: std::collections::BinaryHeap<u64>,
+    /// The larger half (min-heap); its least is [`gap_of`]'s median.
+    upper: std::collections::BinaryHeap<std::cmp::Reverse<u64>>,
+}
+
+impl GapOfStream {
+    /// Takes the next stamp (after the last one).
+    pub(crate) fn push(&mut self, t: f64) {
+        if let Some(last) = self.last.replace(t) {
+            // Positive finite floats order as their bits.
+            let d = (t - last).to_bits();
+            self.upper.push(std::cmp::Reverse(d));
+            if let Some(std::cmp::Reverse(least)) = self.upper.pop() {
+                self.lower.push(least);
+            }
+            let n = self.lower.len() + self.upper.len();
+            while self.lower.len() > n / 2 {
+                if let Some(top) = self.lower.pop() {
+                    self.upper.push(std::cmp::Reverse(top));
+                }
+            }
+        }
+    }
+
+    /// [`gap_of`] of the stamps so far.
+    pub(crate) fn gap(&self) -> f64 {
+        self.upper.peek().map_or(f64::INFINITY, |r| {
+            crate::defaults::GAP_STEPS * f64::from_bits(r.0)
+        })
+    }
+}
+
 pub(crate) fn bracket(ts: &[f64], t: f64, max_gap: f64) -> std::result::Result<Bracket, String> {
     let n = ts.len();
     if n == 0 {
@@ -704,6 +743,21 @@ pub fn scale_factors(slam: &[Vector3<f64>], reference: &[Vector3<f64>]) -> Resul
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn the_streamed_gap_is_the_gap_of_the_stamps_so_far() {
+        let mut t = 0.0;
+        let mut times = Vec::new();
+        let mut stream = GapOfStream::default();
+        assert_eq!(stream.gap(), f64::INFINITY);
+        for k in 0..200u32 {
+            // Uneven steps: 0.1 s with dropouts and jitter.
+            t += 0.1 * (1 + (k * 7919) % 5 / 4) as f64 + 1e-3 * ((k * 31) % 7) as f64;
+            times.push(t);
+            stream.push(t);
+            assert_eq!(stream.gap(), gap_of(&times), "after {} stamps", times.len());
+        }
+    }
 
     fn line(times: &[f64]) -> Trajectory {
         let p = times

@@ -265,18 +265,9 @@ fn read_as_written(format: TrajectoryFormat, path: &Path) -> Result<(Trajectory,
     Ok((format.read(path)?, unit))
 }
 
-/// The stamps of `t`, read in `read`, as written in that unit.
-fn written(t: &Trajectory, read: TimeUnit) -> Vec<f64> {
-    t.timestamps.iter().map(|s| s * read.per_second()).collect()
-}
-
 /// `t`, read in `read`, with its stamps in seconds of `unit`.
 fn in_unit(mut t: Trajectory, read: TimeUnit, unit: TimeUnit) -> Trajectory {
-    if unit != read {
-        for s in &mut t.timestamps {
-            *s = *s * read.per_second() / unit.per_second();
-        }
-    }
+    read.reread(&mut t.timestamps, unit);
     t
 }
 
@@ -302,7 +293,7 @@ fn inputs(args: &AlignArgs, offset: f64) -> Result<Inputs> {
             // Fix times are seconds (Unix, or of the day for NMEA without a date).
             let est_given = args.est_time_unit;
             let (est_unit, _) = match_time_units(
-                &written(&est, est_read),
+                &est_read.written(&est.timestamps),
                 &fixes.times,
                 est_given,
                 Some(TimeUnit::Seconds),
@@ -330,8 +321,8 @@ fn inputs(args: &AlignArgs, offset: f64) -> Result<Inputs> {
         let est_given = fixed(args.format, args.est_time_unit);
         let ref_given = fixed(ref_format, args.ref_time_unit);
         let (est_unit, ref_unit) = match_time_units(
-            &written(&est, est_read),
-            &written(&r, ref_read),
+            &est_read.written(&est.timestamps),
+            &ref_read.written(&r.timestamps),
             est_given,
             ref_given,
             offset,

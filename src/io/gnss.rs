@@ -63,14 +63,13 @@ impl GnssFormat {
     /// The format of a file from its first bytes: the MCAP magic, a line
     /// holding `$` followed by a sentence name and a comma (NMEA), else CSV.
     pub fn detect(path: &Path) -> Result<Self> {
-        let mut head = Vec::with_capacity(8192);
-        File::open(path)
-            .map_err(|e| Error::io(path, e))?
-            .take(8192)
-            .read_to_end(&mut head)
-            .map_err(|e| Error::io(path, e))?;
+        Ok(Self::of_head(&head(path)?))
+    }
+
+    /// [`GnssFormat::detect`] of a file's first bytes.
+    fn of_head(head: &[u8]) -> Self {
         if head.starts_with(b"\x89MCAP0\r\n") {
-            return Ok(GnssFormat::Mcap);
+            return GnssFormat::Mcap;
         }
         let nmea = head.split(|&b| b == b'\n').any(|line| {
             line.iter().position(|&b| b == b'$').is_some_and(|i| {
@@ -78,11 +77,11 @@ impl GnssFormat {
                 rest.len() > 6 && rest[..5].iter().all(u8::is_ascii_alphanumeric) && rest[5] == b','
             })
         });
-        Ok(if nmea {
+        if nmea {
             GnssFormat::Nmea
         } else {
             GnssFormat::Csv
-        })
+        }
     }
 
     /// The format of a text file of fixes, `None` for a file that is none
@@ -90,17 +89,12 @@ impl GnssFormat {
     /// the first row that is no comment or header has 4, 7 or 13 fields with
     /// a latitude and longitude in range (a TUM or EuRoC row has 8 or 17).
     pub fn sniff_text(path: &Path) -> Result<Option<Self>> {
-        match Self::detect(path)? {
+        let head = head(path)?;
+        match Self::of_head(&head) {
             GnssFormat::Nmea => return Ok(Some(GnssFormat::Nmea)),
             GnssFormat::Mcap => return Ok(None),
             GnssFormat::Csv => {}
         }
-        let mut head = Vec::with_capacity(8192);
-        File::open(path)
-            .map_err(|e| Error::io(path, e))?
-            .take(8192)
-            .read_to_end(&mut head)
-            .map_err(|e| Error::io(path, e))?;
         let text = String::from_utf8_lossy(&head);
         let mut first = true;
         for line in text.lines() {
@@ -108,11 +102,7 @@ impl GnssFormat {
             if t.is_empty() || t.starts_with('#') {
                 continue;
             }
-            let tokens: Vec<&str> = if t.contains(',') {
-                t.split(',').map(str::trim).collect()
-            } else {
-                t.split_whitespace().collect()
-            };
+            let tokens = fields(t);
             let values: Vec<Option<f64>> = tokens.iter().map(|s| s.parse::<f64>().ok()).collect();
             if first && values.iter().all(Option::is_none) {
                 first = false; // a header
@@ -125,6 +115,27 @@ impl GnssFormat {
             return Ok((matches!(tokens.len(), 4 | 7 | 13) && in_range).then_some(GnssFormat::Csv));
         }
         Ok(None)
+    }
+}
+
+/// The first 8 KiB of a file (what the format is told from).
+fn head(path: &Path) -> Result<Vec<u8>> {
+    let mut head = Vec::with_capacity(8192);
+    File::open(path)
+        .map_err(|e| Error::io(path, e))?
+        .take(8192)
+        .read_to_end(&mut head)
+        .map_err(|e| Error::io(path, e))?;
+    Ok(head)
+}
+
+/// The fields of a CSV / TXT row of fixes: comma-separated when it holds a
+/// comma, else whitespace-separated.
+fn fields(t: &str) -> Vec<&str> {
+    if t.contains(',') {
+        t.split(',').map(str::trim).collect()
+    } else {
+        t.split_whitespace().collect()
     }
 }
 
@@ -234,11 +245,7 @@ pub fn parse_gnss_csv(reader: impl BufRead, path: &Path, geoid_offset: f64) -> R
         if t.is_empty() || t.starts_with('#') {
             continue;
         }
-        let tokens: Vec<&str> = if t.contains(',') {
-            t.split(',').map(str::trim).collect()
-        } else {
-            t.split_whitespace().collect()
-        };
+        let tokens = fields(t);
         let values: Vec<Option<f64>> = tokens.iter().map(|s| s.parse::<f64>().ok()).collect();
         if !seen_row && values.iter().all(Option::is_none) {
             seen_row = true; // a header

@@ -309,6 +309,21 @@ impl TimeUnit {
         }
     }
 
+    /// Stamps read in this unit (now seconds), as the file wrote them.
+    pub fn written(self, seconds: &[f64]) -> Vec<f64> {
+        seconds.iter().map(|s| s * self.per_second()).collect()
+    }
+
+    /// Stamps read in this unit (now seconds) read again in `unit`.
+    pub fn reread(self, seconds: &mut [f64], unit: TimeUnit) {
+        if unit != self {
+            // Back to the written value first: ns stamps of 1.7e18 keep their
+            // last digits (a factor 1e-9 taken first would cost them).
+            let (from, to) = (self.per_second(), unit.per_second());
+            seconds.iter_mut().for_each(|s| *s = *s * from / to);
+        }
+    }
+
     /// `"s"`, `"ms"`, `"us"`, `"ns"`.
     pub fn symbol(self) -> &'static str {
         match self {

@@ -587,9 +587,8 @@ pub fn read_reference(spec: &ReferenceSpec) -> Result<(Reference, ReferenceFileI
         ReferenceFormat::Euroc => {
             let mut t = read_euroc(&spec.path)?;
             if let Some(u) = spec.time_unit {
-                // read_euroc divides nanoseconds by 1e9; another unit rescales.
-                let k = 1e9 * u.seconds();
-                t.timestamps.iter_mut().for_each(|s| *s *= k);
+                // read_euroc reads nanoseconds; another unit reads again.
+                TimeUnit::Nanoseconds.reread(&mut t.timestamps, u);
             }
             Reference::Poses(t)
         }
@@ -673,20 +672,15 @@ fn match_reference_unit(rec: &Recording, t: &mut Trajectory, info: &mut Referenc
     let Some(frames) = rec.frames.as_ref().filter(|f| !f.is_empty()) else {
         return;
     };
-    let written =
-        |v: &[f64], u: TimeUnit| -> Vec<f64> { v.iter().map(|s| s * u.per_second()).collect() };
     let (_, unit) = match_time_units(
-        &written(&frames.timestamps, slam_unit),
-        &written(&t.timestamps, text.unit),
+        &slam_unit.written(&frames.timestamps),
+        &text.unit.written(&t.timestamps),
         Some(slam_unit),
         None,
         0.0,
     );
-    if unit != text.unit {
-        let k = text.unit.per_second() / unit.per_second();
-        t.timestamps.iter_mut().for_each(|s| *s *= k);
-        text.unit = unit;
-    }
+    text.unit.reread(&mut t.timestamps, unit);
+    text.unit = unit;
 }
 
 /// A COLMAP recording whose frames leave out images (a rig's shared stamps)

@@ -61,7 +61,7 @@ use crate::geo::{EnuFrame, Geodetic, GnssFix, Origin};
 use crate::geometry::Sim3;
 use crate::keyframe::Keyframe;
 use crate::map::{Grid2d, MapParams, OccupancyMap};
-use crate::trajectory::Association;
+use crate::trajectory::{Association, GapOfStream};
 
 use super::gnss::GnssOptions;
 use super::startup::{cut_of_pairs, LiveCut};
@@ -346,6 +346,8 @@ pub struct Session {
     /// Poses or fixes, once the first one came.
     reference: Reference,
     ref_times: Vec<f64>,
+    /// The gap the reference so far is interpolated over by default.
+    ref_gap: GapOfStream,
     ref_pos: Vec<Vector3<f64>>,
     ref_rot: Vec<Option<UnitQuaternion<f64>>>,
     /// Per fix, its mean variance `1 / (3 / trace Σ)` (the batch weight's
@@ -405,6 +407,7 @@ impl Session {
             weighted: true,
             fixes_dropped: 0,
             ref_times: Vec::new(),
+            ref_gap: GapOfStream::default(),
             ref_pos: Vec::new(),
             ref_rot: Vec::new(),
             imu: 0,
@@ -471,6 +474,7 @@ impl Session {
             }
         }
         self.ref_times.push(time);
+        self.ref_gap.push(time);
         self.ref_pos.push(position);
         self.ref_rot.push(orientation);
         self.match_pending(false);
@@ -560,6 +564,7 @@ impl Session {
             (_, false) => {}
         }
         self.ref_times.push(fix.time);
+        self.ref_gap.push(fix.time);
         self.ref_pos.push(frame.geodetic_to_enu(&g));
         self.ref_rot.push(None);
         self.match_pending(false);
@@ -786,7 +791,7 @@ impl Session {
         if matches!(self.reference, Reference::Fixes(_)) {
             // Before the first fix or inside a gap: none (fixes come in order).
             // The gap from the fixes so far, unless one is given.
-            let gap = self.opts.gnss.max_gap_for(&self.ref_times);
+            let gap = self.fix_gap();
             let Some((i, k, a)) = self.bracket_at(t, gap, all)? else {
                 return Some(None);
             };
@@ -831,6 +836,12 @@ impl Session {
         Some(crate::trajectory::bracket(r, t, max_gap).ok())
     }
 
+    /// The gap between fixes bridged: the one given, else the fixes' so far
+    /// ([`GnssOptions::max_gap_for`]'s rule).
+    fn fix_gap(&self) -> f64 {
+        self.opts.gnss.max_gap.unwrap_or_else(|| self.ref_gap.gap())
+    }
+
     /// The reference position at a tracked frame's stamp `t`, as the batch
     /// cut takes it ([`super::startup::live_pairs`], [`super::gnss::live_cut`]):
     /// interpolated at `t + offset` between two reference samples at most
@@ -838,8 +849,8 @@ impl Session {
     /// keyframes' gap, which is the same unless one is given) ([`Session::bracket_at`]).
     fn live_reference_at(&self, t: f64, all: bool) -> Option<Option<Vector3<f64>>> {
         let gap = match self.reference {
-            Reference::Fixes(_) => self.opts.gnss.max_gap_for(&self.ref_times),
-            _ => crate::trajectory::gap_of(&self.ref_times),
+            Reference::Fixes(_) => self.fix_gap(),
+            _ => self.ref_gap.gap(),
         };
         let b = self.bracket_at(t + self.opts.align.offset, gap, all)?;
         Some(b.map(|(i, k, a)| self.ref_pos[i].lerp(&self.ref_pos[k], a)))
