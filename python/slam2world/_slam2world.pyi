@@ -277,6 +277,16 @@ class Trajectory:
     @staticmethod
     def read_euroc(path: str | os.PathLike[str]) -> Trajectory: ...
     def write_tum(self, path: str | os.PathLike[str]) -> None: ...
+    @staticmethod
+    def read_kitti(
+        path: str | os.PathLike[str],
+        *,
+        times: str | os.PathLike[str] | _ArrayLike | None = None,
+        rate: float | None = None,
+    ) -> Trajectory: ...
+    def write_kitti(
+        self, path: str | os.PathLike[str], *, times: str | os.PathLike[str] | None = None
+    ) -> None: ...
     @property
     def timestamps(self) -> npt.NDArray[np.float64]: ...
     @property

@@ -20,6 +20,7 @@ use crate::align::trajectories::align_trajectories_weighted;
 use crate::error::{Error, Result};
 use crate::geo::GnssFixes;
 use crate::io::gnss::{read_gnss, GnssFormat};
+use crate::io::kitti::{self, read_kitti, read_times, KittiStamps};
 use crate::io::log::{read_log, ReadOptions};
 use crate::io::text::{match_time_units, TimeUnit, TrajectoryFormat};
 use crate::pipeline::figures::FigureData;
@@ -74,13 +75,29 @@ pub struct AlignArgs {
     /// TF child frame of the reference, when --ref-topic is a tf2_msgs/TFMessage topic.
     #[arg(long, requires = "ref_topic")]
     tf_child: Option<String>,
-    /// Format of EST (and of REF unless --ref-format is given): tum or euroc.
-    #[arg(long, value_name = "tum|euroc", default_value = "tum", value_parser = format)]
-    format: TrajectoryFormat,
+    /// Format of EST (and of REF unless --ref-format is given): tum, euroc
+    /// or kitti (default: kitti when its first pose line holds 12 numbers,
+    /// else tum).
+    #[arg(long, value_name = "tum|euroc|kitti", value_parser = format)]
+    format: Option<TrajectoryFormat>,
     /// Format of REF (default: GNSS fixes when REF holds NMEA sentences or
-    /// `time, lat, lon, alt[, covariance]` rows, else the same as --format).
-    #[arg(long, value_name = "tum|euroc", value_parser = format, conflicts_with = "gnss_format")]
+    /// `time, lat, lon, alt[, covariance]` rows, kitti when its first line
+    /// holds 12 numbers, else the same as --format).
+    #[arg(long, value_name = "tum|euroc|kitti", value_parser = format, conflicts_with = "gnss_format")]
     ref_format: Option<TrajectoryFormat>,
+    /// Stamps of a KITTI EST: a `times.txt` (seconds, one a line, one a pose).
+    /// Without stamps two KITTI files pair by index, as evo pairs them.
+    #[arg(long, value_name = "PATH", conflicts_with_all = ["est_rate", "est_topic"])]
+    est_times: Option<PathBuf>,
+    /// Stamps of a KITTI REF: a `times.txt`.
+    #[arg(long, value_name = "PATH", conflicts_with_all = ["ref_rate", "est_topic"])]
+    ref_times: Option<PathBuf>,
+    /// Stamps of a KITTI EST from its frame rate: pose i at i / HZ seconds.
+    #[arg(long, value_name = "HZ", value_parser = finite, conflicts_with = "est_topic")]
+    est_rate: Option<f64>,
+    /// Stamps of a KITTI REF from its frame rate.
+    #[arg(long, value_name = "HZ", value_parser = finite, conflicts_with = "est_topic")]
+    ref_rate: Option<f64>,
     /// REF is a file of GNSS fixes in this format (default: found from its
     /// first lines): CSV / TXT `time, lat, lon, alt[, covariance]` (degrees;
     /// metres above the WGS84 ellipsoid) or NMEA (GGA, with GST accuracy).
@@ -256,13 +273,93 @@ enum FixSource {
 
 /// A trajectory file and the unit its stamps were read in: TUM stamps as
 /// they are written (seconds; every row kept, as evo reads them), EuRoC's
-/// nanoseconds.
-fn read_as_written(format: TrajectoryFormat, path: &Path) -> Result<(Trajectory, TimeUnit)> {
-    let unit = match format {
-        TrajectoryFormat::Tum => TimeUnit::Seconds,
-        TrajectoryFormat::Euroc => TimeUnit::Nanoseconds,
+/// nanoseconds, a KITTI file's from `times` / `rate` (seconds) or its pose
+/// index (`indexed`).
+struct Read {
+    trajectory: Trajectory,
+    unit: TimeUnit,
+    /// The stamps are the poses' index (a KITTI file without stamps).
+    indexed: bool,
+    /// `unit` is the format's (EuRoC nanoseconds; a KITTI rate or index),
+    /// not to be found from the values.
+    known: bool,
+}
+
+/// Reads `path` as `format`; `times` and `rate` (the `--*-times`,
+/// `--*-rate` of `side`) give a KITTI file its stamps.
+fn read_as_written(
+    format: TrajectoryFormat,
+    path: &Path,
+    times: Option<&Path>,
+    rate: Option<f64>,
+    side: &str,
+) -> Result<Read> {
+    if format != TrajectoryFormat::Kitti && (times.is_some() || rate.is_some()) {
+        return Err(Error::invalid(
+            format!("--{side}-times/--{side}-rate"),
+            format!(
+                "give stamps to KITTI files only; {} is read as {format:?} (stamps in the file)",
+                path.display()
+            ),
+        ));
+    }
+    let read = |trajectory, unit, known| Read {
+        trajectory,
+        unit,
+        indexed: false,
+        known,
     };
-    Ok((format.read(path)?, unit))
+    Ok(match format {
+        TrajectoryFormat::Tum => read(format.read(path)?, TimeUnit::Seconds, false),
+        TrajectoryFormat::Euroc => read(format.read(path)?, TimeUnit::Nanoseconds, true),
+        TrajectoryFormat::Kitti => {
+            let stamps = match (times, rate) {
+                (Some(t), _) => KittiStamps::Times(read_times(t)?),
+                (None, Some(r)) => KittiStamps::Rate(r),
+                (None, None) => KittiStamps::Index,
+            };
+            let indexed = stamps == KittiStamps::Index;
+            Read {
+                known: !matches!(stamps, KittiStamps::Times(_)),
+                trajectory: read_kitti(path, &stamps)?,
+                unit: TimeUnit::Seconds,
+                indexed,
+            }
+        }
+    })
+}
+
+/// Two KITTI files without stamps pair by index (as many poses in each);
+/// one without stamps beside stamped poses cannot be paired.
+fn check_indexed(est: &Read, r: &Read, est_path: &Path, ref_path: &Path) -> Result<()> {
+    let (n, m) = (est.trajectory.len(), r.trajectory.len());
+    match (est.indexed, r.indexed) {
+        (true, true) if n != m => Err(Error::invalid(
+            "EST/REF",
+            format!(
+                "{} has {n} poses and {} has {m}: KITTI files without stamps pair by index \
+                 and need as many poses (or give --est-times/--ref-times)",
+                est_path.display(),
+                ref_path.display()
+            ),
+        )),
+        (true, false) | (false, true) => {
+            let (side, path) = if est.indexed {
+                ("est", est_path)
+            } else {
+                ("ref", ref_path)
+            };
+            Err(Error::invalid(
+                format!("--{side}-times"),
+                format!(
+                    "{} is a KITTI file without stamps and the other side has stamps: give \
+                     --{side}-times times.txt or --{side}-rate HZ",
+                    path.display()
+                ),
+            ))
+        }
+        _ => Ok(()),
+    }
 }
 
 /// `t`, read in `read`, with its stamps in seconds of `unit`.
@@ -287,8 +384,26 @@ fn inputs(args: &AlignArgs, offset: f64) -> Result<Inputs> {
             (None, None) => GnssFormat::sniff_text(reference)?,
             (None, Some(_)) => None,
         };
-        let (est, est_read) = read_as_written(args.format, &args.est)?;
+        let est_format = TrajectoryFormat::of_file(args.format, &args.est)?;
+        let est_side = read_as_written(
+            est_format,
+            &args.est,
+            args.est_times.as_deref(),
+            args.est_rate,
+            "est",
+        )?;
         if let Some(format) = fixes_format {
+            if est_side.indexed {
+                return Err(Error::invalid(
+                    "--est-times",
+                    format!(
+                        "{} is a KITTI file without stamps: give --est-times times.txt or \
+                         --est-rate HZ to pair it with GNSS fixes",
+                        args.est.display()
+                    ),
+                ));
+            }
+            let (est, est_read) = (est_side.trajectory, est_side.unit);
             let fixes = read_gnss(reference, Some(format), args.geoid_offset)?;
             // Fix times are seconds (Unix, or of the day for NMEA without a date).
             let est_given = args.est_time_unit;
@@ -309,17 +424,31 @@ fn inputs(args: &AlignArgs, offset: f64) -> Result<Inputs> {
                     reference: TimeUnit::Seconds.symbol().into(),
                     est_detected: est_given.is_none(),
                     ref_detected: false,
+                    paired_by_index: false,
                 }),
             });
         }
-        let ref_format = args.ref_format.unwrap_or(args.format);
-        let (r, ref_read) = read_as_written(ref_format, reference)?;
-        // EuRoC files are nanoseconds by their format.
-        let fixed = |format, given: Option<TimeUnit>| {
-            given.or((format == TrajectoryFormat::Euroc).then_some(TimeUnit::Nanoseconds))
+        let ref_format = match args.ref_format {
+            Some(f) => f,
+            None if kitti::looks_like_kitti(reference)? => TrajectoryFormat::Kitti,
+            None => args.format.unwrap_or(TrajectoryFormat::Tum),
         };
-        let est_given = fixed(args.format, args.est_time_unit);
-        let ref_given = fixed(ref_format, args.ref_time_unit);
+        let ref_side = read_as_written(
+            ref_format,
+            reference,
+            args.ref_times.as_deref(),
+            args.ref_rate,
+            "ref",
+        )?;
+        check_indexed(&est_side, &ref_side, &args.est, reference)?;
+        // EuRoC files are nanoseconds by their format; stamps from a rate
+        // or an index are seconds.
+        let fixed =
+            |side: &Read, given: Option<TimeUnit>| given.or(side.known.then_some(side.unit));
+        let est_given = fixed(&est_side, args.est_time_unit);
+        let ref_given = fixed(&ref_side, args.ref_time_unit);
+        let (est, est_read) = (est_side.trajectory, est_side.unit);
+        let (r, ref_read) = (ref_side.trajectory, ref_side.unit);
         let (est_unit, ref_unit) = match_time_units(
             &est_read.written(&est.timestamps),
             &ref_read.written(&r.timestamps),
@@ -332,6 +461,7 @@ fn inputs(args: &AlignArgs, offset: f64) -> Result<Inputs> {
             reference: ref_unit.symbol().into(),
             est_detected: est_given.is_none(),
             ref_detected: ref_given.is_none(),
+            paired_by_index: est_side.indexed,
         };
         return Ok(Inputs {
             est: in_unit(est, est_read, est_unit),
@@ -388,7 +518,9 @@ fn text(r: &AlignReport) -> String {
         "matched {} pairs of {} EST and {} REF poses (max_diff {} s, offset {} s); fitted {}\n",
         r.n_pairs, r.n_est, r.n_ref, r.max_diff, r.offset, r.n_fitted
     );
-    if let Some(u) = &r.time_units {
+    if r.time_units.as_ref().is_some_and(|u| u.paired_by_index) {
+        s += "paired by index: KITTI files without stamps (pose i at i s)\n";
+    } else if let Some(u) = &r.time_units {
         let how = |found: bool| if found { "found" } else { "given" };
         s += &format!(
             "stamps read in {} for EST ({}), {} for REF ({})\n",

@@ -30,6 +30,7 @@ use nalgebra::{Matrix3, Vector3};
 
 use crate::error::{Error, Result};
 use crate::geo::{FixStatus, GnssFix, GnssFixes, TimeBase};
+use crate::io::lines::head;
 
 /// The longest line accepted, bytes (an NMEA sentence has at most 82, a CSV
 /// row of 13 doubles about 350).
@@ -116,17 +117,6 @@ impl GnssFormat {
         }
         Ok(None)
     }
-}
-
-/// The first 8 KiB of a file (what the format is told from).
-fn head(path: &Path) -> Result<Vec<u8>> {
-    let mut head = Vec::with_capacity(8192);
-    File::open(path)
-        .map_err(|e| Error::io(path, e))?
-        .take(8192)
-        .read_to_end(&mut head)
-        .map_err(|e| Error::io(path, e))?;
-    Ok(head)
 }
 
 /// The fields of a CSV / TXT row of fixes: comma-separated when it holds a

@@ -1,4 +1,4 @@
-//! File formats: trajectories as text (TUM, EuRoC ground truth), point clouds
+//! File formats: trajectories as text (TUM, EuRoC ground truth, KITTI), point clouds
 //! (PLY, x y z text; LAS/LAZ with a CRS and PCD out), MCAP logs, ROS bags (ROS 1
 //! `.bag`, rosbag2), GNSS fixes (NMEA, CSV), reconstructions (COLMAP models,
 //! DROID-SLAM arrays), nav2 `map_server` grids.
@@ -13,7 +13,9 @@ pub mod colmap;
 pub mod container;
 pub mod droid;
 pub mod gnss;
+pub mod kitti;
 pub mod las;
+pub mod lines;
 pub mod log;
 pub(crate) mod lz4_frame;
 pub mod mapped;

@@ -245,12 +245,12 @@ fn parse_header(path: &Path, bytes: &[u8]) -> Result<Header> {
         let Some(nl) = bytes[pos..].iter().position(|&b| b == b'\n') else {
             return Err(err(lineno + 1, "header has no `end_header`".into()));
         };
-        if nl > crate::io::text::MAX_LINE_BYTES {
+        if nl > crate::io::lines::MAX_LINE_BYTES {
             return Err(err(
                 lineno + 1,
                 format!(
                     "header line longer than {} bytes: not a PLY header",
-                    crate::io::text::MAX_LINE_BYTES
+                    crate::io::lines::MAX_LINE_BYTES
                 ),
             ));
         }
@@ -627,7 +627,7 @@ fn read_ascii(
 pub fn read_xyz_text(path: impl AsRef<Path>) -> Result<PointCloud> {
     let path = path.as_ref();
     let mut points = Vec::new();
-    crate::io::text::for_each_line(path, "an x y z point file", |i, line| {
+    crate::io::lines::for_each_line(path, "an x y z point file", |i, line| {
         let line = line.trim();
         if line.is_empty() || line.starts_with('#') {
             return Ok(());

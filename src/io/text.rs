@@ -5,6 +5,7 @@
 //! - EuRoC ground truth CSV (`state_groundtruth_estimate0/data.csv`):
 //!   `timestamp [ns], p_x, p_y, p_z, q_w, q_x, q_y, q_z, …` (w first; further
 //!   columns ignored), `#` header. Times become seconds (`ns / 1e9`, as evo does).
+//! - KITTI odometry poses: [`crate::io::kitti`].
 //! - EuRoC IMU CSV (`imu0/data.csv`): `timestamp [ns], w_x, w_y, w_z [rad/s],
 //!   a_x, a_y, a_z [m/s²]`.
 
@@ -15,6 +16,8 @@ use nalgebra::{UnitQuaternion, Vector3};
 use crate::error::{Error, Result};
 use crate::geometry::unit_quaternion_xyzw;
 use crate::imu::ImuSamples;
+pub use crate::io::lines::MAX_LINE_BYTES;
+use crate::io::lines::{bounded_lines, for_each_line, parse_fields};
 use crate::trajectory::Trajectory;
 
 /// Trajectory file formats.
@@ -25,6 +28,9 @@ pub enum TrajectoryFormat {
     Tum,
     /// EuRoC ground truth CSV: `ns, x, y, z, qw, qx, qy, qz, …`.
     Euroc,
+    /// KITTI odometry poses: the 12 numbers of `[R | t]` a line, no stamps
+    /// ([`crate::io::kitti`]).
+    Kitti,
 }
 
 impl std::str::FromStr for TrajectoryFormat {
@@ -33,10 +39,11 @@ impl std::str::FromStr for TrajectoryFormat {
         match s.to_ascii_lowercase().as_str() {
             "tum" => Ok(TrajectoryFormat::Tum),
             "euroc" => Ok(TrajectoryFormat::Euroc),
+            "kitti" => Ok(TrajectoryFormat::Kitti),
             _ => Err(Error::invalid(
                 "format",
                 format!(
-                    "expected \"tum\" or \"euroc\", got {}",
+                    "expected \"tum\", \"euroc\" or \"kitti\", got {}",
                     crate::error::cut(s)
                 ),
             )),
@@ -45,50 +52,30 @@ impl std::str::FromStr for TrajectoryFormat {
 }
 
 impl TrajectoryFormat {
-    /// Reads a trajectory file in this format ([`read_tum`], [`read_euroc`]).
+    /// Reads a trajectory file in this format ([`read_tum`], [`read_euroc`],
+    /// [`crate::io::kitti::read_kitti`] with the pose index for stamps).
     pub fn read(self, path: impl AsRef<Path>) -> Result<Trajectory> {
         match self {
             TrajectoryFormat::Tum => read_tum(path),
             TrajectoryFormat::Euroc => read_euroc(path),
+            TrajectoryFormat::Kitti => {
+                crate::io::kitti::read_kitti(path.as_ref(), &crate::io::kitti::KittiStamps::Index)
+            }
         }
     }
-}
 
-/// Calls `f(line number, line)` for each line of the file at `path`, read
-/// as a stream: lines longer than [`MAX_LINE_BYTES`] (a file without line
-/// breaks, `/dev/zero`) and lines that are not UTF-8 are format errors
-/// naming the line; a leading byte-order mark is dropped.
-pub(crate) fn for_each_line(
-    path: &Path,
-    what: &str,
-    f: impl FnMut(usize, &str) -> Result<()>,
-) -> Result<()> {
-    let file = std::fs::File::open(path).map_err(|e| Error::io(path, e))?;
-    bounded_lines(path, what, std::io::BufReader::new(file), f)
-}
-
-fn parse_fields(path: &Path, line: usize, fields: &[&str]) -> Result<Vec<f64>> {
-    fields
-        .iter()
-        .enumerate()
-        .map(|(k, f)| {
-            let v: f64 = f.trim().parse().map_err(|_| {
-                Error::parse(
-                    path,
-                    line,
-                    format!("field {} is not a number: {}", k + 1, crate::error::cut(f)),
-                )
-            })?;
-            if !v.is_finite() {
-                return Err(Error::parse(
-                    path,
-                    line,
-                    format!("field {} is not finite: {}", k + 1, crate::error::cut(f)),
-                ));
-            }
-            Ok(v)
+    /// The format of a file: `given`, else KITTI when its first pose line
+    /// holds 12 numbers, else TUM.
+    pub fn of_file(given: Option<TrajectoryFormat>, path: &Path) -> Result<TrajectoryFormat> {
+        if let Some(f) = given {
+            return Ok(f);
+        }
+        Ok(if crate::io::kitti::looks_like_kitti(path)? {
+            TrajectoryFormat::Kitti
+        } else {
+            TrajectoryFormat::Tum
         })
-        .collect()
+    }
 }
 
 /// Collects parsed rows into a trajectory, checking time order with the line
@@ -270,10 +257,6 @@ pub fn read_euroc_imu(path: impl AsRef<Path>) -> Result<ImuSamples> {
     })?;
     ImuSamples::try_new(timestamps, gyro, accel)
 }
-
-/// Longest line [`read_trajectory`] accepts, bytes: far above any real pose
-/// line, so that a file without line breaks (`/dev/zero`) is refused at once.
-pub const MAX_LINE_BYTES: usize = 64 * 1024;
 
 /// The unit of the time stamps of a trajectory file.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -566,62 +549,6 @@ pub fn match_time_units(
         .filter(|c| c.1 >= most * (1.0 - 1e-9))
         .min_by(|a, b| off(a).total_cmp(&off(b)))
         .map_or((own_est, own_ref), |c| (c.2, c.3))
-}
-
-/// Lines of at most [`MAX_LINE_BYTES`], read without holding more than one;
-/// `what` names the kind of file in the error of a long line.
-pub(crate) fn bounded_lines(
-    path: &Path,
-    what: &str,
-    mut r: impl std::io::BufRead,
-    mut f: impl FnMut(usize, &str) -> Result<()>,
-) -> Result<()> {
-    let mut buf = Vec::new();
-    let mut line = 0usize;
-    loop {
-        buf.clear();
-        line += 1;
-        loop {
-            let chunk = r.fill_buf().map_err(|e| Error::io(path, e))?;
-            if chunk.is_empty() {
-                break;
-            }
-            let (take, done) = match chunk.iter().position(|&b| b == b'\n') {
-                Some(i) => (i + 1, true),
-                None => (chunk.len(), false),
-            };
-            if buf.len() + take > MAX_LINE_BYTES + 1 {
-                return Err(Error::parse(
-                    path,
-                    line,
-                    format!("line longer than {MAX_LINE_BYTES} bytes: not {what}"),
-                ));
-            }
-            buf.extend_from_slice(&chunk[..take]);
-            r.consume(take);
-            if done {
-                break;
-            }
-        }
-        if buf.is_empty() {
-            return Ok(());
-        }
-        let mut bytes = buf.as_slice();
-        if line == 1 {
-            bytes = bytes.strip_prefix(b"\xEF\xBB\xBF").unwrap_or(bytes);
-        }
-        let text = std::str::from_utf8(bytes).map_err(|e| {
-            Error::parse(
-                path,
-                line,
-                format!(
-                    "not UTF-8 text (byte {} of the line): not {what}",
-                    e.valid_up_to() + 1
-                ),
-            )
-        })?;
-        f(line, text)?;
-    }
 }
 
 /// Reads a trajectory in TUM column order (`timestamp tx ty tz qx qy qz qw`)

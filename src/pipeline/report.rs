@@ -931,6 +931,9 @@ pub struct TimeUnitsReport {
     /// Whether REF's unit was found from the stamps (false: given by
     /// `--ref-time-unit`, or the EuRoC format's nanoseconds).
     pub ref_detected: bool,
+    /// Whether the two files are KITTI poses without stamps, paired by
+    /// index (pose i at i seconds).
+    pub paired_by_index: bool,
 }
 
 /// What `align --json` prints.

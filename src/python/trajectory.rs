@@ -1,5 +1,5 @@
-//! Trajectories for Python: `Trajectory` (reading and writing TUM / EuRoC
-//! files), `associate`, `scale_factors`.
+//! Trajectories for Python: `Trajectory` (reading and writing TUM / EuRoC /
+//! KITTI files), `associate`, `scale_factors`.
 
 use std::path::PathBuf;
 use std::sync::Arc;
@@ -13,7 +13,7 @@ use super::arrays::{flat, rows_f64, to_array2, vec_f64, vectors};
 use super::geometry::PySim3;
 use crate::error::Error;
 use crate::geometry::unit_quaternion_xyzw;
-use crate::io::text;
+use crate::io::{kitti, text};
 use crate::trajectory::{associate, scale_factors, Trajectory};
 
 /// Timestamped positions (seconds, metres) with optional orientations `(x, y, z, w)`.
@@ -76,6 +76,48 @@ impl PyTrajectory {
     /// Writes a TUM file (atomically: a temporary file renamed into place).
     fn write_tum(&self, py: Python<'_>, path: PathBuf) -> PyResult<()> {
         Ok(py.detach(|| text::write_tum(&self.inner, &path))?)
+    }
+
+    /// Reads a KITTI pose file (the 12 numbers of `[R | t]` a line). Stamps:
+    /// `times`, a `times.txt` path or an array of seconds (one a pose); or
+    /// `rate`, poses per second; or neither, the pose index (pose i at i s).
+    #[staticmethod]
+    #[pyo3(signature = (path, *, times=None, rate=None))]
+    fn read_kitti(
+        py: Python<'_>,
+        path: PathBuf,
+        times: Option<&Bound<'_, PyAny>>,
+        rate: Option<f64>,
+    ) -> PyResult<Self> {
+        let stamps = match (times, rate) {
+            (Some(_), Some(_)) => {
+                return Err(Error::invalid("times", "give times or rate, not both").into())
+            }
+            (Some(t), None) => match t.extract::<PathBuf>() {
+                Ok(p) => kitti::KittiStamps::Times(py.detach(|| kitti::read_times(&p))?),
+                Err(_) => kitti::KittiStamps::Times(vec_f64(t, "times", None)?),
+            },
+            (None, Some(r)) => kitti::KittiStamps::Rate(r),
+            (None, None) => kitti::KittiStamps::Index,
+        };
+        let inner = py.detach(|| kitti::read_kitti(&path, &stamps))?;
+        Ok(PyTrajectory {
+            inner: inner.into(),
+        })
+    }
+
+    /// Writes a KITTI pose file (atomically); with `times`, the stamps too,
+    /// as a `times.txt` at that path (KITTI files hold none).
+    #[pyo3(signature = (path, *, times=None))]
+    fn write_kitti(&self, py: Python<'_>, path: PathBuf, times: Option<PathBuf>) -> PyResult<()> {
+        py.detach(|| -> crate::error::Result<()> {
+            kitti::write_kitti(&self.inner, &path)?;
+            if let Some(t) = &times {
+                crate::io::atomic::write_bytes_atomic(t, &kitti::times_bytes(&self.inner))?;
+            }
+            Ok(())
+        })?;
+        Ok(())
     }
 
     /// Times, seconds, shape (N,).
