@@ -19,14 +19,18 @@ use crate::align::handeye::estimate_body_from_cam_trajectories;
 use crate::align::trajectories::align_trajectories_weighted;
 use crate::error::{Error, Result};
 use crate::geo::GnssFixes;
+use crate::geometry::Sim3;
+use crate::io::atomic::OutputSet;
 use crate::io::gnss::{read_gnss, GnssFormat};
 use crate::io::kitti::{self, read_kitti, read_times, KittiStamps};
 use crate::io::log::{read_log, ReadOptions};
-use crate::io::text::{match_time_units, TimeUnit, TrajectoryFormat};
+use crate::io::text::{euroc_bytes, match_time_units, tum_bytes, TimeUnit, TrajectoryFormat};
 use crate::pipeline::figures::FigureData;
 use crate::pipeline::gnss;
 use crate::pipeline::html::{write_html, Page, Summary};
-use crate::pipeline::report::{AlignReport, ApeReport, FitReport, HandEyeReport, TimeUnitsReport};
+use crate::pipeline::report::{
+    AlignReport, ApeReport, FitReport, HandEyeReport, TimeUnitsReport, TransformReport,
+};
 use crate::trajectory::Trajectory;
 
 /// clap parser of a trajectory format.
@@ -135,6 +139,20 @@ pub struct AlignArgs {
     /// p_k with the start-up stages, APE over time and its histogram).
     #[arg(long, value_name = "PATH")]
     html: Option<PathBuf>,
+    /// Write the estimate carried into the reference frame by the fit
+    /// (every EST pose, `T_ref_est · T_est_cam`), in EST's format and stamp
+    /// unit unless --output-format names another, atomically.
+    #[arg(short, long, value_name = "PATH")]
+    output: Option<PathBuf>,
+    /// Format of --output: tum, euroc or kitti (default: EST's; tum for a
+    /// topic of a log).
+    #[arg(long, value_name = "tum|euroc|kitti", value_parser = format, requires = "output")]
+    output_format: Option<TrajectoryFormat>,
+    /// Write the fitted T_ref_est: PATH.json as JSON (quaternion, translation,
+    /// scale and the 4×4 matrix), any other name as the 4×4 matrix [sR t; 0 1]
+    /// in 4 lines of 4 numbers (numpy.loadtxt reads it).
+    #[arg(long, value_name = "PATH")]
+    save_transform: Option<PathBuf>,
     #[command(flatten)]
     fit: FitArgs,
     #[command(flatten)]
@@ -145,12 +163,28 @@ pub struct AlignArgs {
 pub fn run(args: AlignArgs) -> Result<()> {
     let opts = args.fit.options();
     opts.check()?;
+    // The outputs are none of the inputs: refused before the work.
+    let mut outputs = OutputSet::new().with_inputs(
+        [
+            Some(&args.est),
+            args.reference.as_ref(),
+            args.est_times.as_ref(),
+            args.ref_times.as_ref(),
+        ]
+        .into_iter()
+        .flatten(),
+    );
+    for path in [&args.output, &args.save_transform].into_iter().flatten() {
+        outputs.check_output(path)?;
+    }
     let Inputs {
         est,
         reference,
         est_name,
         ref_name,
         time_units,
+        est_format,
+        est_unit,
     } = inputs(&args, opts.offset)?;
     // Fixes are the reference in ENU at the origin, interpolated at the
     // estimate's stamps, weighted and with the lever arm, as `convert` fits them.
@@ -218,6 +252,19 @@ pub fn run(args: AlignArgs) -> Result<()> {
         gnss: gnss.map(|g| g.report),
     };
     let mut written = String::new();
+    if let Some(path) = &args.output {
+        let format = args.output_format.unwrap_or(est_format);
+        outputs.write_bytes(path, &aligned_bytes(&est, &t, format, est_unit)?)?;
+        written += &format!(
+            "wrote {} (EST in the reference frame, {format:?})\n",
+            path.display()
+        );
+    }
+    if let Some(path) = &args.save_transform {
+        outputs.write_bytes(path, &transform_bytes(path, &t)?)?;
+        written += &format!("wrote {} (T_ref_est)\n", path.display());
+    }
+    outputs.commit()?;
     if args.plot || args.save_plot.is_some() {
         let save = args
             .save_plot
@@ -247,6 +294,49 @@ pub fn run(args: AlignArgs) -> Result<()> {
     print(&(text(&report) + &written))
 }
 
+/// The estimate carried by `t` (every pose) as `format` writes it; TUM
+/// stamps in `unit`, the one EST was written in.
+fn aligned_bytes(
+    est: &Trajectory,
+    t: &Sim3,
+    format: TrajectoryFormat,
+    unit: TimeUnit,
+) -> Result<Vec<u8>> {
+    let mut aligned = est.transformed(t);
+    match format {
+        TrajectoryFormat::Tum => {
+            aligned.timestamps = unit.written(&aligned.timestamps);
+            tum_bytes(&aligned)
+        }
+        TrajectoryFormat::Euroc => euroc_bytes(&aligned),
+        TrajectoryFormat::Kitti => kitti::kitti_bytes(&aligned),
+    }
+}
+
+/// `t` as `--save-transform` writes it: JSON for a `.json` path (the
+/// reports' transform: quaternion, translation, scale, matrix), else the
+/// 4×4 matrix as 4 lines of 4 numbers (the shortest form that reads back
+/// exactly).
+fn transform_bytes(path: &Path, t: &Sim3) -> Result<Vec<u8>> {
+    let json = path
+        .extension()
+        .is_some_and(|e| e.eq_ignore_ascii_case("json"));
+    if json {
+        let mut v = serde_json::to_vec_pretty(&TransformReport::from(t))
+            .map_err(|e| Error::invalid("--save-transform", e.to_string()))?;
+        v.push(b'\n');
+        return Ok(v);
+    }
+    let m = t.matrix();
+    let rows: Vec<String> = (0..4)
+        .map(|r| {
+            let row: Vec<String> = (0..4).map(|c| m[(r, c)].to_string()).collect();
+            row.join(" ") + "\n"
+        })
+        .collect();
+    Ok(rows.concat().into_bytes())
+}
+
 /// What `align` fits: the estimate and the reference, with the names the
 /// report gives them (`LOG:TOPIC` for topics) and, for two files, the units
 /// of their stamps.
@@ -256,6 +346,10 @@ struct Inputs {
     est_name: String,
     ref_name: String,
     time_units: Option<TimeUnitsReport>,
+    /// EST's format (TUM for a topic of a log): `--output`'s default.
+    est_format: TrajectoryFormat,
+    /// The unit EST's stamps were read in (seconds for a topic).
+    est_unit: TimeUnit,
 }
 
 /// The reference: poses, or GNSS fixes (which `gnss::reference` turns into
@@ -415,6 +509,8 @@ fn inputs(args: &AlignArgs, offset: f64) -> Result<Inputs> {
                 offset,
             );
             return Ok(Inputs {
+                est_format,
+                est_unit,
                 est: in_unit(est, est_read, est_unit),
                 reference: Reference::Fixes(fixes, FixSource::File(reference.clone())),
                 est_name: args.est.display().to_string(),
@@ -464,6 +560,8 @@ fn inputs(args: &AlignArgs, offset: f64) -> Result<Inputs> {
             paired_by_index: est_side.indexed,
         };
         return Ok(Inputs {
+            est_format,
+            est_unit,
             est: in_unit(est, est_read, est_unit),
             reference: Reference::Poses(in_unit(r, ref_read, ref_unit)),
             est_name: args.est.display().to_string(),
@@ -493,6 +591,8 @@ fn inputs(args: &AlignArgs, offset: f64) -> Result<Inputs> {
     };
     match (log.frames, reference) {
         (Some(est), Some((reference, ref_topic))) => Ok(Inputs {
+            est_format: TrajectoryFormat::Tum,
+            est_unit: TimeUnit::Seconds,
             est,
             reference,
             est_name: named(est_topic),

@@ -219,6 +219,46 @@ pub fn tum_bytes(traj: &Trajectory) -> Result<Vec<u8>> {
     Ok(s.into_bytes())
 }
 
+/// The EuRoC ground-truth CSV text of `traj`: a `#timestamp [ns],p_x [m],…`
+/// header, then `ns,x,y,z,qw,qx,qy,qz` rows (the stamps as whole
+/// nanoseconds, the rest in the shortest form that reads back exactly);
+/// poses without orientation get the identity quaternion.
+pub fn euroc_bytes(traj: &Trajectory) -> Result<Vec<u8>> {
+    use std::fmt::Write as _;
+    traj.check_lengths()?;
+    if traj.is_empty() {
+        return Err(Error::invalid(
+            "trajectory",
+            "no poses to write (a EuRoC file without rows is refused by its readers)",
+        ));
+    }
+    let mut s = String::with_capacity(80 * (traj.len() + 1));
+    s.push_str(
+        "#timestamp [ns],p_RS_R_x [m],p_RS_R_y [m],p_RS_R_z [m],q_RS_w [],q_RS_x [],q_RS_y [],q_RS_z []\n",
+    );
+    for i in 0..traj.len() {
+        let p = traj.positions[i];
+        let q = match &traj.orientations {
+            Some(o) => o[i].coords, // (x, y, z, w)
+            None => UnitQuaternion::<f64>::identity().coords,
+        };
+        // Writing into a String cannot fail.
+        let _ = writeln!(
+            s,
+            "{:.0},{},{},{},{},{},{},{}",
+            traj.timestamps[i] * 1e9,
+            p.x,
+            p.y,
+            p.z,
+            q[3],
+            q[0],
+            q[1],
+            q[2]
+        );
+    }
+    Ok(s.into_bytes())
+}
+
 /// Reads EuRoC `imu0/data.csv` content: `timestamp [ns], w_x, w_y, w_z
 /// [rad/s], a_x, a_y, a_z [m/s²]` per line, `#` comment lines and blank
 /// lines skipped. Times become seconds (integer nanoseconds read exactly).
