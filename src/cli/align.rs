@@ -21,10 +21,12 @@ use crate::error::{Error, Result};
 use crate::geo::GnssFixes;
 use crate::geometry::Sim3;
 use crate::io::atomic::OutputSet;
+use crate::io::colmap::image_name_time;
 use crate::io::gnss::{read_gnss, GnssFormat};
 use crate::io::kitti::{self, read_kitti, read_times, KittiStamps};
 use crate::io::log::{read_log, ReadOptions};
 use crate::io::text::{euroc_bytes, match_time_units, tum_bytes, TimeUnit, TrajectoryFormat};
+use crate::io::transforms::{read_transforms, Transforms};
 use crate::pipeline::figures::FigureData;
 use crate::pipeline::gnss;
 use crate::pipeline::html::{write_html, Page, Summary};
@@ -79,15 +81,17 @@ pub struct AlignArgs {
     /// TF child frame of the reference, when --ref-topic is a tf2_msgs/TFMessage topic.
     #[arg(long, requires = "ref_topic")]
     tf_child: Option<String>,
-    /// Format of EST (and of REF unless --ref-format is given): tum, euroc
-    /// or kitti (default: kitti when its first pose line holds 12 numbers,
-    /// else tum).
-    #[arg(long, value_name = "tum|euroc|kitti", value_parser = format)]
+    /// Format of EST (and of REF unless --ref-format is given): tum, euroc,
+    /// kitti or transforms (nerfstudio / instant-ngp `transforms.json`;
+    /// default: transforms for JSON, kitti when the first pose line holds 12
+    /// numbers, else tum).
+    #[arg(long, value_name = "tum|euroc|kitti|transforms", value_parser = format)]
     format: Option<TrajectoryFormat>,
     /// Format of REF (default: GNSS fixes when REF holds NMEA sentences or
-    /// `time, lat, lon, alt[, covariance]` rows, kitti when its first line
-    /// holds 12 numbers, else the same as --format).
-    #[arg(long, value_name = "tum|euroc|kitti", value_parser = format, conflicts_with = "gnss_format")]
+    /// `time, lat, lon, alt[, covariance]` rows, transforms for JSON, kitti
+    /// when its first line holds 12 numbers, else the same as --format). Two
+    /// `transforms.json` pair their frames by file name.
+    #[arg(long, value_name = "tum|euroc|kitti|transforms", value_parser = format, conflicts_with = "gnss_format")]
     ref_format: Option<TrajectoryFormat>,
     /// Stamps of a KITTI EST: a `times.txt` (seconds, one a line, one a pose).
     /// Without stamps two KITTI files pair by index, as evo pairs them.
@@ -144,9 +148,10 @@ pub struct AlignArgs {
     /// unit unless --output-format names another, atomically.
     #[arg(short, long, value_name = "PATH")]
     output: Option<PathBuf>,
-    /// Format of --output: tum, euroc or kitti (default: EST's; tum for a
-    /// topic of a log).
-    #[arg(long, value_name = "tum|euroc|kitti", value_parser = format, requires = "output")]
+    /// Format of --output: tum, euroc, kitti, or transforms for a
+    /// `transforms.json` EST (written back with every other key kept;
+    /// default: EST's format; tum for a topic of a log).
+    #[arg(long, value_name = "tum|euroc|kitti|transforms", value_parser = format, requires = "output")]
     output_format: Option<TrajectoryFormat>,
     /// Write the fitted T_ref_est: PATH.json as JSON (quaternion, translation,
     /// scale and the 4×4 matrix), any other name as the 4×4 matrix [sR t; 0 1]
@@ -185,6 +190,7 @@ pub fn run(args: AlignArgs) -> Result<()> {
         time_units,
         est_format,
         est_unit,
+        est_scene,
     } = inputs(&args, opts.offset)?;
     // Fixes are the reference in ENU at the origin, interpolated at the
     // estimate's stamps, weighted and with the lever arm, as `convert` fits them.
@@ -254,7 +260,10 @@ pub fn run(args: AlignArgs) -> Result<()> {
     let mut written = String::new();
     if let Some(path) = &args.output {
         let format = args.output_format.unwrap_or(est_format);
-        outputs.write_bytes(path, &aligned_bytes(&est, &t, format, est_unit)?)?;
+        outputs.write_bytes(
+            path,
+            &aligned_bytes(&est, est_scene.as_ref(), &t, format, est_unit)?,
+        )?;
         written += &format!(
             "wrote {} (EST in the reference frame, {format:?})\n",
             path.display()
@@ -298,12 +307,20 @@ pub fn run(args: AlignArgs) -> Result<()> {
 /// stamps in `unit`, the one EST was written in.
 fn aligned_bytes(
     est: &Trajectory,
+    scene: Option<&Transforms>,
     t: &Sim3,
     format: TrajectoryFormat,
     unit: TimeUnit,
 ) -> Result<Vec<u8>> {
     let mut aligned = est.transformed(t);
     match format {
+        TrajectoryFormat::Transforms => match scene {
+            Some(s) => s.carried_bytes(t),
+            None => Err(Error::invalid(
+                "--output-format",
+                "transforms needs EST to be a transforms.json (its other keys are written back)",
+            )),
+        },
         TrajectoryFormat::Tum => {
             aligned.timestamps = unit.written(&aligned.timestamps);
             tum_bytes(&aligned)
@@ -350,6 +367,8 @@ struct Inputs {
     est_format: TrajectoryFormat,
     /// The unit EST's stamps were read in (seconds for a topic).
     est_unit: TimeUnit,
+    /// EST's scene, when it is a `transforms.json` (written back by `--output`).
+    est_scene: Option<Transforms>,
 }
 
 /// The reference: poses, or GNSS fixes (which `gnss::reference` turns into
@@ -377,6 +396,8 @@ struct Read {
     /// `unit` is the format's (EuRoC nanoseconds; a KITTI rate or index),
     /// not to be found from the values.
     known: bool,
+    /// The scene, when the file is a `transforms.json`.
+    scene: Option<Transforms>,
 }
 
 /// Reads `path` as `format`; `times` and `rate` (the `--*-times`,
@@ -402,6 +423,7 @@ fn read_as_written(
         unit,
         indexed: false,
         known,
+        scene: None,
     };
     Ok(match format {
         TrajectoryFormat::Tum => read(format.read(path)?, TimeUnit::Seconds, false),
@@ -418,9 +440,84 @@ fn read_as_written(
                 trajectory: read_kitti(path, &stamps)?,
                 unit: TimeUnit::Seconds,
                 indexed,
+                scene: None,
+            }
+        }
+        TrajectoryFormat::Transforms => {
+            let scene = read_transforms(path)?;
+            // Frames named by stamps are timed by them; else the frame order.
+            let indexed = scene
+                .frames
+                .iter()
+                .any(|f| image_name_time(&f.file_path).is_none());
+            Read {
+                trajectory: scene.trajectory()?,
+                unit: TimeUnit::Seconds,
+                indexed,
+                // Seconds: the names' stamps or the frame order.
+                known: true,
+                scene: Some(scene),
             }
         }
     })
+}
+
+/// REF's poses restamped to pair with EST's by file name
+/// ([`Transforms::key`]): each REF frame takes the stamp of the EST frame of
+/// its name; frames of no shared name are left out. Fewer than three shared
+/// names, or a name twice in one scene, is an error.
+fn paired_by_name(
+    est: &Transforms,
+    est_traj: &Trajectory,
+    r: &Transforms,
+    ref_path: &Path,
+) -> Result<Trajectory> {
+    let (stamps, frames) = est.stamped();
+    let mut by_key = std::collections::HashMap::new();
+    for (t, f) in stamps.iter().zip(&frames) {
+        if by_key.insert(Transforms::key(&f.file_path), *t).is_some() {
+            return Err(Error::invalid(
+                "EST",
+                format!("two frames named {}: frames pair by file name", f.file_path),
+            ));
+        }
+    }
+    let ref_traj = r.trajectory()?;
+    let (_, ref_frames) = r.stamped();
+    let mut rows: Vec<(f64, usize)> = Vec::new();
+    let mut seen = std::collections::HashSet::new();
+    for (i, f) in ref_frames.iter().enumerate() {
+        let key = Transforms::key(&f.file_path);
+        if !seen.insert(key) {
+            return Err(Error::invalid(
+                "REF",
+                format!("two frames named {}: frames pair by file name", f.file_path),
+            ));
+        }
+        if let Some(&t) = by_key.get(key) {
+            rows.push((t, i));
+        }
+    }
+    if rows.len() < 3 {
+        return Err(Error::invalid(
+            "EST/REF",
+            format!(
+                "{} of the {} frames of {} share a file name with the {} of EST: two \
+                 transforms.json pair by file name, and a fit needs 3",
+                rows.len(),
+                ref_frames.len(),
+                ref_path.display(),
+                est_traj.len()
+            ),
+        ));
+    }
+    rows.sort_by(|a, b| a.0.total_cmp(&b.0));
+    let o = ref_traj.orientations.as_ref();
+    Trajectory::try_new(
+        rows.iter().map(|r| r.0).collect(),
+        rows.iter().map(|r| ref_traj.positions[r.1]).collect(),
+        o.map(|o| rows.iter().map(|r| o[r.1]).collect()),
+    )
 }
 
 /// Two KITTI files without stamps pair by index (as many poses in each);
@@ -497,6 +594,7 @@ fn inputs(args: &AlignArgs, offset: f64) -> Result<Inputs> {
                     ),
                 ));
             }
+            let est_scene = est_side.scene;
             let (est, est_read) = (est_side.trajectory, est_side.unit);
             let fixes = read_gnss(reference, Some(format), args.geoid_offset)?;
             // Fix times are seconds (Unix, or of the day for NMEA without a date).
@@ -511,6 +609,7 @@ fn inputs(args: &AlignArgs, offset: f64) -> Result<Inputs> {
             return Ok(Inputs {
                 est_format,
                 est_unit,
+                est_scene,
                 est: in_unit(est, est_read, est_unit),
                 reference: Reference::Fixes(fixes, FixSource::File(reference.clone())),
                 est_name: args.est.display().to_string(),
@@ -526,8 +625,10 @@ fn inputs(args: &AlignArgs, offset: f64) -> Result<Inputs> {
         }
         let ref_format = match args.ref_format {
             Some(f) => f,
-            None if kitti::looks_like_kitti(reference)? => TrajectoryFormat::Kitti,
-            None => args.format.unwrap_or(TrajectoryFormat::Tum),
+            None => match TrajectoryFormat::of_file(None, reference)? {
+                TrajectoryFormat::Tum => args.format.unwrap_or(TrajectoryFormat::Tum),
+                found => found,
+            },
         };
         let ref_side = read_as_written(
             ref_format,
@@ -536,6 +637,12 @@ fn inputs(args: &AlignArgs, offset: f64) -> Result<Inputs> {
             args.ref_rate,
             "ref",
         )?;
+        let (mut est_side, mut ref_side) = (est_side, ref_side);
+        if let (Some(e), Some(r)) = (&est_side.scene, &ref_side.scene) {
+            // Two scenes of the same images: frames pair by file name.
+            ref_side.trajectory = paired_by_name(e, &est_side.trajectory, r, reference)?;
+            (est_side.indexed, ref_side.indexed) = (false, false);
+        }
         check_indexed(&est_side, &ref_side, &args.est, reference)?;
         // EuRoC files are nanoseconds by their format; stamps from a rate
         // or an index are seconds.
@@ -543,6 +650,7 @@ fn inputs(args: &AlignArgs, offset: f64) -> Result<Inputs> {
             |side: &Read, given: Option<TimeUnit>| given.or(side.known.then_some(side.unit));
         let est_given = fixed(&est_side, args.est_time_unit);
         let ref_given = fixed(&ref_side, args.ref_time_unit);
+        let est_scene = est_side.scene;
         let (est, est_read) = (est_side.trajectory, est_side.unit);
         let (r, ref_read) = (ref_side.trajectory, ref_side.unit);
         let (est_unit, ref_unit) = match_time_units(
@@ -562,6 +670,7 @@ fn inputs(args: &AlignArgs, offset: f64) -> Result<Inputs> {
         return Ok(Inputs {
             est_format,
             est_unit,
+            est_scene,
             est: in_unit(est, est_read, est_unit),
             reference: Reference::Poses(in_unit(r, ref_read, ref_unit)),
             est_name: args.est.display().to_string(),
@@ -593,6 +702,7 @@ fn inputs(args: &AlignArgs, offset: f64) -> Result<Inputs> {
         (Some(est), Some((reference, ref_topic))) => Ok(Inputs {
             est_format: TrajectoryFormat::Tum,
             est_unit: TimeUnit::Seconds,
+            est_scene: None,
             est,
             reference,
             est_name: named(est_topic),

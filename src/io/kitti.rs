@@ -79,7 +79,7 @@ pub fn read_kitti_poses(path: &Path) -> Result<Poses> {
 
 /// The unit quaternion of a 3×3 matrix that is a rotation to within
 /// [`ROTATION_TOLERANCE`], or why it is not one.
-fn rotation(r: &Matrix3<f64>) -> std::result::Result<UnitQuaternion<f64>, String> {
+pub(crate) fn rotation(r: &Matrix3<f64>) -> std::result::Result<UnitQuaternion<f64>, String> {
     let off = (r.transpose() * r - Matrix3::identity()).abs().max();
     let det = r.determinant();
     if off > ROTATION_TOLERANCE || (det - 1.0).abs() > ROTATION_TOLERANCE {

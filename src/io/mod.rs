@@ -1,4 +1,5 @@
-//! File formats: trajectories as text (TUM, EuRoC ground truth, KITTI), point clouds
+//! File formats: trajectories as text (TUM, EuRoC ground truth, KITTI) and
+//! nerfstudio / instant-ngp `transforms.json`, point clouds
 //! (PLY, x y z text; LAS/LAZ with a CRS and PCD out), MCAP logs, ROS bags (ROS 1
 //! `.bag`, rosbag2), GNSS fixes (NMEA, CSV), reconstructions (COLMAP models,
 //! DROID-SLAM arrays), nav2 `map_server` grids.
@@ -28,6 +29,7 @@ pub mod ply;
 pub mod rosbag;
 pub mod spill;
 pub mod text;
+pub mod transforms;
 
 pub use log::{
     inspect_log, inspect_mcap, read_log, read_mcap, AnyContainer, Inspection, Log, LogError,

@@ -31,6 +31,8 @@ pub enum TrajectoryFormat {
     /// KITTI odometry poses: the 12 numbers of `[R | t]` a line, no stamps
     /// ([`crate::io::kitti`]).
     Kitti,
+    /// nerfstudio / instant-ngp `transforms.json` ([`crate::io::transforms`]).
+    Transforms,
 }
 
 impl std::str::FromStr for TrajectoryFormat {
@@ -40,10 +42,11 @@ impl std::str::FromStr for TrajectoryFormat {
             "tum" => Ok(TrajectoryFormat::Tum),
             "euroc" => Ok(TrajectoryFormat::Euroc),
             "kitti" => Ok(TrajectoryFormat::Kitti),
+            "transforms" => Ok(TrajectoryFormat::Transforms),
             _ => Err(Error::invalid(
                 "format",
                 format!(
-                    "expected \"tum\", \"euroc\" or \"kitti\", got {}",
+                    "expected \"tum\", \"euroc\", \"kitti\" or \"transforms\", got {}",
                     crate::error::cut(s)
                 ),
             )),
@@ -61,16 +64,21 @@ impl TrajectoryFormat {
             TrajectoryFormat::Kitti => {
                 crate::io::kitti::read_kitti(path.as_ref(), &crate::io::kitti::KittiStamps::Index)
             }
+            TrajectoryFormat::Transforms => {
+                crate::io::transforms::read_transforms(path.as_ref())?.trajectory()
+            }
         }
     }
 
-    /// The format of a file: `given`, else KITTI when its first pose line
-    /// holds 12 numbers, else TUM.
+    /// The format of a file: `given`, else a `transforms.json` when it is
+    /// JSON, KITTI when its first pose line holds 12 numbers, else TUM.
     pub fn of_file(given: Option<TrajectoryFormat>, path: &Path) -> Result<TrajectoryFormat> {
         if let Some(f) = given {
             return Ok(f);
         }
-        Ok(if crate::io::kitti::looks_like_kitti(path)? {
+        Ok(if crate::io::transforms::looks_like_transforms(path)? {
+            TrajectoryFormat::Transforms
+        } else if crate::io::kitti::looks_like_kitti(path)? {
             TrajectoryFormat::Kitti
         } else {
             TrajectoryFormat::Tum
