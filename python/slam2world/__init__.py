@@ -67,10 +67,12 @@ from slam2world._slam2world import (
     read_ply,
     read_reconstruction,
     read_trajectory,
+    read_transforms,
     read_xyz_text,
     scale_factors,
     simulate,
     utm_to_geodetic,
+    write_transforms,
     write_world_mcap,
 )
 
@@ -131,6 +133,8 @@ __all__ = [
     "depth_consistency_counts",
     "filter_consistent",
     "read_trajectory",
+    "read_transforms",
+    "write_transforms",
     "match_time_units",
     "Reconstruction",
     "read_reconstruction",

@@ -304,6 +304,10 @@ class Trajectory:
 def associate(
     a: Trajectory, b: Trajectory, *, max_diff: float = 0.01, offset: float = 0.0
 ) -> tuple[npt.NDArray[np.int64], npt.NDArray[np.int64]]: ...
+def read_transforms(path: str | os.PathLike[str]) -> tuple[Trajectory, list[str]]: ...
+def write_transforms(
+    source: str | os.PathLike[str], path: str | os.PathLike[str], transform: Sim3
+) -> None: ...
 
 @final
 class TrajectoryAlignment:

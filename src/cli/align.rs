@@ -26,7 +26,7 @@ use crate::io::gnss::{read_gnss, GnssFormat};
 use crate::io::kitti::{self, read_kitti, read_times, KittiStamps};
 use crate::io::log::{read_log, ReadOptions};
 use crate::io::text::{euroc_bytes, match_time_units, tum_bytes, TimeUnit, TrajectoryFormat};
-use crate::io::transforms::{read_transforms, Transforms};
+use crate::io::transforms::{read_dataparser, read_transforms, Transforms};
 use crate::pipeline::figures::FigureData;
 use crate::pipeline::gnss;
 use crate::pipeline::html::{write_html, Page, Summary};
@@ -158,6 +158,12 @@ pub struct AlignArgs {
     /// in 4 lines of 4 numbers (numpy.loadtxt reads it).
     #[arg(long, value_name = "PATH")]
     save_transform: Option<PathBuf>,
+    /// A nerfstudio model's `dataparser_transforms.json` (IN, made for EST's
+    /// scene), written as OUT for the scene carried by the fit: the training
+    /// frame stays the same, so the model still fits the metric scene and
+    /// its exports come out in metres.
+    #[arg(long, num_args = 2, value_names = ["IN", "OUT"])]
+    dataparser_transforms: Vec<PathBuf>,
     #[command(flatten)]
     fit: FitArgs,
     #[command(flatten)]
@@ -169,17 +175,30 @@ pub fn run(args: AlignArgs) -> Result<()> {
     let opts = args.fit.options();
     opts.check()?;
     // The outputs are none of the inputs: refused before the work.
+    let dataparser = match args.dataparser_transforms.as_slice() {
+        [input, output] => Some((read_dataparser(input)?, output)),
+        _ => None,
+    };
     let mut outputs = OutputSet::new().with_inputs(
         [
             Some(&args.est),
             args.reference.as_ref(),
             args.est_times.as_ref(),
             args.ref_times.as_ref(),
+            args.dataparser_transforms.first(),
         ]
         .into_iter()
         .flatten(),
     );
-    for path in [&args.output, &args.save_transform].into_iter().flatten() {
+    let dataparser_out = dataparser.as_ref().map(|d| d.1);
+    for path in [
+        args.output.as_ref(),
+        args.save_transform.as_ref(),
+        dataparser_out,
+    ]
+    .into_iter()
+    .flatten()
+    {
         outputs.check_output(path)?;
     }
     let Inputs {
@@ -272,6 +291,13 @@ pub fn run(args: AlignArgs) -> Result<()> {
     if let Some(path) = &args.save_transform {
         outputs.write_bytes(path, &transform_bytes(path, &t)?)?;
         written += &format!("wrote {} (T_ref_est)\n", path.display());
+    }
+    if let Some((d, path)) = &dataparser {
+        outputs.write_bytes(path, &d.carried_bytes(&t)?)?;
+        written += &format!(
+            "wrote {} (the model's dataparser transform)\n",
+            path.display()
+        );
     }
     outputs.commit()?;
     if args.plot || args.save_plot.is_some() {
@@ -528,29 +554,47 @@ fn check_indexed(est: &Read, r: &Read, est_path: &Path, ref_path: &Path) -> Resu
         (true, true) if n != m => Err(Error::invalid(
             "EST/REF",
             format!(
-                "{} has {n} poses and {} has {m}: KITTI files without stamps pair by index \
-                 and need as many poses (or give --est-times/--ref-times)",
+                "{} has {n} poses and {} has {m}: files without stamps (KITTI, a \
+                 transforms.json timed by its frame order) pair by index and need as many \
+                 poses (or give KITTI files --est-times/--ref-times)",
                 est_path.display(),
                 ref_path.display()
             ),
         )),
         (true, false) | (false, true) => {
-            let (side, path) = if est.indexed {
-                ("est", est_path)
+            let (side, path, read) = if est.indexed {
+                ("est", est_path, est)
             } else {
-                ("ref", ref_path)
+                ("ref", ref_path, r)
             };
-            Err(Error::invalid(
-                format!("--{side}-times"),
-                format!(
-                    "{} is a KITTI file without stamps and the other side has stamps: give \
-                     --{side}-times times.txt or --{side}-rate HZ",
-                    path.display()
-                ),
-            ))
+            Err(unstamped(read, path, side, "the other side's stamps"))
         }
         _ => Ok(()),
     }
+}
+
+/// The error of a file without stamps (`side` its flags' prefix) that was
+/// to pair with `what` by time.
+fn unstamped(read: &Read, path: &Path, side: &str, what: &str) -> Error {
+    if read.scene.is_some() {
+        return Error::invalid(
+            "EST/REF",
+            format!(
+                "{}: no frame's file name is a stamp, so its frames are timed by their order \
+                 and cannot pair with {what}; it pairs with another transforms.json of the \
+                 same images (by file name) or by index with KITTI poses without stamps",
+                path.display()
+            ),
+        );
+    }
+    Error::invalid(
+        format!("--{side}-times"),
+        format!(
+            "{} is a KITTI file without stamps: give --{side}-times times.txt or --{side}-rate \
+             HZ to pair it with {what}",
+            path.display()
+        ),
+    )
 }
 
 /// `t`, read in `read`, with its stamps in seconds of `unit`.
@@ -585,14 +629,7 @@ fn inputs(args: &AlignArgs, offset: f64) -> Result<Inputs> {
         )?;
         if let Some(format) = fixes_format {
             if est_side.indexed {
-                return Err(Error::invalid(
-                    "--est-times",
-                    format!(
-                        "{} is a KITTI file without stamps: give --est-times times.txt or \
-                         --est-rate HZ to pair it with GNSS fixes",
-                        args.est.display()
-                    ),
-                ));
+                return Err(unstamped(&est_side, &args.est, "est", "GNSS fixes"));
             }
             let est_scene = est_side.scene;
             let (est, est_read) = (est_side.trajectory, est_side.unit);

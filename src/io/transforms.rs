@@ -15,6 +15,8 @@
 //!   becomes `[R_t R  s R_t t + t_t; 0 1]` (rotation kept orthonormal,
 //!   translation scaled); every other key (intrinsics, `file_path`,
 //!   `applied_transform`, masks, …) is written as it was read.
+//! - A trained model's `dataparser_transforms.json` ([`Dataparser`]) is
+//!   rewritten for the carried scene so that the training frame stays put.
 
 use std::path::Path;
 
@@ -24,7 +26,7 @@ use serde_json::Value;
 use crate::error::{Error, Result};
 use crate::geometry::Sim3;
 use crate::io::colmap::image_name_time;
-use crate::io::kitti::rotation;
+use crate::io::kitti::rotation as check_rotation;
 use crate::io::lines::head;
 use crate::trajectory::Trajectory;
 
@@ -113,7 +115,7 @@ pub fn read_transforms(path: &Path) -> Result<Transforms> {
                     .ok_or_else(|| bad("a \"transform_matrix\" entry that is no finite number"))?;
             }
         }
-        rotation(&m.fixed_view::<3, 3>(0, 0).into_owned())
+        check_rotation(&m.fixed_view::<3, 3>(0, 0).into_owned())
             .map_err(|why| bad(&format!("\"transform_matrix\" ({file_path}): {why}")))?;
         frames.push(Frame {
             file_path,
@@ -187,6 +189,90 @@ impl Transforms {
         }
         let mut out = serde_json::to_vec_pretty(&doc)
             .map_err(|e| Error::invalid("transforms", e.to_string()))?;
+        out.push(b'\n');
+        Ok(out)
+    }
+}
+
+/// nerfstudio's `dataparser_transforms.json` (a trained model's): the
+/// training frame is `scale · (transform · x)` of a point `x` of the scene's
+/// frame (`transform` 3×4 `[R t]`, the translation scaled after it).
+#[derive(Clone, Debug)]
+pub struct Dataparser {
+    /// The whole document (written back with `transform` and `scale` changed).
+    pub doc: Value,
+    /// `R`, `t` of `transform`.
+    pub rotation: Matrix3<f64>,
+    /// `t` of `transform`.
+    pub translation: Vector3<f64>,
+    /// `scale`.
+    pub scale: f64,
+}
+
+/// Reads a `dataparser_transforms.json`: a 3×4 `transform` whose 3×3 part is
+/// a rotation and a positive `scale`.
+pub fn read_dataparser(path: &Path) -> Result<Dataparser> {
+    let text = std::fs::read(path).map_err(|e| Error::io(path, e))?;
+    let doc: Value = serde_json::from_slice(&text).map_err(|e| {
+        Error::parse(
+            path,
+            e.line(),
+            format!("not a dataparser_transforms.json: {e}"),
+        )
+    })?;
+    let bad = |why: &str| Error::parse(path, 0, format!("not a dataparser_transforms.json: {why}"));
+    let rows = doc
+        .get("transform")
+        .and_then(Value::as_array)
+        .filter(|r| r.len() == 3)
+        .ok_or_else(|| bad("no 3×4 \"transform\""))?;
+    let mut m = [[0.0; 4]; 3];
+    for (r, row) in rows.iter().enumerate() {
+        let row = row
+            .as_array()
+            .filter(|v| v.len() == 4)
+            .ok_or_else(|| bad("no 3×4 \"transform\""))?;
+        for (c, v) in row.iter().enumerate() {
+            m[r][c] = v
+                .as_f64()
+                .filter(|x| x.is_finite())
+                .ok_or_else(|| bad("a \"transform\" entry that is no finite number"))?;
+        }
+    }
+    let scale = doc
+        .get("scale")
+        .and_then(Value::as_f64)
+        .filter(|s| s.is_finite() && *s > 0.0)
+        .ok_or_else(|| bad("no positive \"scale\""))?;
+    let rotation = Matrix3::from_fn(|r, c| m[r][c]);
+    check_rotation(&rotation).map_err(|why| bad(&format!("\"transform\": {why}")))?;
+    Ok(Dataparser {
+        translation: Vector3::new(m[0][3], m[1][3], m[2][3]),
+        rotation,
+        scale,
+        doc,
+    })
+}
+
+impl Dataparser {
+    /// The document for the scene carried by `t` (its points `x' = t · x`):
+    /// the training frame stays the same, `scale · (transform · x')` of the
+    /// new scene equals that of the old, so a model trained before still
+    /// fits and its exports land in the new (metric) frame.
+    pub fn carried_bytes(&self, t: &Sim3) -> Result<Vec<u8>> {
+        // x = R_tᵀ (x' − t_t) / s_t, so scale' = s / s_t, R' = R R_tᵀ and
+        // t' = s_t t − R R_tᵀ t_t.
+        let r_t = *t.rotation.to_rotation_matrix().matrix();
+        let r = self.rotation * r_t.transpose();
+        let p = t.scale * self.translation - r * t.translation;
+        let rows: Vec<Value> = (0..3)
+            .map(|i| Value::from(vec![r[(i, 0)], r[(i, 1)], r[(i, 2)], p[i]]))
+            .collect();
+        let mut doc = self.doc.clone();
+        doc["transform"] = Value::from(rows);
+        doc["scale"] = Value::from(self.scale / t.scale);
+        let mut out = serde_json::to_vec_pretty(&doc)
+            .map_err(|e| Error::invalid("dataparser transforms", e.to_string()))?;
         out.push(b'\n');
         Ok(out)
     }

@@ -1,5 +1,5 @@
 //! Trajectories for Python: `Trajectory` (reading and writing TUM / EuRoC /
-//! KITTI files), `associate`, `scale_factors`.
+//! KITTI files), `associate`, `scale_factors`; `transforms.json` scenes.
 
 use std::path::PathBuf;
 use std::sync::Arc;
@@ -13,7 +13,7 @@ use super::arrays::{flat, rows_f64, to_array2, vec_f64, vectors};
 use super::geometry::PySim3;
 use crate::error::Error;
 use crate::geometry::unit_quaternion_xyzw;
-use crate::io::{kitti, text};
+use crate::io::{kitti, text, transforms};
 use crate::trajectory::{associate, scale_factors, Trajectory};
 
 /// Timestamped positions (seconds, metres) with optional orientations `(x, y, z, w)`.
@@ -264,8 +264,50 @@ fn scale_factors_py<'py>(
     Ok(scale_factors(&s, &r)?.into_pyarray(py))
 }
 
+/// Reads a nerfstudio / instant-ngp `transforms.json`: the camera poses
+/// (OpenGL cameras turned to the project's: y down, looking along +z),
+/// stamped by the frames' file names when every one is a stamp, else by the
+/// frame order; and the `file_path` of each pose, in the trajectory's order.
+#[pyfunction(name = "read_transforms")]
+fn read_transforms_py(py: Python<'_>, path: PathBuf) -> PyResult<(PyTrajectory, Vec<String>)> {
+    let (traj, names) = py.detach(|| -> crate::error::Result<_> {
+        let scene = transforms::read_transforms(&path)?;
+        let names = scene
+            .stamped()
+            .1
+            .iter()
+            .map(|f| f.file_path.clone())
+            .collect();
+        Ok((scene.trajectory()?, names))
+    })?;
+    Ok((PyTrajectory { inner: traj.into() }, names))
+}
+
+/// Writes the `transforms.json` at `source` to `path` (atomically) with every
+/// `transform_matrix` carried by `transform` and every other key kept.
+#[pyfunction(name = "write_transforms")]
+fn write_transforms_py(
+    py: Python<'_>,
+    source: PathBuf,
+    path: PathBuf,
+    transform: &PySim3,
+) -> PyResult<()> {
+    let t = transform.inner;
+    py.detach(|| -> crate::error::Result<()> {
+        let mut outputs = crate::io::atomic::OutputSet::new().with_inputs([&source]);
+        outputs.check_output(&path)?;
+        let bytes = transforms::read_transforms(&source)?.carried_bytes(&t)?;
+        outputs.write_bytes(&path, &bytes)?;
+        outputs.commit()?;
+        Ok(())
+    })?;
+    Ok(())
+}
+
 pub fn register(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_class::<PyTrajectory>()?;
+    m.add_function(wrap_pyfunction!(read_transforms_py, m)?)?;
+    m.add_function(wrap_pyfunction!(write_transforms_py, m)?)?;
     m.add_function(wrap_pyfunction!(associate_py, m)?)?;
     m.add_function(wrap_pyfunction!(scale_factors_py, m)?)?;
     Ok(())

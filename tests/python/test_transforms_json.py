@@ -140,6 +140,72 @@ def test_the_written_scene_holds_what_nerfstudio_reads(
         assert frame["file_path"].startswith("images/")
 
 
+def test_python_reads_and_writes_a_scene(tmp_path: Path) -> None:
+    import slam2world as sw
+
+    scene = nerfstudio_scene()
+    src = tmp_path / "transforms.json"
+    src.write_text(json.dumps(scene))
+    traj, names = sw.read_transforms(src)
+    assert names == [f["file_path"] for f in scene["frames"]]
+    # The OpenGL camera turned to the project's: the same centres, y and z flipped.
+    flip = np.diag([1.0, -1.0, -1.0])
+    for f, pos, q in zip(scene["frames"], traj.positions, traj.orientations, strict=True):
+        m = np.array(f["transform_matrix"])
+        assert np.allclose(pos, m[:3, 3], rtol=0, atol=1e-12)
+        r = sw.Sim3.from_quaternion(q, [0, 0, 0], 1.0).matrix()[:3, :3]
+        assert np.allclose(r, m[:3, :3] @ flip, rtol=0, atol=1e-6)
+    t = known_sim3()
+    out = tmp_path / "moved.json"
+    sw.write_transforms(src, out, sw.Sim3.from_matrix(t))
+    want = moved(scene, t)
+    for got, w in zip(json.loads(out.read_text())["frames"], want["frames"], strict=True):
+        assert np.allclose(got["transform_matrix"], w["transform_matrix"], rtol=0, atol=1e-9)
+    with pytest.raises(sw.FileError, match="never replaces an input"):
+        sw.write_transforms(src, src, sw.Sim3.from_matrix(t))
+    assert json.loads(src.read_text()) == scene
+
+
+def trained(poses: list[Any], dataparser: dict[str, Any]) -> np.ndarray:
+    """The poses in a model's training frame, as nerfstudio's dataparser makes them:
+    ``transform @ pose``, then the translations times ``scale``."""
+    t = np.array(dataparser["transform"])
+    out = np.array([t @ np.array(p) for p in poses])
+    out[:, :3, 3] *= dataparser["scale"]
+    return out
+
+
+def test_a_trained_models_dataparser_transform_follows_the_scene(
+    tmp_path: Path, capfd: pytest.CaptureFixture[str]
+) -> None:
+    from scipy.spatial.transform import Rotation
+
+    scene = nerfstudio_scene()
+    transform = np.hstack([Rotation.from_rotvec([0.1, 0.2, -0.7]).as_matrix(), [[0.5], [-1], [2]]])
+    dataparser = {"transform": transform.tolist(), "scale": 0.0625}
+    est, ref, out = (tmp_path / n for n in ("transforms.json", "metric.json", "out.json"))
+    dp_in, dp_out = tmp_path / "dataparser_transforms.json", tmp_path / "metric_dataparser.json"
+    est.write_text(json.dumps(scene))
+    ref.write_text(json.dumps(moved(scene, known_sim3())))
+    dp_in.write_text(json.dumps(dataparser))
+    args = [str(est), str(ref), "-o", str(out), "--dataparser-transforms", str(dp_in), str(dp_out)]
+    assert run_cli(["slam2world", "align", *args]) == 0
+    new = json.loads(dp_out.read_text())
+    assert new["scale"] == pytest.approx(dataparser["scale"] / KNOWN_SCALE, rel=1e-12)
+    before = trained([f["transform_matrix"] for f in scene["frames"]], dataparser)
+    after = trained([f["transform_matrix"] for f in json.loads(out.read_text())["frames"]], new)
+    assert np.allclose(after, before, rtol=0, atol=1e-9)
+    # The dataparser file is an input: never an output.
+    capfd.readouterr()
+    assert (
+        run_cli(
+            ["slam2world", "align", *args[:4], "--dataparser-transforms", str(dp_in), str(dp_in)]
+        )
+        == 1
+    )
+    assert json.loads(dp_in.read_text()) == dataparser
+
+
 @pytest.mark.parametrize(
     ("text", "needle"),
     [
@@ -159,3 +225,15 @@ def test_bad_scenes_get_one_clear_error(
     assert run_cli(["slam2world", "align", str(bad), str(ref)]) == 1
     _, err = capfd.readouterr()
     assert needle in err and len(err.strip().splitlines()) == 1, err
+
+
+def test_a_scene_timed_by_frame_order_does_not_pair_with_stamps(
+    tmp_path: Path, capfd: pytest.CaptureFixture[str]
+) -> None:
+    scene = tmp_path / "transforms.json"
+    scene.write_text(json.dumps(nerfstudio_scene()))
+    ref = data_path("evo_tum_fr2_desk", "fr2_desk_groundtruth.txt")
+    capfd.readouterr()
+    assert run_cli(["slam2world", "align", str(scene), str(ref)]) == 1
+    _, err = capfd.readouterr()
+    assert "timed by their order" in err and len(err.strip().splitlines()) == 1, err
