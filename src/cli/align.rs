@@ -660,13 +660,7 @@ fn inputs(args: &AlignArgs, offset: f64) -> Result<Inputs> {
                 }),
             });
         }
-        let ref_format = match args.ref_format {
-            Some(f) => f,
-            None => match TrajectoryFormat::of_file(None, reference)? {
-                TrajectoryFormat::Tum => args.format.unwrap_or(TrajectoryFormat::Tum),
-                found => found,
-            },
-        };
+        let ref_format = TrajectoryFormat::of_reference(args.ref_format, args.format, reference)?;
         let ref_side = read_as_written(
             ref_format,
             reference,

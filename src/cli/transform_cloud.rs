@@ -28,11 +28,13 @@ pub struct TransformCloudArgs {
     /// Output PLY (binary little-endian), written atomically.
     #[arg(short, long, value_name = "OUT.ply")]
     output: PathBuf,
-    /// Format of EST (and of REF unless --ref-format is given): tum or euroc.
-    #[arg(long, value_name = "tum|euroc", default_value = "tum", value_parser = format)]
-    format: TrajectoryFormat,
-    /// Format of REF (default: the same as --format).
-    #[arg(long, value_name = "tum|euroc", value_parser = format)]
+    /// Format of EST (and of REF unless --ref-format is given): tum, euroc,
+    /// kitti or transforms (default: found from the file, as `align` finds
+    /// it; KITTI poses and frame-ordered scenes are stamped by their index).
+    #[arg(long, value_name = "tum|euroc|kitti|transforms", value_parser = format)]
+    format: Option<TrajectoryFormat>,
+    /// Format of REF (default: found from the file, else the same as --format).
+    #[arg(long, value_name = "tum|euroc|kitti|transforms", value_parser = format)]
     ref_format: Option<TrajectoryFormat>,
     #[command(flatten)]
     fit: FitArgs,
@@ -52,10 +54,12 @@ pub fn run(args: TransformCloudArgs) -> Result<()> {
     // The output is none of the inputs: refused before the work.
     let mut outputs = OutputSet::new().with_inputs([&args.input, est, reference]);
     outputs.check_output(&args.output)?;
+    let slam_format = TrajectoryFormat::of_file(args.format, est)?;
+    let ref_format = TrajectoryFormat::of_reference(args.ref_format, args.format, reference)?;
     let source = TrajectoryFiles {
         slam: est.clone(),
-        slam_format: args.format,
-        reference: Some((reference.clone(), args.ref_format.unwrap_or(args.format))),
+        slam_format,
+        reference: Some((reference.clone(), ref_format)),
         cloud: Some(args.input.clone()),
     };
     let c = convert_source(&source, &opts)?;

@@ -70,6 +70,23 @@ impl TrajectoryFormat {
         }
     }
 
+    /// The format of a reference file: `given`, else what
+    /// [`TrajectoryFormat::of_file`] finds, where a TUM-looking file takes
+    /// the format given for the estimate (`--format`), if any.
+    pub fn of_reference(
+        given: Option<TrajectoryFormat>,
+        est_given: Option<TrajectoryFormat>,
+        path: &Path,
+    ) -> Result<TrajectoryFormat> {
+        if let Some(f) = given {
+            return Ok(f);
+        }
+        Ok(match Self::of_file(None, path)? {
+            TrajectoryFormat::Tum => est_given.unwrap_or(TrajectoryFormat::Tum),
+            found => found,
+        })
+    }
+
     /// The format of a file: `given`, else a `transforms.json` when it is
     /// JSON, KITTI when its first pose line holds 12 numbers, else TUM.
     pub fn of_file(given: Option<TrajectoryFormat>, path: &Path) -> Result<TrajectoryFormat> {

@@ -67,6 +67,21 @@ def test_a_kitti_pair_aligns_as_the_tum_pair(
         assert np.allclose(doc["translation"], tum["translation"], rtol=0, atol=1e-9)
 
 
+def test_transform_cloud_takes_a_kitti_pair(
+    fr2_pair: Path, tmp_path: Path, capfd: pytest.CaptureFixture[str]
+) -> None:
+    d = fr2_pair
+    cloud = tmp_path / "points.txt"
+    cloud.write_text("0 0 0\n1 2 3\n")
+    tum = align_json(capfd, str(d / "est.tum"), str(d / "ref.tum"))
+    args = ["transform-cloud", str(cloud), "--align", str(d / "est.kitti"), str(d / "ref.kitti")]
+    assert run_cli(["slam2world", *args, "-o", str(tmp_path / "world.ply")]) == 0
+    out, _ = capfd.readouterr()
+    assert "aligned 118 pose pairs" in out and f"scale {tum['scale']:.9f}" in out, out
+    world = sw.read_ply(tmp_path / "world.ply")
+    assert np.allclose(world.points[0], tum["translation"], rtol=0, atol=1e-5)
+
+
 def test_kitti_written_here_reads_back_in_evo(fr2_pair: Path, tmp_path: Path) -> None:
     from evo.tools import file_interface
 
