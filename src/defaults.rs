@@ -101,6 +101,16 @@ pub const HTML_MAX_POINTS: usize = 300_000;
 pub const HTML_MAX_PATH_POINTS: usize = 20_000;
 /// Most occupied voxels embedded in `report.html` (coarser levels beyond it).
 pub const HTML_MAX_VOXELS: usize = 200_000;
+/// Ground plane (`align::ground`): largest angle between a floor candidate's
+/// normal and the cameras' mean image "up" (−y), degrees.
+pub const GROUND_MAX_UP_ANGLE_DEG: f64 = 35.0;
+/// Ground plane: fewest inliers of a floor candidate.
+pub const GROUND_MIN_INLIERS: usize = 30;
+/// Ground plane: a second candidate with this share of the best one's
+/// support makes the floor ambiguous.
+pub const GROUND_RIVAL_SHARE: f64 = 0.5;
+/// Ground plane: largest share of the points under the floor.
+pub const GROUND_MAX_BELOW: f64 = 0.05;
 /// Voxel edge of the octree `slam2world demo` builds, metres.
 pub const DEMO_OCTREE_RESOLUTION: f64 = 0.1;
 
@@ -131,6 +141,10 @@ pub const TABLE: &[(&str, Value)] = &[
     ("dof", Value::Str(DOF)),
     ("association", Value::Str(ASSOCIATION)),
     ("max_tilt_deg", Value::Float(MAX_TILT_DEG)),
+    ("max_up_angle_deg", Value::Float(GROUND_MAX_UP_ANGLE_DEG)),
+    ("min_inliers", Value::Int(GROUND_MIN_INLIERS as i64)),
+    ("rival_share", Value::Float(GROUND_RIVAL_SHARE)),
+    ("max_below", Value::Float(GROUND_MAX_BELOW)),
     ("gravity", Value::Float(GRAVITY)),
     (
         "keyframe_position_sigma",

@@ -15,6 +15,7 @@
 pub mod checks;
 pub mod covariance;
 pub mod dof;
+pub mod ground;
 pub mod handeye;
 mod horn;
 mod moments;

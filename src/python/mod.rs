@@ -15,6 +15,7 @@ mod droid;
 mod errors;
 mod geo;
 mod geometry;
+mod ground;
 mod imu;
 mod io;
 mod map;
@@ -30,6 +31,7 @@ fn _slam2world(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add("__version__", env!("CARGO_PKG_VERSION"))?;
     errors::register(m)?;
     geometry::register(m)?;
+    ground::register(m)?;
     sim::register(m)?;
     map::register(m)?;
     trajectory::register(m)?;

@@ -1,0 +1,642 @@
+//! Metric scale and gravity with no second sensor: the ground plane of a
+//! reconstruction and the cameras' known height above it.
+//!
+//! - [`fit_ground_plane`]: the floor in a cloud (map points, keyframe
+//!   backprojections, COLMAP points) by RANSAC, refined by least squares on
+//!   its inliers. The cameras say where "up" is roughly: most captures keep
+//!   the image's y axis near the gravity direction (a robot's, a car's or a
+//!   walker's camera; a drone's looking ahead), so planes whose normal lies
+//!   more than [`GroundOptions::max_up_angle_deg`] from the cameras' mean "image
+//!   up" are no floor candidates (walls). Of the candidates that have the
+//!   cameras above them, the one of most support is the ground; a second one
+//!   of similar support at another height (a large table top, a platform)
+//!   or many points under the chosen one (the floor not seen; a table taken
+//!   for it) is refused with the reason, as is a cloud with no plane.
+//! - [`metric_from_height`]: with the plane's normal as "up", the cameras'
+//!   distances to it in SLAM units and their heights in metres give the
+//!   scale (one height for all, the first pose's, or one per pose); the world
+//!   frame has z up, its origin on the ground under the first camera and x
+//!   along the first camera's heading (yaw and the horizontal origin are not
+//!   observable, as with `--anchor first`).
+//!
+//! The thresholds follow the data: the search counts points within 1 % of
+//! the median distance from the points to the cameras; a plane found is a
+//! surface only when the points within five such thresholds gather near it
+//! (a slice through wall points fills that band evenly), and its inliers are
+//! those within three robust standard deviations of it.
+
+use nalgebra::{Matrix3, SymmetricEigen, UnitQuaternion, Vector3};
+use rand::{Rng, SeedableRng};
+use rand_chacha::ChaCha8Rng;
+
+use crate::defaults;
+use crate::error::{Error, Result};
+use crate::geometry::Sim3;
+use crate::trajectory::Trajectory;
+
+/// Options of [`fit_ground_plane`].
+#[derive(Clone, Debug, PartialEq)]
+pub struct GroundOptions {
+    /// Largest angle between a candidate's normal and the cameras' mean
+    /// "image up" (−y), degrees; `None`: no such prior (every plane with the
+    /// cameras on one side is a candidate).
+    pub max_up_angle_deg: Option<f64>,
+    /// Fewest inliers a plane needs.
+    pub min_inliers: usize,
+    /// A second candidate with at least this share of the best one's
+    /// support makes the choice ambiguous (refused).
+    pub rival_share: f64,
+    /// Largest share of the points that may lie under the chosen plane (by
+    /// more than three of its standard deviations).
+    pub max_below: f64,
+    /// Seed of the RANSAC draws (the fit is deterministic).
+    pub seed: u64,
+}
+
+impl Default for GroundOptions {
+    fn default() -> Self {
+        GroundOptions {
+            max_up_angle_deg: Some(defaults::GROUND_MAX_UP_ANGLE_DEG),
+            min_inliers: defaults::GROUND_MIN_INLIERS,
+            rival_share: defaults::GROUND_RIVAL_SHARE,
+            max_below: defaults::GROUND_MAX_BELOW,
+            seed: 0x6a0d,
+        }
+    }
+}
+
+/// The ground plane of a cloud: the points `x` with `normal · x + offset = 0`,
+/// `normal` pointing to the cameras' side.
+#[derive(Clone, Debug, PartialEq)]
+pub struct GroundPlane {
+    /// Unit normal, towards the cameras ("up").
+    pub normal: Vector3<f64>,
+    /// Signed distance of the origin: `normal · x + offset` is the height of `x`.
+    pub offset: f64,
+    /// Points within [`GroundPlane::threshold`] of the plane.
+    pub inliers: usize,
+    /// Points fitted.
+    pub n_points: usize,
+    /// Robust standard deviation of the inliers' distances (SLAM units).
+    pub spread: f64,
+    /// Inlier threshold used (three spreads, SLAM units).
+    pub threshold: f64,
+    /// Share of the points lower than three spreads under the plane.
+    pub below: f64,
+    /// Share of the cameras above the plane.
+    pub cameras_above: f64,
+    /// Angle between the normal and the cameras' mean "image up", degrees
+    /// (`None` without orientations).
+    pub tilt_from_cameras_deg: Option<f64>,
+    /// The strongest other candidate: its inliers and its height over this
+    /// plane (SLAM units), if any.
+    pub runner_up: Option<(usize, f64)>,
+}
+
+impl GroundPlane {
+    /// Height of `x` above the plane (SLAM units).
+    pub fn height(&self, x: &Vector3<f64>) -> f64 {
+        self.normal.dot(x) + self.offset
+    }
+}
+
+/// A plane through the centroid of `pts` along its least spread (the normal
+/// not yet oriented), or `None` when the points do not span a plane.
+fn least_squares_plane(pts: &[Vector3<f64>]) -> Option<(Vector3<f64>, f64)> {
+    if pts.len() < 3 {
+        return None;
+    }
+    let n = pts.len() as f64;
+    let c = pts.iter().sum::<Vector3<f64>>() / n;
+    let mut cov = Matrix3::zeros();
+    for p in pts {
+        let d = p - c;
+        cov += d * d.transpose();
+    }
+    let e = SymmetricEigen::new(cov / n);
+    let (i, _) = e
+        .eigenvalues
+        .iter()
+        .enumerate()
+        .min_by(|a, b| a.1.total_cmp(b.1))?;
+    let normal = e.eigenvectors.column(i).into_owned();
+    let normal = normal.try_normalize(1e-300)?;
+    Some((normal, -normal.dot(&c)))
+}
+
+/// The median of `v` (reordered), `NaN` for none.
+fn median(v: &mut [f64]) -> f64 {
+    if v.is_empty() {
+        return f64::NAN;
+    }
+    let m = v.len() / 2;
+    let (_, x, _) = v.select_nth_unstable_by(m, f64::total_cmp);
+    *x
+}
+
+/// A plane found by [`fit_ground_plane`]'s search.
+struct Candidate {
+    normal: Vector3<f64>,
+    offset: f64,
+    inliers: Vec<usize>,
+    /// Share of the cameras above it.
+    above: f64,
+    /// Its inlier threshold (three robust sigmas).
+    tau: f64,
+}
+
+/// The cameras' mean "image up" (−y of each `R_world_cam`), when it is
+/// consistent (its mean has at least half a unit's length).
+fn camera_up(cameras: &Trajectory) -> Option<Vector3<f64>> {
+    let o = cameras.orientations.as_ref()?;
+    let sum: Vector3<f64> = o.iter().map(|q| -(q * Vector3::y())).sum();
+    let mean = sum / o.len().max(1) as f64;
+    (mean.norm() >= 0.5).then(|| mean.normalize())
+}
+
+/// One RANSAC candidate: the plane of most inliers (within `tau`) among the
+/// `active` points whose normal points to the cameras' side and lies within
+/// the tilt cone.
+fn ransac(
+    pts: &[Vector3<f64>],
+    active: &[usize],
+    centroid: &Vector3<f64>,
+    up: Option<(Vector3<f64>, f64)>,
+    tau: f64,
+    rng: &mut ChaCha8Rng,
+) -> Option<(Vector3<f64>, f64, usize)> {
+    if active.len() < 3 {
+        return None;
+    }
+    let mut best: Option<(Vector3<f64>, f64, usize)> = None;
+    let mut iters = 2000usize;
+    let mut k = 0;
+    while k < iters {
+        k += 1;
+        let pick = |rng: &mut ChaCha8Rng| pts[active[rng.random_range(0..active.len())]];
+        let (a, b, c) = (pick(rng), pick(rng), pick(rng));
+        let Some(mut n) = (b - a).cross(&(c - a)).try_normalize(1e-12) else {
+            continue;
+        };
+        if n.dot(&(centroid - a)) < 0.0 {
+            n = -n;
+        }
+        if let Some((u, cos_max)) = up {
+            if n.dot(&u) < cos_max {
+                continue;
+            }
+        }
+        let d = -n.dot(&a);
+        let count = active
+            .iter()
+            .filter(|&&i| (n.dot(&pts[i]) + d).abs() < tau)
+            .count();
+        if best.as_ref().is_none_or(|b| count > b.2) {
+            best = Some((n, d, count));
+            // Enough draws to hit three inliers with 99.9 % probability.
+            let w = count as f64 / active.len() as f64;
+            let need = ((1.0 - 0.999f64).ln() / (1.0 - w.powi(3)).ln()).ceil();
+            if need.is_finite() {
+                iters = iters.min((need as usize).max(50));
+            }
+        }
+    }
+    best
+}
+
+/// Least-squares refinement of a plane on the points within `tau` of it
+/// (twice), oriented to the cameras' side; with its inliers.
+fn refine(
+    pts: &[Vector3<f64>],
+    idx: &[usize],
+    plane: (Vector3<f64>, f64),
+    towards: &Vector3<f64>,
+    tau: f64,
+) -> Option<(Vector3<f64>, f64, Vec<usize>)> {
+    let (mut n, mut d) = plane;
+    let mut inliers: Vec<usize> = Vec::new();
+    for _ in 0..2 {
+        inliers = idx
+            .iter()
+            .copied()
+            .filter(|&i| (n.dot(&pts[i]) + d).abs() < tau)
+            .collect();
+        let chosen: Vec<Vector3<f64>> = inliers.iter().map(|&i| pts[i]).collect();
+        let (mut m, mut e) = least_squares_plane(&chosen)?;
+        if m.dot(towards) + e < 0.0 {
+            (m, e) = (-m, -e);
+        }
+        (n, d) = (m, e);
+    }
+    Some((n, d, inliers))
+}
+
+/// The ground plane of `points` under `cameras` (positions; orientations,
+/// when given, bound the candidates' tilt). Errors: too few finite points,
+/// no plane of [`GroundOptions::min_inliers`] under the cameras, a rival of
+/// similar support, or too many points under the plane (each says so).
+pub fn fit_ground_plane(
+    points: &[Vector3<f64>],
+    cameras: &Trajectory,
+    opts: &GroundOptions,
+) -> Result<GroundPlane> {
+    let pts: Vec<Vector3<f64>> = points
+        .iter()
+        .copied()
+        .filter(|p| p.iter().all(|v| v.is_finite()))
+        .collect();
+    if pts.len() < opts.min_inliers.max(3) {
+        return Err(Error::TooFew {
+            what: "finite points for a ground plane".into(),
+            need: opts.min_inliers.max(3),
+            got: pts.len(),
+        });
+    }
+    if cameras.is_empty() {
+        return Err(Error::TooFew {
+            what: "camera poses above the ground".into(),
+            need: 1,
+            got: 0,
+        });
+    }
+    let cam_centroid =
+        cameras.positions.iter().sum::<Vector3<f64>>() / cameras.positions.len() as f64;
+    let up = camera_up(cameras);
+    let cone = match (up, opts.max_up_angle_deg) {
+        (Some(u), Some(deg)) => Some((u, deg.to_radians().cos())),
+        _ => None,
+    };
+    // The search threshold: 1 % of the points' median distance to the cameras.
+    let mut dist: Vec<f64> = pts.iter().map(|p| (p - cam_centroid).norm()).collect();
+    let tau0 = 0.01 * median(&mut dist);
+    if tau0.is_nan() || tau0 <= 0.0 {
+        return Err(Error::Degenerate {
+            reason: "the points lie on the cameras: no scene to find a ground in".into(),
+            value: tau0,
+        });
+    }
+    // The RANSAC draws run over at most 20 000 points (every k-th).
+    let stride = pts.len().div_ceil(20_000).max(1);
+    let mut active: Vec<usize> = (0..pts.len()).step_by(stride).collect();
+    let all: Vec<usize> = (0..pts.len()).collect();
+    let mut rng = ChaCha8Rng::seed_from_u64(opts.seed);
+    // Up to three candidates, each found in what the ones before left. A
+    // candidate is a surface when the points within five search thresholds
+    // of it gather near it (their robust sigma at most 0.4 of that band's
+    // half-width); a slice through a volume or across walls fills the band
+    // evenly (sigma ~0.74 of it). Its own threshold is three of its sigmas.
+    let band = 5.0 * tau0;
+    let mut candidates: Vec<Candidate> = Vec::new();
+    for _ in 0..6 {
+        if candidates.len() == 3 {
+            break;
+        }
+        let Some((n, d, count)) = ransac(&pts, &active, &cam_centroid, cone, tau0, &mut rng) else {
+            break;
+        };
+        if count * stride < opts.min_inliers {
+            break;
+        }
+        let mut r: Vec<f64> = all
+            .iter()
+            .map(|&i| (n.dot(&pts[i]) + d).abs())
+            .filter(|&x| x < band)
+            .collect();
+        let sigma = 1.4826 * median(&mut r);
+        active.retain(|&i| (n.dot(&pts[i]) + d).abs() >= band);
+        if sigma.is_nan() || sigma > 0.4 * band {
+            continue;
+        }
+        let tau = (3.0 * sigma).max(1e-12 * tau0);
+        let Some((n, d, inliers)) = refine(&pts, &all, (n, d), &cam_centroid, tau) else {
+            continue;
+        };
+        let above = cameras
+            .positions
+            .iter()
+            .filter(|c| n.dot(c) + d > 0.0)
+            .count() as f64
+            / cameras.len() as f64;
+        if inliers.len() >= opts.min_inliers {
+            candidates.push(Candidate {
+                normal: n,
+                offset: d,
+                inliers,
+                above,
+                tau,
+            });
+        }
+    }
+    let under: Vec<&Candidate> = candidates.iter().filter(|c| c.above >= 0.9).collect();
+    let Some(best) = under.iter().max_by_key(|c| c.inliers.len()) else {
+        return Err(Error::Degenerate {
+            reason: format!(
+                "no plane of {} points at least{} under the cameras: the ground is not in the \
+                 cloud ({} points)",
+                opts.min_inliers,
+                if cone.is_some() {
+                    " within the cameras' tilt"
+                } else {
+                    ""
+                },
+                pts.len()
+            ),
+            value: candidates
+                .iter()
+                .map(|c| c.inliers.len())
+                .max()
+                .unwrap_or(0) as f64,
+        });
+    };
+    let (n, d, inliers, above, tau) = (
+        best.normal,
+        best.offset,
+        &best.inliers,
+        best.above,
+        best.tau,
+    );
+    let runner_up = under
+        .iter()
+        .filter(|c| !std::ptr::eq(**c, *best))
+        .max_by_key(|c| c.inliers.len())
+        .map(|c| {
+            let h =
+                c.inliers.iter().map(|&i| n.dot(&pts[i]) + d).sum::<f64>() / c.inliers.len() as f64;
+            (c.inliers.len(), h)
+        });
+    if let Some((count, h)) = runner_up {
+        if count as f64 >= opts.rival_share * inliers.len() as f64 {
+            return Err(Error::Degenerate {
+                reason: format!(
+                    "two planes under the cameras of similar support: {} points and {count} \
+                     points {:+.4} units above it (a large table top or a platform competes \
+                     with the floor); give a cloud of the floor, or the scale another way",
+                    inliers.len(),
+                    h
+                ),
+                value: count as f64 / inliers.len() as f64,
+            });
+        }
+    }
+    let mut r: Vec<f64> = inliers
+        .iter()
+        .map(|&i| (n.dot(&pts[i]) + d).abs())
+        .collect();
+    let spread = 1.4826 * median(&mut r);
+    let below = pts.iter().filter(|p| n.dot(p) + d < -tau).count() as f64 / pts.len() as f64;
+    if below > opts.max_below {
+        return Err(Error::Degenerate {
+            reason: format!(
+                "{:.1} % of the points lie under the plane found (more than {:.1} %): it is not \
+                 the ground (a table top or a platform, the floor not seen)",
+                100.0 * below,
+                100.0 * opts.max_below
+            ),
+            value: below,
+        });
+    }
+    Ok(GroundPlane {
+        normal: n,
+        offset: d,
+        inliers: inliers.len(),
+        n_points: pts.len(),
+        spread,
+        threshold: tau,
+        below,
+        cameras_above: above,
+        tilt_from_cameras_deg: up.map(|u| u.dot(&n).clamp(-1.0, 1.0).acos().to_degrees()),
+        runner_up,
+    })
+}
+
+/// The cameras' known height above the ground, metres.
+#[derive(Clone, Debug, PartialEq)]
+pub enum CameraHeight {
+    /// The same height at every pose (a robot, a car; the median is fitted).
+    Constant(f64),
+    /// The height at the first pose (the drone on the floor or a stand).
+    First(f64),
+    /// One height per pose (from a file, a barometer, a ground truth).
+    PerPose(Vec<f64>),
+}
+
+/// The metric frame from a ground plane and the cameras' heights.
+#[derive(Clone, Debug, PartialEq)]
+pub struct HeightScale {
+    /// `T_world_slam`: z up (the plane's normal), the origin on the ground
+    /// under the first camera, x along its heading.
+    pub t_world_slam: Sim3,
+    /// Metres per SLAM unit.
+    pub scale: f64,
+    /// The cameras' heights above the plane, SLAM units.
+    pub heights: Vec<f64>,
+    /// Rms of the given heights less the fitted ones (metres; 0 for one).
+    pub height_rms: f64,
+}
+
+/// Scale and gravity from `plane` and the cameras' `height`: see the module
+/// doc. Errors: a camera on or under the plane among those used, a height
+/// that is not a positive number, a per-pose list of another length.
+pub fn metric_from_height(
+    plane: &GroundPlane,
+    cameras: &Trajectory,
+    height: &CameraHeight,
+) -> Result<HeightScale> {
+    if cameras.is_empty() {
+        return Err(Error::TooFew {
+            what: "camera poses".into(),
+            need: 1,
+            got: 0,
+        });
+    }
+    let h: Vec<f64> = cameras.positions.iter().map(|c| plane.height(c)).collect();
+    let positive = |v: f64, what: &str| -> Result<f64> {
+        if v.is_finite() && v > 0.0 {
+            Ok(v)
+        } else {
+            Err(Error::invalid(
+                what,
+                format!("must be a positive number of metres, got {v}"),
+            ))
+        }
+    };
+    let (scale, given): (f64, Vec<(f64, f64)>) = match height {
+        CameraHeight::Constant(m) => {
+            let m = positive(*m, "camera_height")?;
+            let mut v = h.clone();
+            let med = median(&mut v);
+            (m / med, h.iter().map(|&x| (x, m)).collect())
+        }
+        CameraHeight::First(m) => {
+            let m = positive(*m, "camera_height")?;
+            (m / h[0], vec![(h[0], m)])
+        }
+        CameraHeight::PerPose(v) => {
+            if v.len() != h.len() {
+                return Err(Error::ShapeMismatch {
+                    what: "camera heights".into(),
+                    expected: format!("({},), one per pose", h.len()),
+                    got: format!("({},)", v.len()),
+                });
+            }
+            for &m in v {
+                positive(m, "camera heights")?;
+            }
+            let (num, den) = h
+                .iter()
+                .zip(v)
+                .fold((0.0, 0.0), |(a, b), (x, m)| (a + x * m, b + x * x));
+            (
+                num / den,
+                h.iter().copied().zip(v.iter().copied()).collect(),
+            )
+        }
+    };
+    if !(scale.is_finite() && scale > 0.0) {
+        let first = h.first().copied().unwrap_or(f64::NAN);
+        return Err(Error::Degenerate {
+            reason: format!(
+                "the cameras are not above the ground plane (first camera at {first:+.4} units)"
+            ),
+            value: first,
+        });
+    }
+    let height_rms = (given
+        .iter()
+        .map(|(x, m)| (scale * x - m).powi(2))
+        .sum::<f64>()
+        / given.len() as f64)
+        .sqrt();
+    // z up: the rotation taking the normal to +z, then the yaw that puts the
+    // first camera's heading (its optical axis on the ground) along +x.
+    let tilt =
+        UnitQuaternion::rotation_between(&plane.normal, &Vector3::z()).unwrap_or_else(|| {
+            UnitQuaternion::from_axis_angle(&Vector3::x_axis(), std::f64::consts::PI)
+        });
+    let heading = cameras
+        .orientations
+        .as_ref()
+        .map(|o| tilt * (o[0] * Vector3::z()))
+        .filter(|f| f.x.hypot(f.y) > 1e-6);
+    let yaw = heading.map_or(0.0, |f| -f.y.atan2(f.x));
+    let rotation = UnitQuaternion::from_axis_angle(&Vector3::z_axis(), yaw) * tilt;
+    let foot = cameras.positions[0] - h[0] * plane.normal;
+    let t_world_slam = Sim3 {
+        rotation,
+        translation: -(scale * (rotation * foot)),
+        scale,
+    };
+    Ok(HeightScale {
+        t_world_slam,
+        scale,
+        heights: h,
+        height_rms,
+    })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use nalgebra::Rotation3;
+
+    /// A room in SLAM units (scale `1 / s` of metres): a floor at z = 0
+    /// (metric), two walls, cameras at 1.2 m looking ahead with a little
+    /// roll and pitch; the SLAM frame turned and shifted.
+    fn room(table: bool, floor: bool) -> (Vec<Vector3<f64>>, Trajectory, Sim3) {
+        let mut rng = ChaCha8Rng::seed_from_u64(7);
+        let mut noise = |s: f64| (rng.random::<f64>() - 0.5) * 2.0 * s;
+        let mut world = Vec::new();
+        for _ in 0..3000 {
+            let (x, y) = (noise(5.0), noise(5.0));
+            if floor {
+                world.push(Vector3::new(x, y, noise(0.01)));
+            }
+            world.push(Vector3::new(5.0 + noise(0.01), y, 1.5 + noise(1.5)));
+            world.push(Vector3::new(x, 5.0 + noise(0.01), 1.5 + noise(1.5)));
+            if table && x.abs() < 4.2 && y.abs() < 4.2 {
+                world.push(Vector3::new(x, y, 0.75 + noise(0.01)));
+            }
+        }
+        let mut stamps = Vec::new();
+        let mut pos = Vec::new();
+        let mut rot = Vec::new();
+        for k in 0..40 {
+            let a = k as f64 * 0.15;
+            stamps.push(k as f64);
+            pos.push(Vector3::new(2.0 * a.cos(), 2.0 * a.sin(), 1.2));
+            // Camera: z ahead (tangent), y down, with a few degrees of roll and pitch.
+            let ahead = Vector3::new(-a.sin(), a.cos(), 0.0);
+            let down = -Vector3::z();
+            let right = down.cross(&ahead);
+            let r = Matrix3::from_columns(&[right, down, ahead]);
+            let wobble = UnitQuaternion::from_euler_angles(noise(0.05), noise(0.05), 0.0);
+            rot.push(
+                UnitQuaternion::from_rotation_matrix(&Rotation3::from_matrix_unchecked(r)) * wobble,
+            );
+        }
+        // The SLAM frame: metres × 1/2.5, turned and shifted.
+        let t_slam_world = Sim3 {
+            rotation: UnitQuaternion::from_euler_angles(0.4, -1.0, 2.0),
+            translation: Vector3::new(3.0, -1.0, 0.5),
+            scale: 0.4,
+        };
+        let pts = world
+            .iter()
+            .map(|p| t_slam_world.transform_point(p))
+            .collect();
+        let cams = Trajectory::try_new(
+            stamps,
+            pos.iter()
+                .map(|p| t_slam_world.transform_point(p))
+                .collect(),
+            Some(rot.iter().map(|q| t_slam_world.rotation * q).collect()),
+        )
+        .unwrap();
+        (pts, cams, t_slam_world)
+    }
+
+    #[test]
+    fn the_floor_and_a_known_height_give_scale_and_gravity() {
+        let (pts, cams, t_slam_world) = room(false, true);
+        let plane = fit_ground_plane(&pts, &cams, &GroundOptions::default()).unwrap();
+        assert!(plane.inliers >= 2900, "{plane:?}");
+        let up = t_slam_world.rotation * Vector3::z();
+        assert!(plane.normal.angle(&up).to_degrees() < 0.2, "{plane:?}");
+        let m = metric_from_height(&plane, &cams, &CameraHeight::Constant(1.2)).unwrap();
+        assert!((m.scale - 2.5).abs() < 0.01 * 2.5, "{}", m.scale);
+        // In the world frame the cameras ride at 1.2 m and the first one is over the origin.
+        let c0 = m.t_world_slam.transform_point(&cams.positions[0]);
+        assert!(
+            c0.x.abs() < 1e-9 && c0.y.abs() < 1e-9 && (c0.z - 1.2).abs() < 0.02,
+            "{c0:?}"
+        );
+        let first = metric_from_height(&plane, &cams, &CameraHeight::First(1.2)).unwrap();
+        assert!((first.scale - 2.5).abs() < 0.02 * 2.5, "{}", first.scale);
+        let per = metric_from_height(&plane, &cams, &CameraHeight::PerPose(vec![1.2; 40])).unwrap();
+        assert!((per.scale - 2.5).abs() < 0.01 * 2.5, "{}", per.scale);
+        assert!(metric_from_height(&plane, &cams, &CameraHeight::PerPose(vec![1.2; 3])).is_err());
+        assert!(metric_from_height(&plane, &cams, &CameraHeight::Constant(-1.0)).is_err());
+    }
+
+    #[test]
+    fn no_floor_or_a_rival_table_is_refused() {
+        let (pts, cams, _) = room(false, false);
+        let e = fit_ground_plane(&pts, &cams, &GroundOptions::default())
+            .unwrap_err()
+            .to_string();
+        assert!(e.contains("no plane"), "{e}");
+        let (pts, cams, _) = room(true, true);
+        let e = fit_ground_plane(&pts, &cams, &GroundOptions::default())
+            .unwrap_err()
+            .to_string();
+        assert!(e.contains("similar support"), "{e}");
+        let (pts, cams, _) = room(true, false);
+        let e = fit_ground_plane(&pts, &cams, &GroundOptions::default())
+            .unwrap_err()
+            .to_string();
+        assert!(
+            e.contains("not above") || e.contains("no plane") || e.contains("under"),
+            "{e}"
+        );
+    }
+}
