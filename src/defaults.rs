@@ -106,9 +106,10 @@ pub const HTML_MAX_VOXELS: usize = 200_000;
 pub const GROUND_MAX_UP_ANGLE_DEG: f64 = 35.0;
 /// Ground plane: fewest inliers of a floor candidate.
 pub const GROUND_MIN_INLIERS: usize = 30;
-/// Ground plane: a second candidate with this share of the best one's
-/// support makes the floor ambiguous.
-pub const GROUND_RIVAL_SHARE: f64 = 0.5;
+/// Ground plane: a plane is large with at least this share of the largest
+/// one's support, and the ground is the lowest large plane (rows of edges
+/// along boxes standing on a floor hold twice the floor's points).
+pub const GROUND_LARGE_SHARE: f64 = 0.25;
 /// Ground plane: largest share of the points under the floor.
 pub const GROUND_MAX_BELOW: f64 = 0.05;
 /// Voxel edge of the octree `slam2world demo` builds, metres.
@@ -143,7 +144,7 @@ pub const TABLE: &[(&str, Value)] = &[
     ("max_tilt_deg", Value::Float(MAX_TILT_DEG)),
     ("max_up_angle_deg", Value::Float(GROUND_MAX_UP_ANGLE_DEG)),
     ("min_inliers", Value::Int(GROUND_MIN_INLIERS as i64)),
-    ("rival_share", Value::Float(GROUND_RIVAL_SHARE)),
+    ("large_share", Value::Float(GROUND_LARGE_SHARE)),
     ("max_below", Value::Float(GROUND_MAX_BELOW)),
     ("gravity", Value::Float(GRAVITY)),
     (

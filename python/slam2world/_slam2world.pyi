@@ -346,7 +346,7 @@ def ground_plane(
     *,
     max_up_angle_deg: float | None = 35.0,
     min_inliers: int = 30,
-    rival_share: float = 0.5,
+    large_share: float = 0.25,
     max_below: float = 0.05,
 ) -> GroundPlane: ...
 def metric_from_height(

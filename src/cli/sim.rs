@@ -290,7 +290,11 @@ pub fn run_evaluate(args: &EvaluateArgs) -> Result<()> {
             if f.timestamps.len() == f.positions.len()
                 && truth.stages.stable_start < f.timestamps.len() =>
         {
-            let path = CameraPath::paper(cfg.n_frames as f64 / cfg.fps, cfg.path_length)?;
+            let path = CameraPath::with_heights(
+                cfg.n_frames as f64 / cfg.fps,
+                cfg.path_length,
+                cfg.path_heights(),
+            )?;
             let k = truth.stages.stable_start;
             let traj = Trajectory::try_new(
                 f.timestamps[k..].to_vec(),

@@ -131,8 +131,8 @@ impl PyHeightScale {
 /// `DegenerateError` with the reason when no plane is the ground.
 #[pyfunction(name = "ground_plane")]
 #[pyo3(
-    signature = (points, cameras, *, max_up_angle_deg=Some(defaults::GROUND_MAX_UP_ANGLE_DEG), min_inliers=defaults::GROUND_MIN_INLIERS, rival_share=defaults::GROUND_RIVAL_SHARE, max_below=defaults::GROUND_MAX_BELOW),
-    text_signature = "(points, cameras, *, max_up_angle_deg=35.0, min_inliers=30, rival_share=0.5, max_below=0.05)"
+    signature = (points, cameras, *, max_up_angle_deg=Some(defaults::GROUND_MAX_UP_ANGLE_DEG), min_inliers=defaults::GROUND_MIN_INLIERS, large_share=defaults::GROUND_LARGE_SHARE, max_below=defaults::GROUND_MAX_BELOW),
+    text_signature = "(points, cameras, *, max_up_angle_deg=35.0, min_inliers=30, large_share=0.25, max_below=0.05)"
 )]
 fn ground_plane_py(
     py: Python<'_>,
@@ -140,14 +140,14 @@ fn ground_plane_py(
     cameras: &PyTrajectory,
     max_up_angle_deg: Option<f64>,
     min_inliers: usize,
-    rival_share: f64,
+    large_share: f64,
     max_below: f64,
 ) -> PyResult<PyGroundPlane> {
     let pts: Vec<Vector3<f64>> = vectors(points, "points")?;
     let opts = GroundOptions {
         max_up_angle_deg,
         min_inliers,
-        rival_share,
+        large_share,
         max_below,
         ..GroundOptions::default()
     };

@@ -24,8 +24,21 @@ use crate::keyframe::Keyframe;
 use crate::trajectory::Trajectory;
 
 pub use evaluate::{evaluate, ErrorStats, Evaluation, TransformError};
-pub use path::CameraPath;
+pub use path::{CameraPath, PathHeights};
 pub use scene::Scene;
+
+fn paper_camera_height() -> f64 {
+    path::PathHeights::default().height
+}
+fn paper_height_loop() -> f64 {
+    path::PathHeights::default().per_loop
+}
+fn paper_height_slow() -> f64 {
+    path::PathHeights::default().slow
+}
+fn paper_look_height() -> f64 {
+    path::PathHeights::default().look
+}
 
 /// Every size, stage boundary and noise level of a run. `Default` is the
 /// paper's full size with realistic noise; [`SimConfig::noiseless`] switches
@@ -50,6 +63,19 @@ pub struct SimConfig {
     pub path_length: f64,
     /// SLAM path length, SLAM units (paper: 12.6); sets the true scale.
     pub slam_path_length: f64,
+    /// Mean camera height above the floor, metres (paper: 2).
+    #[serde(default = "paper_camera_height")]
+    pub camera_height: f64,
+    /// Camera height change per loop (amplitude), metres (paper: 0.35; a
+    /// ground vehicle: 0).
+    #[serde(default = "paper_height_loop")]
+    pub height_loop: f64,
+    /// Slow camera height change over the run (amplitude), metres (paper: 0.25).
+    #[serde(default = "paper_height_slow")]
+    pub height_slow: f64,
+    /// Height of the point the camera looks at, metres (paper: 0.3).
+    #[serde(default = "paper_look_height")]
+    pub look_height: f64,
     /// Minimum image gradient of a pixel with depth, grey levels per pixel.
     pub min_gradient: f32,
     /// Relative inverse-depth noise `σ_rel` (see [`render`]).
@@ -112,6 +138,10 @@ impl Default for SimConfig {
             hfov_deg: 75.0,
             path_length: 195.12,
             slam_path_length: 12.6,
+            camera_height: paper_camera_height(),
+            height_loop: paper_height_loop(),
+            height_slow: paper_height_slow(),
+            look_height: paper_look_height(),
             min_gradient: 5.0,
             idepth_rel_sigma: 0.01,
             converge_start: 1100,
@@ -141,6 +171,16 @@ impl Default for SimConfig {
 }
 
 impl SimConfig {
+    /// The camera path's heights.
+    pub fn path_heights(&self) -> path::PathHeights {
+        path::PathHeights {
+            height: self.camera_height,
+            per_loop: self.height_loop,
+            slow: self.height_slow,
+            look: self.look_height,
+        }
+    }
+
     /// The same run with every error off: no scale wander, no drift, no pose,
     /// depth, reference or IMU noise.
     pub fn noiseless(mut self) -> Self {
@@ -208,6 +248,10 @@ impl SimConfig {
             "hfov_deg" => self.hfov_deg = value,
             "path_length" => self.path_length = value,
             "slam_path_length" => self.slam_path_length = value,
+            "camera_height" => self.camera_height = value,
+            "height_loop" => self.height_loop = value,
+            "height_slow" => self.height_slow = value,
+            "look_height" => self.look_height = value,
             "min_gradient" => self.min_gradient = value as f32,
             "idepth_rel_sigma" => self.idepth_rel_sigma = value,
             "init_scale" => self.init_scale = value,
@@ -288,6 +332,7 @@ impl SimConfig {
             ("path_length", self.path_length),
             ("slam_path_length", self.slam_path_length),
             ("init_scale", self.init_scale),
+            ("camera_height", self.camera_height),
         ] {
             if !(v.is_finite() && v > 0.0) {
                 return Err(Error::invalid(
@@ -314,6 +359,9 @@ impl SimConfig {
             ("gyro_random_walk", self.gyro_random_walk),
             ("accel_noise_density", self.accel_noise_density),
             ("accel_random_walk", self.accel_random_walk),
+            ("height_loop", self.height_loop),
+            ("height_slow", self.height_slow),
+            ("look_height", self.look_height),
         ] {
             if !(v.is_finite() && v >= 0.0) {
                 return Err(Error::invalid(
@@ -321,6 +369,15 @@ impl SimConfig {
                     format!("must be finite and ≥ 0, got {v}"),
                 ));
             }
+        }
+        if self.height_loop + self.height_slow >= self.camera_height {
+            return Err(Error::invalid(
+                "camera_height",
+                format!(
+                    "the camera would reach the floor: {} m less {} + {} m of height change",
+                    self.camera_height, self.height_loop, self.height_slow
+                ),
+            ));
         }
         if !self.scale_drift.is_finite() {
             return Err(Error::invalid("scale_drift", "must be finite"));
@@ -401,7 +458,7 @@ pub fn simulate(cfg: &SimConfig) -> Result<Simulation> {
     let camera = PinholeCamera::from_hfov(cfg.width, cfg.height, cfg.hfov_deg)?;
     let scene = Scene::paper()?;
     let duration = cfg.n_frames as f64 / cfg.fps;
-    let path = CameraPath::paper(duration, cfg.path_length)?;
+    let path = CameraPath::with_heights(duration, cfg.path_length, cfg.path_heights())?;
     let times = cfg.frame_times();
     let states: Vec<_> = times.par_iter().map(|&t| path.state(t)).collect();
     let world_pos: Vec<Vector3<f64>> = states.iter().map(|s| s.position).collect();
@@ -575,6 +632,20 @@ mod tests {
             ..SimConfig::default()
         };
         assert!(bad.validate().is_err());
+        let bad = SimConfig {
+            camera_height: 0.5,
+            ..SimConfig::default()
+        };
+        let e = bad.validate().unwrap_err().to_string();
+        assert!(e.contains("reach the floor"), "{e}");
+        // A truth sidecar written before the path's heights were knobs reads
+        // with the paper's.
+        let mut old = serde_json::to_value(SimConfig::default()).unwrap();
+        for k in ["camera_height", "height_loop", "height_slow", "look_height"] {
+            old.as_object_mut().unwrap().remove(k);
+        }
+        let back: SimConfig = serde_json::from_value(old).unwrap();
+        assert_eq!(back, SimConfig::default());
         let kf = SimConfig::default().keyframe_frames();
         assert_eq!(kf.len(), 123);
         assert_eq!(kf[0], 0);

@@ -46,6 +46,33 @@ pub struct CameraPath {
     pub height_loop: f64,
     /// Slow height change over the run (amplitude), metres.
     pub height_slow: f64,
+    /// Height of the point the camera looks at, metres.
+    pub look_height: f64,
+}
+
+/// The heights of a path (see [`CameraPath`]'s fields), metres.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct PathHeights {
+    /// Mean camera height.
+    pub height: f64,
+    /// Change per loop (amplitude).
+    pub per_loop: f64,
+    /// Slow change over the run (amplitude).
+    pub slow: f64,
+    /// Height of the point looked at.
+    pub look: f64,
+}
+
+impl Default for PathHeights {
+    /// The paper's: 2 m ± 0.35 m per loop ± 0.25 m over the run, looking at 0.3 m.
+    fn default() -> Self {
+        PathHeights {
+            height: 2.0,
+            per_loop: 0.35,
+            slow: 0.25,
+            look: 0.3,
+        }
+    }
 }
 
 const THETA0: f64 = -std::f64::consts::FRAC_PI_2;
@@ -54,6 +81,12 @@ const ROT_STEP: f64 = 1e-4;
 impl CameraPath {
     /// The paper's path: `duration` seconds long, `length` metres long.
     pub fn paper(duration: f64, length: f64) -> Result<Self> {
+        Self::with_heights(duration, length, PathHeights::default())
+    }
+
+    /// The paper's loop at other heights (a ground vehicle: a constant
+    /// height, looking ahead).
+    pub fn with_heights(duration: f64, length: f64, heights: PathHeights) -> Result<Self> {
         if !(duration.is_finite() && duration > 0.0) {
             return Err(Error::invalid(
                 "duration",
@@ -71,9 +104,10 @@ impl CameraPath {
             omega: 1.0,
             radii: [3.6, 1.5],
             wobble: 0.6,
-            height: 2.0,
-            height_loop: 0.35,
-            height_slow: 0.25,
+            height: heights.height,
+            height_loop: heights.per_loop,
+            height_slow: heights.slow,
+            look_height: heights.look,
         };
         // The length grows with ω: bisect.
         let (mut lo, mut hi) = (1e-3, 50.0);
@@ -146,7 +180,7 @@ impl CameraPath {
         let th = self.omega * t + THETA0;
         let yaw = th + std::f64::consts::PI + 0.5 * (0.37 * th).sin() + 0.3 * (2.0 * th).sin();
         let (s, c) = yaw.sin_cos();
-        Vector3::new(1.4 * c, 0.7 * s, 0.3)
+        Vector3::new(1.4 * c, 0.7 * s, self.look_height)
     }
 
     /// `R_world_cam` at `t`: z towards the target, x horizontal (right), y down.

@@ -24,6 +24,7 @@ mod colmap;
 mod droid;
 mod geo;
 mod grid;
+mod ground;
 mod imu;
 mod imu_sim;
 mod mcap;
