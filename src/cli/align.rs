@@ -6,10 +6,14 @@
 //! A REF of GNSS fixes (`align EST FIXES`, `align LOG --est-topic T
 //! --gnss-topic G`) is fitted in ENU at `--origin`, as `convert` fits it.
 
-use std::path::{Path, PathBuf};
+use std::path::PathBuf;
 
 use clap::Args;
 
+use super::align_files::{
+    aligned_bytes, check_indexed, in_unit, paired_by_name, read_as_written, transform_bytes,
+    unstamped, Read,
+};
 use super::ape_plot;
 use super::args::{
     finite, fit_text, gnss_format, gnss_text, print, print_json, time_unit, FitArgs, GnssFitArgs,
@@ -19,20 +23,15 @@ use crate::align::handeye::estimate_body_from_cam_trajectories;
 use crate::align::trajectories::align_trajectories_weighted;
 use crate::error::{Error, Result};
 use crate::geo::GnssFixes;
-use crate::geometry::Sim3;
 use crate::io::atomic::OutputSet;
-use crate::io::colmap::image_name_time;
 use crate::io::gnss::{read_gnss, GnssFormat};
-use crate::io::kitti::{self, read_kitti, read_times, KittiStamps};
 use crate::io::log::{read_log, ReadOptions};
-use crate::io::text::{euroc_bytes, match_time_units, tum_bytes, TimeUnit, TrajectoryFormat};
-use crate::io::transforms::{read_dataparser, read_transforms, Transforms};
+use crate::io::text::{match_time_units, TimeUnit, TrajectoryFormat};
+use crate::io::transforms::{read_dataparser, Transforms};
 use crate::pipeline::figures::FigureData;
 use crate::pipeline::gnss;
 use crate::pipeline::html::{write_html, Page, Summary};
-use crate::pipeline::report::{
-    AlignReport, ApeReport, FitReport, HandEyeReport, TimeUnitsReport, TransformReport,
-};
+use crate::pipeline::report::{AlignReport, ApeReport, FitReport, HandEyeReport, TimeUnitsReport};
 use crate::trajectory::Trajectory;
 
 /// clap parser of a trajectory format.
@@ -329,57 +328,6 @@ pub fn run(args: AlignArgs) -> Result<()> {
     print(&(text(&report) + &written))
 }
 
-/// The estimate carried by `t` (every pose) as `format` writes it; TUM
-/// stamps in `unit`, the one EST was written in.
-fn aligned_bytes(
-    est: &Trajectory,
-    scene: Option<&Transforms>,
-    t: &Sim3,
-    format: TrajectoryFormat,
-    unit: TimeUnit,
-) -> Result<Vec<u8>> {
-    let mut aligned = est.transformed(t);
-    match format {
-        TrajectoryFormat::Transforms => match scene {
-            Some(s) => s.carried_bytes(t),
-            None => Err(Error::invalid(
-                "--output-format",
-                "transforms needs EST to be a transforms.json (its other keys are written back)",
-            )),
-        },
-        TrajectoryFormat::Tum => {
-            aligned.timestamps = unit.written(&aligned.timestamps);
-            tum_bytes(&aligned)
-        }
-        TrajectoryFormat::Euroc => euroc_bytes(&aligned),
-        TrajectoryFormat::Kitti => kitti::kitti_bytes(&aligned),
-    }
-}
-
-/// `t` as `--save-transform` writes it: JSON for a `.json` path (the
-/// reports' transform: quaternion, translation, scale, matrix), else the
-/// 4×4 matrix as 4 lines of 4 numbers (the shortest form that reads back
-/// exactly).
-fn transform_bytes(path: &Path, t: &Sim3) -> Result<Vec<u8>> {
-    let json = path
-        .extension()
-        .is_some_and(|e| e.eq_ignore_ascii_case("json"));
-    if json {
-        let mut v = serde_json::to_vec_pretty(&TransformReport::from(t))
-            .map_err(|e| Error::invalid("--save-transform", e.to_string()))?;
-        v.push(b'\n');
-        return Ok(v);
-    }
-    let m = t.matrix();
-    let rows: Vec<String> = (0..4)
-        .map(|r| {
-            let row: Vec<String> = (0..4).map(|c| m[(r, c)].to_string()).collect();
-            row.join(" ") + "\n"
-        })
-        .collect();
-    Ok(rows.concat().into_bytes())
-}
-
 /// What `align` fits: the estimate and the reference, with the names the
 /// report gives them (`LOG:TOPIC` for topics) and, for two files, the units
 /// of their stamps.
@@ -410,199 +358,6 @@ enum FixSource {
     Topic(String),
 }
 
-/// A trajectory file and the unit its stamps were read in: TUM stamps as
-/// they are written (seconds; every row kept, as evo reads them), EuRoC's
-/// nanoseconds, a KITTI file's from `times` / `rate` (seconds) or its pose
-/// index (`indexed`).
-struct Read {
-    trajectory: Trajectory,
-    unit: TimeUnit,
-    /// The stamps are the poses' index (a KITTI file without stamps).
-    indexed: bool,
-    /// `unit` is the format's (EuRoC nanoseconds; a KITTI rate or index),
-    /// not to be found from the values.
-    known: bool,
-    /// The scene, when the file is a `transforms.json`.
-    scene: Option<Transforms>,
-}
-
-/// Reads `path` as `format`; `times` and `rate` (the `--*-times`,
-/// `--*-rate` of `side`) give a KITTI file its stamps.
-fn read_as_written(
-    format: TrajectoryFormat,
-    path: &Path,
-    times: Option<&Path>,
-    rate: Option<f64>,
-    side: &str,
-) -> Result<Read> {
-    if format != TrajectoryFormat::Kitti && (times.is_some() || rate.is_some()) {
-        return Err(Error::invalid(
-            format!("--{side}-times/--{side}-rate"),
-            format!(
-                "give stamps to KITTI files only; {} is read as {format:?} (stamps in the file)",
-                path.display()
-            ),
-        ));
-    }
-    let read = |trajectory, unit, known| Read {
-        trajectory,
-        unit,
-        indexed: false,
-        known,
-        scene: None,
-    };
-    Ok(match format {
-        TrajectoryFormat::Tum => read(format.read(path)?, TimeUnit::Seconds, false),
-        TrajectoryFormat::Euroc => read(format.read(path)?, TimeUnit::Nanoseconds, true),
-        TrajectoryFormat::Kitti => {
-            let stamps = match (times, rate) {
-                (Some(t), _) => KittiStamps::Times(read_times(t)?),
-                (None, Some(r)) => KittiStamps::Rate(r),
-                (None, None) => KittiStamps::Index,
-            };
-            let indexed = stamps == KittiStamps::Index;
-            Read {
-                known: !matches!(stamps, KittiStamps::Times(_)),
-                trajectory: read_kitti(path, &stamps)?,
-                unit: TimeUnit::Seconds,
-                indexed,
-                scene: None,
-            }
-        }
-        TrajectoryFormat::Transforms => {
-            let scene = read_transforms(path)?;
-            // Frames named by stamps are timed by them; else the frame order.
-            let indexed = scene
-                .frames
-                .iter()
-                .any(|f| image_name_time(&f.file_path).is_none());
-            Read {
-                trajectory: scene.trajectory()?,
-                unit: TimeUnit::Seconds,
-                indexed,
-                // Seconds: the names' stamps or the frame order.
-                known: true,
-                scene: Some(scene),
-            }
-        }
-    })
-}
-
-/// REF's poses restamped to pair with EST's by file name
-/// ([`Transforms::key`]): each REF frame takes the stamp of the EST frame of
-/// its name; frames of no shared name are left out. Fewer than three shared
-/// names, or a name twice in one scene, is an error.
-fn paired_by_name(
-    est: &Transforms,
-    est_traj: &Trajectory,
-    r: &Transforms,
-    ref_path: &Path,
-) -> Result<Trajectory> {
-    let (stamps, frames) = est.stamped();
-    let mut by_key = std::collections::HashMap::new();
-    for (t, f) in stamps.iter().zip(&frames) {
-        if by_key.insert(Transforms::key(&f.file_path), *t).is_some() {
-            return Err(Error::invalid(
-                "EST",
-                format!("two frames named {}: frames pair by file name", f.file_path),
-            ));
-        }
-    }
-    let ref_traj = r.trajectory()?;
-    let (_, ref_frames) = r.stamped();
-    let mut rows: Vec<(f64, usize)> = Vec::new();
-    let mut seen = std::collections::HashSet::new();
-    for (i, f) in ref_frames.iter().enumerate() {
-        let key = Transforms::key(&f.file_path);
-        if !seen.insert(key) {
-            return Err(Error::invalid(
-                "REF",
-                format!("two frames named {}: frames pair by file name", f.file_path),
-            ));
-        }
-        if let Some(&t) = by_key.get(key) {
-            rows.push((t, i));
-        }
-    }
-    if rows.len() < 3 {
-        return Err(Error::invalid(
-            "EST/REF",
-            format!(
-                "{} of the {} frames of {} share a file name with the {} of EST: two \
-                 transforms.json pair by file name, and a fit needs 3",
-                rows.len(),
-                ref_frames.len(),
-                ref_path.display(),
-                est_traj.len()
-            ),
-        ));
-    }
-    rows.sort_by(|a, b| a.0.total_cmp(&b.0));
-    let o = ref_traj.orientations.as_ref();
-    Trajectory::try_new(
-        rows.iter().map(|r| r.0).collect(),
-        rows.iter().map(|r| ref_traj.positions[r.1]).collect(),
-        o.map(|o| rows.iter().map(|r| o[r.1]).collect()),
-    )
-}
-
-/// Two KITTI files without stamps pair by index (as many poses in each);
-/// one without stamps beside stamped poses cannot be paired.
-fn check_indexed(est: &Read, r: &Read, est_path: &Path, ref_path: &Path) -> Result<()> {
-    let (n, m) = (est.trajectory.len(), r.trajectory.len());
-    match (est.indexed, r.indexed) {
-        (true, true) if n != m => Err(Error::invalid(
-            "EST/REF",
-            format!(
-                "{} has {n} poses and {} has {m}: files without stamps (KITTI, a \
-                 transforms.json timed by its frame order) pair by index and need as many \
-                 poses (or give KITTI files --est-times/--ref-times)",
-                est_path.display(),
-                ref_path.display()
-            ),
-        )),
-        (true, false) | (false, true) => {
-            let (side, path, read) = if est.indexed {
-                ("est", est_path, est)
-            } else {
-                ("ref", ref_path, r)
-            };
-            Err(unstamped(read, path, side, "the other side's stamps"))
-        }
-        _ => Ok(()),
-    }
-}
-
-/// The error of a file without stamps (`side` its flags' prefix) that was
-/// to pair with `what` by time.
-fn unstamped(read: &Read, path: &Path, side: &str, what: &str) -> Error {
-    if read.scene.is_some() {
-        return Error::invalid(
-            "EST/REF",
-            format!(
-                "{}: no frame's file name is a stamp, so its frames are timed by their order \
-                 and cannot pair with {what}; it pairs with another transforms.json of the \
-                 same images (by file name) or by index with KITTI poses without stamps",
-                path.display()
-            ),
-        );
-    }
-    Error::invalid(
-        format!("--{side}-times"),
-        format!(
-            "{} is a KITTI file without stamps: give --{side}-times times.txt or --{side}-rate \
-             HZ to pair it with {what}",
-            path.display()
-        ),
-    )
-}
-
-/// `t`, read in `read`, with its stamps in seconds of `unit`.
-fn in_unit(mut t: Trajectory, read: TimeUnit, unit: TimeUnit) -> Trajectory {
-    read.reread(&mut t.timestamps, unit);
-    t
-}
-
 /// The estimate and the reference, from two files (the units of their
 /// stamps found against each other, [`match_time_units`]; REF poses or GNSS
 /// fixes) or from two topics of a log.
@@ -631,11 +386,14 @@ fn inputs(args: &AlignArgs, offset: f64) -> Result<Inputs> {
             if est_side.indexed {
                 return Err(unstamped(&est_side, &args.est, "est", "GNSS fixes"));
             }
+            // EuRoC's nanoseconds, a KITTI rate's or a scene's seconds are known.
+            let est_given = args
+                .est_time_unit
+                .or(est_side.known.then_some(est_side.unit));
             let est_scene = est_side.scene;
             let (est, est_read) = (est_side.trajectory, est_side.unit);
             let fixes = read_gnss(reference, Some(format), args.geoid_offset)?;
             // Fix times are seconds (Unix, or of the day for NMEA without a date).
-            let est_given = args.est_time_unit;
             let (est_unit, _) = match_time_units(
                 &est_read.written(&est.timestamps),
                 &fixes.times,

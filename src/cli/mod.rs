@@ -10,6 +10,7 @@ use std::ffi::OsString;
 use clap::{Parser, Subcommand};
 
 pub mod align;
+mod align_files;
 pub mod ape_plot;
 pub mod args;
 pub mod convert;
