@@ -239,6 +239,72 @@ fn refine(
     Some((n, d, inliers))
 }
 
+/// The plane candidates of [`fit_ground_plane`]: surfaces found one after
+/// the other by RANSAC within `cone`, each with its inliers and the share
+/// of the cameras above it.
+fn search(
+    pts: &[Vector3<f64>],
+    cameras: &Trajectory,
+    cam_centroid: &Vector3<f64>,
+    cone: Option<(Vector3<f64>, f64)>,
+    tau0: f64,
+    opts: &GroundOptions,
+) -> Vec<Candidate> {
+    // The RANSAC draws run over at most 20 000 points (every k-th).
+    let stride = pts.len().div_ceil(20_000).max(1);
+    let mut active: Vec<usize> = (0..pts.len()).step_by(stride).collect();
+    let all: Vec<usize> = (0..pts.len()).collect();
+    let band = 5.0 * tau0;
+    let mut rng = ChaCha8Rng::seed_from_u64(opts.seed);
+    // Up to MAX_CANDIDATES candidates, each found in what the ones before left. A
+    // candidate is a surface when the points within five search thresholds
+    // of it gather near it (their robust sigma at most 0.4 of that band's
+    // half-width); a slice through a volume or across walls fills the band
+    // evenly (sigma ~0.74 of it). Its own threshold is three of its sigmas.
+    let mut candidates: Vec<Candidate> = Vec::new();
+    for _ in 0..8 {
+        if candidates.len() == MAX_CANDIDATES {
+            break;
+        }
+        let Some((n, d, count)) = ransac(pts, &active, cam_centroid, cone, tau0, &mut rng) else {
+            break;
+        };
+        if count * stride < opts.min_inliers {
+            break;
+        }
+        let mut r: Vec<f64> = all
+            .iter()
+            .map(|&i| (n.dot(&pts[i]) + d).abs())
+            .filter(|&x| x < band)
+            .collect();
+        let sigma = 1.4826 * median(&mut r);
+        active.retain(|&i| (n.dot(&pts[i]) + d).abs() >= band);
+        if sigma.is_nan() || sigma > 0.4 * band {
+            continue;
+        }
+        let tau = (3.0 * sigma).max(1e-12 * tau0);
+        let Some((n, d, inliers)) = refine(pts, &all, (n, d), cam_centroid, tau) else {
+            continue;
+        };
+        let above = cameras
+            .positions
+            .iter()
+            .filter(|c| n.dot(c) + d > 0.0)
+            .count() as f64
+            / cameras.len() as f64;
+        if inliers.len() >= opts.min_inliers {
+            candidates.push(Candidate {
+                normal: n,
+                offset: d,
+                inliers,
+                above,
+                tau,
+            });
+        }
+    }
+    candidates
+}
+
 /// The ground plane of `points` under `cameras` (positions; orientations,
 /// when given, bound the candidates' tilt). Errors: too few finite points,
 /// no plane of [`GroundOptions::min_inliers`] under the cameras, a rival of
@@ -283,58 +349,9 @@ pub fn fit_ground_plane(
             value: tau0,
         });
     }
-    // The RANSAC draws run over at most 20 000 points (every k-th).
-    let stride = pts.len().div_ceil(20_000).max(1);
-    let mut active: Vec<usize> = (0..pts.len()).step_by(stride).collect();
-    let all: Vec<usize> = (0..pts.len()).collect();
-    let mut rng = ChaCha8Rng::seed_from_u64(opts.seed);
-    // Up to MAX_CANDIDATES candidates, each found in what the ones before left. A
-    // candidate is a surface when the points within five search thresholds
-    // of it gather near it (their robust sigma at most 0.4 of that band's
-    // half-width); a slice through a volume or across walls fills the band
-    // evenly (sigma ~0.74 of it). Its own threshold is three of its sigmas.
     let band = 5.0 * tau0;
-    let mut candidates: Vec<Candidate> = Vec::new();
-    for _ in 0..8 {
-        if candidates.len() == MAX_CANDIDATES {
-            break;
-        }
-        let Some((n, d, count)) = ransac(&pts, &active, &cam_centroid, cone, tau0, &mut rng) else {
-            break;
-        };
-        if count * stride < opts.min_inliers {
-            break;
-        }
-        let mut r: Vec<f64> = all
-            .iter()
-            .map(|&i| (n.dot(&pts[i]) + d).abs())
-            .filter(|&x| x < band)
-            .collect();
-        let sigma = 1.4826 * median(&mut r);
-        active.retain(|&i| (n.dot(&pts[i]) + d).abs() >= band);
-        if sigma.is_nan() || sigma > 0.4 * band {
-            continue;
-        }
-        let tau = (3.0 * sigma).max(1e-12 * tau0);
-        let Some((n, d, inliers)) = refine(&pts, &all, (n, d), &cam_centroid, tau) else {
-            continue;
-        };
-        let above = cameras
-            .positions
-            .iter()
-            .filter(|c| n.dot(c) + d > 0.0)
-            .count() as f64
-            / cameras.len() as f64;
-        if inliers.len() >= opts.min_inliers {
-            candidates.push(Candidate {
-                normal: n,
-                offset: d,
-                inliers,
-                above,
-                tau,
-            });
-        }
-    }
+    let candidates = search(&pts, cameras, &cam_centroid, cone, tau0, opts);
+    let all: Vec<usize> = (0..pts.len()).collect();
     let under: Vec<&Candidate> = candidates.iter().filter(|c| c.above >= 0.9).collect();
     let most = under.iter().map(|c| c.inliers.len()).max().unwrap_or(0);
     // The ground: the lowest large plane (support at least `large_share` of

@@ -6,7 +6,7 @@
 //! A REF of GNSS fixes (`align EST FIXES`, `align LOG --est-topic T
 //! --gnss-topic G`) is fitted in ENU at `--origin`, as `convert` fits it.
 
-use std::path::PathBuf;
+use std::path::{Path, PathBuf};
 
 use clap::Args;
 
@@ -23,11 +23,12 @@ use crate::align::handeye::estimate_body_from_cam_trajectories;
 use crate::align::trajectories::align_trajectories_weighted;
 use crate::error::{Error, Result};
 use crate::geo::GnssFixes;
+use crate::geometry::Sim3;
 use crate::io::atomic::OutputSet;
 use crate::io::gnss::{read_gnss, GnssFormat};
 use crate::io::log::{read_log, ReadOptions};
 use crate::io::text::{match_time_units, TimeUnit, TrajectoryFormat};
-use crate::io::transforms::{read_dataparser, Transforms};
+use crate::io::transforms::{read_dataparser, Dataparser, Transforms};
 use crate::pipeline::figures::FigureData;
 use crate::pipeline::gnss;
 use crate::pipeline::html::{write_html, Page, Summary};
@@ -174,32 +175,7 @@ pub fn run(args: AlignArgs) -> Result<()> {
     let opts = args.fit.options();
     opts.check()?;
     // The outputs are none of the inputs: refused before the work.
-    let dataparser = match args.dataparser_transforms.as_slice() {
-        [input, output] => Some((read_dataparser(input)?, output)),
-        _ => None,
-    };
-    let mut outputs = OutputSet::new().with_inputs(
-        [
-            Some(&args.est),
-            args.reference.as_ref(),
-            args.est_times.as_ref(),
-            args.ref_times.as_ref(),
-            args.dataparser_transforms.first(),
-        ]
-        .into_iter()
-        .flatten(),
-    );
-    let dataparser_out = dataparser.as_ref().map(|d| d.1);
-    for path in [
-        args.output.as_ref(),
-        args.save_transform.as_ref(),
-        dataparser_out,
-    ]
-    .into_iter()
-    .flatten()
-    {
-        outputs.check_output(path)?;
-    }
+    let outputs = Outputs::check(&args)?;
     let Inputs {
         est,
         reference,
@@ -275,30 +251,7 @@ pub fn run(args: AlignArgs) -> Result<()> {
         body_from_cam_estimate: hand_eye.as_ref().map(|(he, n)| HandEyeReport::of(he, *n)),
         gnss: gnss.map(|g| g.report),
     };
-    let mut written = String::new();
-    if let Some(path) = &args.output {
-        let format = args.output_format.unwrap_or(est_format);
-        outputs.write_bytes(
-            path,
-            &aligned_bytes(&est, est_scene.as_ref(), &t, format, est_unit)?,
-        )?;
-        written += &format!(
-            "wrote {} (EST in the reference frame, {format:?})\n",
-            path.display()
-        );
-    }
-    if let Some(path) = &args.save_transform {
-        outputs.write_bytes(path, &transform_bytes(path, &t)?)?;
-        written += &format!("wrote {} (T_ref_est)\n", path.display());
-    }
-    if let Some((d, path)) = &dataparser {
-        outputs.write_bytes(path, &d.carried_bytes(&t)?)?;
-        written += &format!(
-            "wrote {} (the model's dataparser transform)\n",
-            path.display()
-        );
-    }
-    outputs.commit()?;
+    let mut written = outputs.write(&args, &est, est_scene.as_ref(), &t, est_format, est_unit)?;
     if args.plot || args.save_plot.is_some() {
         let save = args
             .save_plot
@@ -326,6 +279,77 @@ pub fn run(args: AlignArgs) -> Result<()> {
         return print_json(&report);
     }
     print(&(text(&report) + &written))
+}
+
+/// The files `align` writes besides its report (`-o`, `--save-transform`,
+/// `--dataparser-transforms`), checked before the work and written together.
+struct Outputs<'a> {
+    set: OutputSet,
+    /// The model's dataparser transform read, and where it goes.
+    dataparser: Option<(Dataparser, &'a Path)>,
+}
+
+impl<'a> Outputs<'a> {
+    /// Reads the dataparser transform and checks that no output is an input.
+    fn check(args: &'a AlignArgs) -> Result<Self> {
+        let dataparser = match args.dataparser_transforms.as_slice() {
+            [input, output] => Some((read_dataparser(input)?, output.as_path())),
+            _ => None,
+        };
+        let inputs = [
+            Some(&args.est),
+            args.reference.as_ref(),
+            args.est_times.as_ref(),
+            args.ref_times.as_ref(),
+            args.dataparser_transforms.first(),
+        ];
+        let set = OutputSet::new().with_inputs(inputs.into_iter().flatten());
+        let outs = [
+            args.output.as_deref(),
+            args.save_transform.as_deref(),
+            dataparser.as_ref().map(|d| d.1),
+        ];
+        for path in outs.into_iter().flatten() {
+            set.check_output(path)?;
+        }
+        Ok(Outputs { set, dataparser })
+    }
+
+    /// Writes the outputs of the fit `t` and publishes them; what was
+    /// written, a line each.
+    fn write(
+        mut self,
+        args: &AlignArgs,
+        est: &Trajectory,
+        scene: Option<&Transforms>,
+        t: &Sim3,
+        est_format: TrajectoryFormat,
+        est_unit: TimeUnit,
+    ) -> Result<String> {
+        let mut written = String::new();
+        if let Some(path) = &args.output {
+            let format = args.output_format.unwrap_or(est_format);
+            let bytes = aligned_bytes(est, scene, t, format, est_unit)?;
+            self.set.write_bytes(path, &bytes)?;
+            written += &format!(
+                "wrote {} (EST in the reference frame, {format:?})\n",
+                path.display()
+            );
+        }
+        if let Some(path) = &args.save_transform {
+            self.set.write_bytes(path, &transform_bytes(path, t)?)?;
+            written += &format!("wrote {} (T_ref_est)\n", path.display());
+        }
+        if let Some((d, path)) = &self.dataparser {
+            self.set.write_bytes(path, &d.carried_bytes(t)?)?;
+            written += &format!(
+                "wrote {} (the model's dataparser transform)\n",
+                path.display()
+            );
+        }
+        self.set.commit()?;
+        Ok(written)
+    }
 }
 
 /// What `align` fits: the estimate and the reference, with the names the

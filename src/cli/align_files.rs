@@ -11,7 +11,7 @@ use crate::geometry::Sim3;
 use crate::io::colmap::image_name_time;
 use crate::io::kitti::{self, read_kitti, read_times, KittiStamps};
 use crate::io::text::{euroc_bytes, tum_bytes, TimeUnit, TrajectoryFormat};
-use crate::io::transforms::{read_transforms, Transforms};
+use crate::io::transforms::{read_transforms, Frame, Transforms};
 use crate::pipeline::report::TransformReport;
 use crate::trajectory::Trajectory;
 
@@ -164,11 +164,9 @@ pub(super) fn paired_by_name(
             ));
         }
     }
-    let ref_traj = r.trajectory()?;
-    let (_, ref_frames) = r.stamped();
-    let mut rows: Vec<(f64, usize)> = Vec::new();
+    let mut rows: Vec<(f64, &Frame)> = Vec::new();
     let mut seen = std::collections::HashSet::new();
-    for (i, f) in ref_frames.iter().enumerate() {
+    for f in &r.frames {
         let key = Transforms::key(&f.file_path);
         if !seen.insert(key) {
             return Err(Error::invalid(
@@ -177,7 +175,7 @@ pub(super) fn paired_by_name(
             ));
         }
         if let Some(&t) = by_key.get(key) {
-            rows.push((t, i));
+            rows.push((t, f));
         }
     }
     if rows.len() < 3 {
@@ -187,18 +185,18 @@ pub(super) fn paired_by_name(
                 "{} of the {} frames of {} share a file name with the {} of EST: two \
                  transforms.json pair by file name, and a fit needs 3",
                 rows.len(),
-                ref_frames.len(),
+                r.frames.len(),
                 ref_path.display(),
                 est_traj.len()
             ),
         ));
     }
     rows.sort_by(|a, b| a.0.total_cmp(&b.0));
-    let o = ref_traj.orientations.as_ref();
+    let (positions, orientations) = rows.iter().map(|r| r.1.pose()).unzip();
     Trajectory::try_new(
         rows.iter().map(|r| r.0).collect(),
-        rows.iter().map(|r| ref_traj.positions[r.1]).collect(),
-        o.map(|o| rows.iter().map(|r| o[r.1]).collect()),
+        positions,
+        Some(orientations),
     )
 }
 

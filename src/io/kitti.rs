@@ -18,7 +18,7 @@ use std::path::Path;
 use nalgebra::{Matrix3, Rotation3, UnitQuaternion, Vector3};
 
 use crate::error::{num, Error, Result};
-use crate::io::lines::{for_each_line, head, parse_fields};
+use crate::io::lines::{for_each_line, head, parse_fields, pose_text};
 use crate::trajectory::Trajectory;
 
 /// Largest entry of `|RᵀR − I|` (and of `|det R − 1|`) a pose's 3×3 part may
@@ -190,20 +190,9 @@ pub fn looks_like_kitti(path: &Path) -> Result<bool> {
 /// ([`times_bytes`]).
 pub fn kitti_bytes(traj: &Trajectory) -> Result<Vec<u8>> {
     use std::fmt::Write as _;
-    traj.check_lengths()?;
-    if traj.is_empty() {
-        return Err(Error::invalid(
-            "trajectory",
-            "no poses to write (a KITTI file without rows is refused by its readers)",
-        ));
-    }
-    let mut s = String::with_capacity(200 * traj.len());
-    for i in 0..traj.len() {
-        let r = traj
-            .orientations
-            .as_ref()
-            .map_or_else(Matrix3::identity, |o| *o[i].to_rotation_matrix().matrix());
-        let t = traj.positions[i];
+    pose_text(traj, "KITTI", "", |s, _, t, q| {
+        let r = q.to_rotation_matrix();
+        let r = r.matrix();
         for row in 0..3 {
             let sep = if row == 0 { "" } else { " " };
             // Writing into a String cannot fail.
@@ -217,8 +206,7 @@ pub fn kitti_bytes(traj: &Trajectory) -> Result<Vec<u8>> {
             );
         }
         s.push('\n');
-    }
-    Ok(s.into_bytes())
+    })
 }
 
 /// The stamps of `traj` as a KITTI `times.txt` (one number of seconds a

@@ -1,12 +1,16 @@
-//! Reading text formats line by line, bounded: the trajectory and point
-//! readers (TUM, EuRoC, KITTI, IMU CSV, `x y z` points) go through
-//! [`for_each_line`] (lines of at most [`MAX_LINE_BYTES`], UTF-8, a byte-order
-//! mark dropped) and parse numbers with [`parse_fields`] (errors naming the
-//! line and field); a format is told from a file's [`head`] (KITTI, GNSS).
+//! Text formats line by line: the trajectory and point readers (TUM, EuRoC,
+//! KITTI, IMU CSV, `x y z` points) go through [`for_each_line`] (lines of at
+//! most [`MAX_LINE_BYTES`], UTF-8, a byte-order mark dropped) and parse
+//! numbers with [`parse_fields`] (errors naming the line and field); a format
+//! is told from a file's [`head`] (KITTI, GNSS); the pose writers (TUM,
+//! EuRoC, KITTI) write a line per pose with [`pose_text`].
 
 use std::path::Path;
 
+use nalgebra::{UnitQuaternion, Vector3};
+
 use crate::error::{Error, Result};
+use crate::trajectory::Trajectory;
 
 /// Longest line the text readers accept, bytes: far above any real pose
 /// line, so that a file without line breaks (`/dev/zero`) is refused at once.
@@ -115,4 +119,32 @@ pub(crate) fn bounded_lines(
         })?;
         f(line, text)?;
     }
+}
+
+/// The text of `traj` a line per pose: `header`, then `row(out, stamp,
+/// position, orientation)` for each pose (the identity for a trajectory
+/// without orientations). A file of these formats has no count in it, so
+/// one without rows reads as a wrong file to every reader (this one and
+/// evo): none is written (`format` names it in the error).
+pub(crate) fn pose_text(
+    traj: &Trajectory,
+    format: &str,
+    header: &str,
+    mut row: impl FnMut(&mut String, f64, &Vector3<f64>, &UnitQuaternion<f64>),
+) -> Result<Vec<u8>> {
+    traj.check_lengths()?;
+    if traj.is_empty() {
+        return Err(Error::invalid(
+            "trajectory",
+            format!("no poses to write (a {format} file without rows is refused by its readers)"),
+        ));
+    }
+    let identity = UnitQuaternion::identity();
+    let mut s = String::with_capacity(header.len() + 128 * traj.len());
+    s.push_str(header);
+    for i in 0..traj.len() {
+        let q = traj.orientations.as_ref().map_or(&identity, |o| &o[i]);
+        row(&mut s, traj.timestamps[i], &traj.positions[i], q);
+    }
+    Ok(s.into_bytes())
 }

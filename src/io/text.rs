@@ -17,7 +17,7 @@ use crate::error::{Error, Result};
 use crate::geometry::unit_quaternion_xyzw;
 use crate::imu::ImuSamples;
 pub use crate::io::lines::MAX_LINE_BYTES;
-use crate::io::lines::{bounded_lines, for_each_line, parse_fields};
+use crate::io::lines::{bounded_lines, for_each_line, parse_fields, pose_text};
 use crate::trajectory::Trajectory;
 
 /// Trajectory file formats.
@@ -217,31 +217,20 @@ pub fn write_tum(traj: &Trajectory, path: impl AsRef<Path>) -> Result<()> {
 /// The TUM text of `traj` ([`write_tum`]'s content).
 pub fn tum_bytes(traj: &Trajectory) -> Result<Vec<u8>> {
     use std::fmt::Write as _;
-    traj.check_lengths()?;
-    // A TUM file has no count in it: one with no rows reads as a wrong file to
-    // every reader (this one and evo), so none is written.
-    if traj.is_empty() {
-        return Err(Error::invalid(
-            "trajectory",
-            "no poses to write (a TUM file without rows is refused by its readers)",
-        ));
-    }
-    let mut s = String::with_capacity(64 * (traj.len() + 1));
-    s.push_str("# timestamp tx ty tz qx qy qz qw\n");
-    for i in 0..traj.len() {
-        let p = traj.positions[i];
-        let q = match &traj.orientations {
-            Some(o) => o[i].coords, // (x, y, z, w)
-            None => UnitQuaternion::<f64>::identity().coords,
-        };
-        // Writing into a String cannot fail.
-        let _ = writeln!(
-            s,
-            "{} {} {} {} {} {} {} {}",
-            traj.timestamps[i], p.x, p.y, p.z, q[0], q[1], q[2], q[3]
-        );
-    }
-    Ok(s.into_bytes())
+    pose_text(
+        traj,
+        "TUM",
+        "# timestamp tx ty tz qx qy qz qw\n",
+        |s, t, p, q| {
+            let q = q.coords; // (x, y, z, w)
+                              // Writing into a String cannot fail.
+            let _ = writeln!(
+                s,
+                "{t} {} {} {} {} {} {} {}",
+                p.x, p.y, p.z, q[0], q[1], q[2], q[3]
+            );
+        },
+    )
 }
 
 /// The EuRoC ground-truth CSV text of `traj`: a `#timestamp [ns],p_x [m],…`
@@ -250,28 +239,15 @@ pub fn tum_bytes(traj: &Trajectory) -> Result<Vec<u8>> {
 /// poses without orientation get the identity quaternion.
 pub fn euroc_bytes(traj: &Trajectory) -> Result<Vec<u8>> {
     use std::fmt::Write as _;
-    traj.check_lengths()?;
-    if traj.is_empty() {
-        return Err(Error::invalid(
-            "trajectory",
-            "no poses to write (a EuRoC file without rows is refused by its readers)",
-        ));
-    }
-    let mut s = String::with_capacity(80 * (traj.len() + 1));
-    s.push_str(
-        "#timestamp [ns],p_RS_R_x [m],p_RS_R_y [m],p_RS_R_z [m],q_RS_w [],q_RS_x [],q_RS_y [],q_RS_z []\n",
-    );
-    for i in 0..traj.len() {
-        let p = traj.positions[i];
-        let q = match &traj.orientations {
-            Some(o) => o[i].coords, // (x, y, z, w)
-            None => UnitQuaternion::<f64>::identity().coords,
-        };
-        // Writing into a String cannot fail.
+    let header = "#timestamp [ns],p_RS_R_x [m],p_RS_R_y [m],p_RS_R_z [m],q_RS_w [],q_RS_x [],\
+                  q_RS_y [],q_RS_z []\n";
+    pose_text(traj, "EuRoC", header, |s, t, p, q| {
+        let q = q.coords; // (x, y, z, w)
+                          // Writing into a String cannot fail.
         let _ = writeln!(
             s,
             "{:.0},{},{},{},{},{},{},{}",
-            traj.timestamps[i] * 1e9,
+            t * 1e9,
             p.x,
             p.y,
             p.z,
@@ -280,8 +256,7 @@ pub fn euroc_bytes(traj: &Trajectory) -> Result<Vec<u8>> {
             q[1],
             q[2]
         );
-    }
-    Ok(s.into_bytes())
+    })
 }
 
 /// Reads EuRoC `imu0/data.csv` content: `timestamp [ns], w_x, w_y, w_z

@@ -150,7 +150,7 @@ impl Transforms {
     /// stamped as [`Transforms::stamped`] says.
     pub fn trajectory(&self) -> Result<Trajectory> {
         let (stamps, frames) = self.stamped();
-        let (positions, orientations) = frames.iter().map(|f| pose(f)).unzip();
+        let (positions, orientations) = frames.iter().map(|f| f.pose()).unzip();
         Trajectory::try_new(stamps, positions, Some(orientations))
     }
 
@@ -278,12 +278,15 @@ impl Dataparser {
     }
 }
 
-/// A frame's camera centre and `R_world_cam` in the project's convention.
-fn pose(f: &Frame) -> (Vector3<f64>, UnitQuaternion<f64>) {
-    let m = &f.matrix;
-    let r = m.fixed_view::<3, 3>(0, 0) * flip();
-    let q = UnitQuaternion::from_rotation_matrix(&nalgebra::Rotation3::from_matrix_unchecked(r));
-    (Vector3::new(m[(0, 3)], m[(1, 3)], m[(2, 3)]), q)
+impl Frame {
+    /// The camera centre and `R_world_cam` in the project's convention.
+    pub fn pose(&self) -> (Vector3<f64>, UnitQuaternion<f64>) {
+        let m = &self.matrix;
+        let r = m.fixed_view::<3, 3>(0, 0) * flip();
+        let q =
+            UnitQuaternion::from_rotation_matrix(&nalgebra::Rotation3::from_matrix_unchecked(r));
+        (Vector3::new(m[(0, 3)], m[(1, 3)], m[(2, 3)]), q)
+    }
 }
 
 #[cfg(test)]

@@ -2,7 +2,9 @@
 
 from __future__ import annotations
 
+import json
 from pathlib import Path
+from typing import Any
 
 import pytest
 
@@ -26,3 +28,24 @@ def data() -> type:
         path = staticmethod(data_path)
 
     return _Data
+
+
+def align_json(capfd: pytest.CaptureFixture[str], *args: str) -> dict[str, Any]:
+    """``slam2world align ARGS --json`` in process: its JSON report (exit 0 asserted)."""
+    from slam2world._slam2world import run_cli
+
+    capfd.readouterr()
+    assert run_cli(["slam2world", "align", *args, "--json"]) == 0
+    out, _ = capfd.readouterr()
+    doc: dict[str, Any] = json.loads(out)
+    return doc
+
+
+def align_error(capfd: pytest.CaptureFixture[str], *args: str) -> str:
+    """``slam2world align ARGS`` in process, exit 1 asserted: what it wrote on stderr."""
+    from slam2world._slam2world import run_cli
+
+    capfd.readouterr()
+    assert run_cli(["slam2world", "align", *args]) == 1
+    _, err = capfd.readouterr()
+    return err

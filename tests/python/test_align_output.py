@@ -9,22 +9,12 @@ import subprocess
 import sys
 import zipfile
 from pathlib import Path
-from typing import Any
 
 import numpy as np
 import pytest
-from conftest import data_path
+from conftest import align_error, align_json, data_path
 
 import slam2world as sw
-from slam2world._slam2world import run_cli
-
-
-def align(capfd: pytest.CaptureFixture[str], *args: str) -> dict[str, Any]:
-    capfd.readouterr()
-    assert run_cli(["slam2world", "align", *args, "--json"]) == 0
-    out, _ = capfd.readouterr()
-    doc: dict[str, Any] = json.loads(out)
-    return doc
 
 
 def fr2() -> tuple[Path, Path]:
@@ -37,7 +27,7 @@ def test_the_aligned_estimate_scores_in_evo_without_alignment(
 ) -> None:
     est, ref = fr2()
     out = tmp_path / "aligned.txt"
-    doc = align(capfd, str(est), str(ref), "--output", str(out))
+    doc = align_json(capfd, str(est), str(ref), "--output", str(out))
     evo_ape = Path(sys.executable).with_name("evo_ape")
     if not evo_ape.exists():
         pytest.skip(f"evo_ape is not installed beside {sys.executable}")
@@ -65,11 +55,13 @@ def test_every_output_format_holds_the_same_poses(
 
     est, ref = fr2()
     tum = tmp_path / "aligned.txt"
-    align(capfd, str(est), str(ref), "-o", str(tum), "--save-transform", str(tmp_path / "T.json"))
+    align_json(
+        capfd, str(est), str(ref), "-o", str(tum), "--save-transform", str(tmp_path / "T.json")
+    )
     euroc = tmp_path / "aligned.csv"
     kitti = tmp_path / "aligned.kitti"
-    align(capfd, str(est), str(ref), "-o", str(euroc), "--output-format", "euroc")
-    doc = align(
+    align_json(capfd, str(est), str(ref), "-o", str(euroc), "--output-format", "euroc")
+    doc = align_json(
         capfd,
         str(est),
         str(ref),
@@ -106,9 +98,7 @@ def test_an_output_over_an_input_is_refused(
     est, ref = fr2()
     copy = tmp_path / "est.txt"
     copy.write_bytes(est.read_bytes())
-    capfd.readouterr()
-    assert run_cli(["slam2world", "align", str(copy), str(ref), "-o", str(copy)]) == 1
-    _, err = capfd.readouterr()
+    err = align_error(capfd, str(copy), str(ref), "-o", str(copy))
     assert len(err.strip().splitlines()) == 1, err
     assert copy.read_bytes() == est.read_bytes()
     assert sorted(p.name for p in tmp_path.iterdir()) == ["est.txt"]

@@ -5,24 +5,14 @@ get one clear error."""
 
 from __future__ import annotations
 
-import json
 from pathlib import Path
-from typing import Any
 
 import numpy as np
 import pytest
-from conftest import data_path
+from conftest import align_error, align_json, data_path
 
 import slam2world as sw
 from slam2world._slam2world import run_cli
-
-
-def align_json(capfd: pytest.CaptureFixture[str], *args: str) -> dict[str, Any]:
-    capfd.readouterr()
-    assert run_cli(["slam2world", "align", *args, "--json"]) == 0
-    out, _ = capfd.readouterr()
-    doc: dict[str, Any] = json.loads(out)
-    return doc
 
 
 @pytest.fixture
@@ -127,9 +117,7 @@ def test_bad_kitti_files_name_the_line(
         sw.Trajectory.read_kitti(bad)
     good = tmp_path / "good.txt"
     good.write_text(f"{IDENTITY}\n{IDENTITY}\n")
-    capfd.readouterr()
-    assert run_cli(["slam2world", "align", str(good), str(bad), "--format", "kitti"]) == 1
-    _, err = capfd.readouterr()
+    err = align_error(capfd, str(good), str(bad), "--format", "kitti")
     assert needle in err and len(err.strip().splitlines()) == 1, err
 
 
@@ -139,12 +127,9 @@ def test_counts_and_stamps_that_do_not_pair(
     d = fr2_pair
     short = tmp_path / "short.kitti"
     short.write_text("".join(d.joinpath("ref.kitti").read_text().splitlines(True)[:100]))
-    capfd.readouterr()
-    assert run_cli(["slam2world", "align", str(d / "est.kitti"), str(short)]) == 1
-    _, err = capfd.readouterr()
+    err = align_error(capfd, str(d / "est.kitti"), str(short))
     assert "has 118 poses" in err and "has 100" in err and "pair by index" in err, err
-    assert run_cli(["slam2world", "align", str(d / "est.kitti"), str(d / "ref.tum")]) == 1
-    _, err = capfd.readouterr()
+    err = align_error(capfd, str(d / "est.kitti"), str(d / "ref.tum"))
     assert "--est-times" in err, err
     with pytest.raises(sw.InvalidInputError, match="118 poses"):
         sw.Trajectory.read_kitti(d / "est.kitti", times=np.arange(3.0))
