@@ -112,6 +112,10 @@ pub const GROUND_MIN_INLIERS: usize = 30;
 pub const GROUND_LARGE_SHARE: f64 = 0.25;
 /// Ground plane: largest share of the points under the floor.
 pub const GROUND_MAX_BELOW: f64 = 0.05;
+/// Planar motion (`align::priors`): largest tilt, degrees, that the camera
+/// centres' spread off their plane (against their spread in it) may hide;
+/// a path beyond it (a line, a hand-held camera, stairs) gives no "up".
+pub const PLANAR_MAX_TILT_BOUND_DEG: f64 = 3.0;
 /// Voxel edge of the octree `slam2world demo` builds, metres.
 pub const DEMO_OCTREE_RESOLUTION: f64 = 0.1;
 
@@ -146,6 +150,10 @@ pub const TABLE: &[(&str, Value)] = &[
     ("min_inliers", Value::Int(GROUND_MIN_INLIERS as i64)),
     ("large_share", Value::Float(GROUND_LARGE_SHARE)),
     ("max_below", Value::Float(GROUND_MAX_BELOW)),
+    (
+        "max_tilt_bound_deg",
+        Value::Float(PLANAR_MAX_TILT_BOUND_DEG),
+    ),
     ("gravity", Value::Float(GRAVITY)),
     (
         "keyframe_position_sigma",

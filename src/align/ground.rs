@@ -29,7 +29,7 @@
 //! is fitted to those within one (the band's tails are skewed by what
 //! stands on the floor).
 
-use nalgebra::{Matrix3, SymmetricEigen, UnitQuaternion, Vector3};
+use nalgebra::{Matrix3, SymmetricEigen, Vector3};
 use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 
@@ -544,25 +544,8 @@ pub fn metric_from_height(
         .sum::<f64>()
         / given.len() as f64)
         .sqrt();
-    // z up: the rotation taking the normal to +z, then the yaw that puts the
-    // first camera's heading (its optical axis on the ground) along +x.
-    let tilt =
-        UnitQuaternion::rotation_between(&plane.normal, &Vector3::z()).unwrap_or_else(|| {
-            UnitQuaternion::from_axis_angle(&Vector3::x_axis(), std::f64::consts::PI)
-        });
-    let heading = cameras
-        .orientations
-        .as_ref()
-        .map(|o| tilt * (o[0] * Vector3::z()))
-        .filter(|f| f.x.hypot(f.y) > 1e-6);
-    let yaw = heading.map_or(0.0, |f| -f.y.atan2(f.x));
-    let rotation = UnitQuaternion::from_axis_angle(&Vector3::z_axis(), yaw) * tilt;
-    let foot = cameras.positions[0] - h[0] * plane.normal;
-    let t_world_slam = Sim3 {
-        rotation,
-        translation: -(scale * (rotation * foot)),
-        scale,
-    };
+    // z up, the first camera over the origin at its height in metres.
+    let t_world_slam = super::priors::level_frame(&plane.normal, cameras, scale, scale * h[0]);
     Ok(HeightScale {
         t_world_slam,
         scale,
@@ -574,7 +557,7 @@ pub fn metric_from_height(
 #[cfg(test)]
 mod tests {
     use super::*;
-    use nalgebra::Rotation3;
+    use nalgebra::{Rotation3, UnitQuaternion};
 
     /// A room in SLAM units (scale `1 / s` of metres): a floor at z = 0
     /// (metric), two walls, cameras at 1.2 m looking ahead with a little

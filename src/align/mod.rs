@@ -19,6 +19,7 @@ pub mod ground;
 pub mod handeye;
 mod horn;
 mod moments;
+pub mod priors;
 pub mod robust;
 pub mod stages;
 pub mod time_offset;

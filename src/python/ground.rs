@@ -1,5 +1,6 @@
 //! Scale and gravity with no second sensor, for Python: `ground_plane`,
-//! `metric_from_height` and their results.
+//! `metric_from_height`, `scale_from_distance`, `planar_motion`,
+//! `level_frame` and their results.
 
 use nalgebra::Vector3;
 use numpy::{PyArray1, ToPyArray};
@@ -11,6 +12,7 @@ use super::trajectory::PyTrajectory;
 use crate::align::ground::{
     fit_ground_plane, metric_from_height, CameraHeight, GroundOptions, GroundPlane, HeightScale,
 };
+use crate::align::priors::{level_frame, planar_motion, scale_from_distance, PlanarMotion};
 use crate::defaults;
 
 /// The ground plane of a cloud (`ground_plane`): the points `x` with
@@ -176,9 +178,117 @@ fn metric_from_height_py(
     Ok(PyHeightScale { inner })
 }
 
+/// The plane a ground robot's cameras ride in (`planar_motion`).
+#[pyclass(name = "PlanarMotion", module = "slam2world._slam2world", frozen)]
+pub struct PyPlanarMotion {
+    inner: PlanarMotion,
+}
+
+#[pymethods]
+impl PyPlanarMotion {
+    /// Unit normal, towards the cameras' "image up", shape (3,).
+    #[getter]
+    fn normal<'py>(&self, py: Python<'py>) -> Bound<'py, PyArray1<f64>> {
+        self.inner.normal.as_slice().to_pyarray(py)
+    }
+    /// `normal · x + offset` is the height of `x` over the cameras' plane.
+    #[getter]
+    fn offset(&self) -> f64 {
+        self.inner.offset
+    }
+    /// Rms distance of the camera centres from the plane, SLAM units.
+    #[getter]
+    fn rms(&self) -> f64 {
+        self.inner.rms
+    }
+    /// Rms spread of the centres along the plane's narrower axis, SLAM units.
+    #[getter]
+    fn extent(&self) -> f64 {
+        self.inner.extent
+    }
+    /// Degrees of tilt a slope as large as the out-of-plane spread could
+    /// hide: `atan(rms / extent)`.
+    #[getter]
+    fn tilt_bound_deg(&self) -> f64 {
+        self.inner.tilt_bound_deg
+    }
+    /// Standard error of the normal, degrees, for independent errors.
+    #[getter]
+    fn sigma_deg(&self) -> f64 {
+        self.inner.sigma_deg
+    }
+    /// Camera centres fitted.
+    #[getter]
+    fn n(&self) -> usize {
+        self.inner.n
+    }
+    fn __repr__(&self) -> String {
+        let n = self.inner.normal;
+        format!(
+            "PlanarMotion(normal=[{:.6}, {:.6}, {:.6}], rms={:.3e}, tilt_bound_deg={:.3}, n={})",
+            n.x, n.y, n.z, self.inner.rms, self.inner.tilt_bound_deg, self.inner.n
+        )
+    }
+}
+
+/// The plane `cameras`' centres ride in, its normal "up" by their
+/// orientations. Raises `DegenerateError` when they do not ride in one
+/// (more tilt than `max_tilt_bound_deg` could hide: a line, a hand-held
+/// camera, stairs) and `ValueError` without orientations.
+#[pyfunction(name = "planar_motion")]
+#[pyo3(
+    signature = (cameras, *, max_tilt_bound_deg=defaults::PLANAR_MAX_TILT_BOUND_DEG),
+    text_signature = "(cameras, *, max_tilt_bound_deg=3.0)"
+)]
+fn planar_motion_py(cameras: &PyTrajectory, max_tilt_bound_deg: f64) -> PyResult<PyPlanarMotion> {
+    let inner = planar_motion(&cameras.inner, max_tilt_bound_deg)?;
+    Ok(PyPlanarMotion { inner })
+}
+
+/// Metres per SLAM unit that put poses `a` and `b` (indices) of `cameras`
+/// `metres` apart.
+#[pyfunction(name = "scale_from_distance")]
+fn scale_from_distance_py(
+    cameras: &PyTrajectory,
+    a: usize,
+    b: usize,
+    metres: f64,
+) -> PyResult<f64> {
+    Ok(scale_from_distance(&cameras.inner, a, b, metres)?.scale)
+}
+
+/// `T_world_slam` with z along `up` (SLAM frame), `scale` metres per unit,
+/// the first camera over the origin at `first_height` metres and x along
+/// its heading.
+#[pyfunction(name = "level_frame")]
+#[pyo3(signature = (up, cameras, scale, first_height=0.0))]
+fn level_frame_py(
+    up: &Bound<'_, PyAny>,
+    cameras: &PyTrajectory,
+    scale: f64,
+    first_height: f64,
+) -> PyResult<PySim3> {
+    let u = vector3(up, "up")?;
+    let Some(u) = u.try_normalize(1e-300) else {
+        return Err(crate::error::Error::invalid("up", "must be a nonzero vector").into());
+    };
+    if !(scale.is_finite() && scale > 0.0 && first_height.is_finite()) {
+        return Err(crate::error::Error::invalid(
+            "scale",
+            format!("scale must be > 0 and first_height finite, got {scale} and {first_height}"),
+        )
+        .into());
+    }
+    Ok(level_frame(&u, &cameras.inner, scale, first_height).into())
+}
+
 pub fn register(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_class::<PyGroundPlane>()?;
     m.add_class::<PyHeightScale>()?;
+    m.add_class::<PyPlanarMotion>()?;
+    m.add_function(wrap_pyfunction!(planar_motion_py, m)?)?;
+    m.add_function(wrap_pyfunction!(scale_from_distance_py, m)?)?;
+    m.add_function(wrap_pyfunction!(level_frame_py, m)?)?;
     m.add_function(wrap_pyfunction!(ground_plane_py, m)?)?;
     m.add_function(wrap_pyfunction!(metric_from_height_py, m)?)?;
     Ok(())

@@ -36,6 +36,9 @@ fn paper_height_loop() -> f64 {
 fn paper_height_slow() -> f64 {
     path::PathHeights::default().slow
 }
+fn paper_height_bob() -> f64 {
+    path::PathHeights::default().bob
+}
 fn paper_look_height() -> f64 {
     path::PathHeights::default().look
 }
@@ -73,6 +76,10 @@ pub struct SimConfig {
     /// Slow camera height change over the run (amplitude), metres (paper: 0.25).
     #[serde(default = "paper_height_slow")]
     pub height_slow: f64,
+    /// Step bob of a hand-held camera (amplitude), metres, at
+    /// [`path::BOB_HZ`] (paper and ground vehicle: 0; a walk: about 0.03).
+    #[serde(default = "paper_height_bob")]
+    pub height_bob: f64,
     /// Height of the point the camera looks at, metres (paper: 0.3).
     #[serde(default = "paper_look_height")]
     pub look_height: f64,
@@ -141,6 +148,7 @@ impl Default for SimConfig {
             camera_height: paper_camera_height(),
             height_loop: paper_height_loop(),
             height_slow: paper_height_slow(),
+            height_bob: paper_height_bob(),
             look_height: paper_look_height(),
             min_gradient: 5.0,
             idepth_rel_sigma: 0.01,
@@ -177,6 +185,7 @@ impl SimConfig {
             height: self.camera_height,
             per_loop: self.height_loop,
             slow: self.height_slow,
+            bob: self.height_bob,
             look: self.look_height,
         }
     }
@@ -251,6 +260,7 @@ impl SimConfig {
             "camera_height" => self.camera_height = value,
             "height_loop" => self.height_loop = value,
             "height_slow" => self.height_slow = value,
+            "height_bob" => self.height_bob = value,
             "look_height" => self.look_height = value,
             "min_gradient" => self.min_gradient = value as f32,
             "idepth_rel_sigma" => self.idepth_rel_sigma = value,
@@ -361,6 +371,7 @@ impl SimConfig {
             ("accel_random_walk", self.accel_random_walk),
             ("height_loop", self.height_loop),
             ("height_slow", self.height_slow),
+            ("height_bob", self.height_bob),
             ("look_height", self.look_height),
         ] {
             if !(v.is_finite() && v >= 0.0) {
@@ -370,12 +381,12 @@ impl SimConfig {
                 ));
             }
         }
-        if self.height_loop + self.height_slow >= self.camera_height {
+        if self.height_loop + self.height_slow + self.height_bob >= self.camera_height {
             return Err(Error::invalid(
                 "camera_height",
                 format!(
-                    "the camera would reach the floor: {} m less {} + {} m of height change",
-                    self.camera_height, self.height_loop, self.height_slow
+                    "the camera would reach the floor: {} m less {} + {} + {} m of height change",
+                    self.camera_height, self.height_loop, self.height_slow, self.height_bob
                 ),
             ));
         }
@@ -641,7 +652,13 @@ mod tests {
         // A truth sidecar written before the path's heights were knobs reads
         // with the paper's.
         let mut old = serde_json::to_value(SimConfig::default()).unwrap();
-        for k in ["camera_height", "height_loop", "height_slow", "look_height"] {
+        for k in [
+            "camera_height",
+            "height_loop",
+            "height_slow",
+            "height_bob",
+            "look_height",
+        ] {
             old.as_object_mut().unwrap().remove(k);
         }
         let back: SimConfig = serde_json::from_value(old).unwrap();

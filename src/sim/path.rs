@@ -2,7 +2,8 @@
 //!
 //! The position is a closed-form curve in the loop angle `θ = ω·t + θ0`:
 //! `x = (rx + a·sin 3θ)·cos θ`, `y = (ry + a·sin 3θ)·sin θ`,
-//! `z = h0 + hz·sin(2θ + 0.5) + hs·sin(2π·t/T)`, so that position, velocity and
+//! `z = h0 + hz·sin(2θ + 0.5) + hs·sin(2π·t/T) + hb·sin(2π·f_b·t)` (the last
+//! a walker's step bob at [`BOB_HZ`]), so that position, velocity and
 //! acceleration are exact. The camera looks at a target point that circles the
 //! scene centre on the far side of the loop, with a slow yaw wobble (turns).
 //! `ω` is solved so that the path is `length` metres long over `[0, T]`.
@@ -46,9 +47,14 @@ pub struct CameraPath {
     pub height_loop: f64,
     /// Slow height change over the run (amplitude), metres.
     pub height_slow: f64,
+    /// Step bob (amplitude), metres, at [`BOB_HZ`].
+    pub height_bob: f64,
     /// Height of the point the camera looks at, metres.
     pub look_height: f64,
 }
+
+/// Step frequency of a walker's bob, Hz (two steps a second, a little under).
+pub const BOB_HZ: f64 = 1.8;
 
 /// The heights of a path (see [`CameraPath`]'s fields), metres.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -59,6 +65,8 @@ pub struct PathHeights {
     pub per_loop: f64,
     /// Slow change over the run (amplitude).
     pub slow: f64,
+    /// Step bob (amplitude).
+    pub bob: f64,
     /// Height of the point looked at.
     pub look: f64,
 }
@@ -70,6 +78,7 @@ impl Default for PathHeights {
             height: 2.0,
             per_loop: 0.35,
             slow: 0.25,
+            bob: 0.0,
             look: 0.3,
         }
     }
@@ -107,6 +116,7 @@ impl CameraPath {
             height: heights.height,
             height_loop: heights.per_loop,
             height_slow: heights.slow,
+            height_bob: heights.bob,
             look_height: heights.look,
         };
         // The length grows with ω: bisect.
@@ -165,9 +175,14 @@ impl CameraPath {
         let phase = 2.0 * th + 0.5;
         let (sp, cp) = phase.sin_cos();
         let (ss, cs) = (ws * t).sin_cos();
-        let z = self.height + self.height_loop * sp + self.height_slow * ss;
-        let dz = self.height_loop * 2.0 * w * cp + self.height_slow * ws * cs;
-        let ddz = -self.height_loop * 4.0 * w * w * sp - self.height_slow * ws * ws * ss;
+        let wb = 2.0 * std::f64::consts::PI * BOB_HZ;
+        let (sb, cb) = (wb * t).sin_cos();
+        let hb = self.height_bob;
+        let z = self.height + self.height_loop * sp + self.height_slow * ss + hb * sb;
+        let dz = self.height_loop * 2.0 * w * cp + self.height_slow * ws * cs + hb * wb * cb;
+        let ddz = -self.height_loop * 4.0 * w * w * sp
+            - self.height_slow * ws * ws * ss
+            - hb * wb * wb * sb;
         (
             Vector3::new(x, y, z),
             Vector3::new(w * dx, w * dy, dz),
@@ -228,7 +243,12 @@ mod tests {
 
     #[test]
     fn derivatives_match_finite_differences() {
-        let p = CameraPath::paper(100.0, 150.0).unwrap();
+        // The paper's heights with a walker's bob on top.
+        let heights = PathHeights {
+            bob: 0.03,
+            ..PathHeights::default()
+        };
+        let p = CameraPath::with_heights(100.0, 150.0, heights).unwrap();
         let h = 1e-5;
         for &t in &[0.3, 17.0, 55.5, 99.0] {
             let (x0, v0, a0) = p.kinematics(t);

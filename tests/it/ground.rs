@@ -6,13 +6,21 @@
 //! for cameras 0.8–1.8 m up. Lower ones miss it: the inverse-depth noise
 //! leaves the floor points' densest part a few millimetres above the floor
 //! (+1.2 % at 0.6 m).
+//!
+//! The other priors on the same runs: a known distance between two
+//! keyframes (the scale to the precision of their positions), the plane the
+//! vehicle's cameras ride in (gravity within 1°), and a hand-held walk
+//! (1.4–1.7 m with a step bob) that planar motion refuses and the height at
+//! its first pose scales.
 
 use nalgebra::Vector3;
 use rayon::prelude::*;
 use slam2world::align::ground::{
     fit_ground_plane, metric_from_height, CameraHeight, GroundOptions,
 };
+use slam2world::align::priors::{planar_motion, scale_from_distance};
 use slam2world::cloud::{backproject, PointFilter};
+use slam2world::defaults;
 use slam2world::sim::{simulate, SimConfig};
 
 /// Seeds scored (not those the rule was developed on, 0–11).
@@ -76,5 +84,148 @@ fn a_ground_vehicle_gets_scale_and_gravity_from_its_camera_height() {
             gravity <= 0.5,
             "seed {seed} ({height:.2} m): gravity {gravity:.3} deg"
         );
+    }
+}
+
+/// `cfg` with tiny images: the tests of the pose priors read no pixels.
+fn poses_only(cfg: SimConfig) -> SimConfig {
+    SimConfig {
+        width: 32,
+        height: 24,
+        ..cfg
+    }
+}
+
+/// Keyframe `i`'s true camera centre (world, metres).
+fn true_centre(sim: &slam2world::sim::Simulation, i: usize) -> Vector3<f64> {
+    sim.truth.camera.positions[sim.truth.keyframe_frames[i]]
+}
+
+#[test]
+#[ignore = "slow: make test runs it"]
+fn a_known_distance_gives_the_scale_to_the_precision_of_its_two_poses() {
+    let runs: Vec<(u64, usize, f64, f64, f64)> = SEEDS
+        .into_par_iter()
+        .map(|seed| {
+            let cfg = poses_only(ground_vehicle(seed));
+            let sim = simulate(&cfg).unwrap();
+            let cams = sim.keyframe_trajectory().unwrap();
+            // The first keyframe and the one farthest from it.
+            let d = |k: usize| (cams.positions[k] - cams.positions[0]).norm();
+            let b = (1..cams.len())
+                .max_by(|&i, &j| d(i).total_cmp(&d(j)))
+                .unwrap();
+            let metres = (true_centre(&sim, b) - true_centre(&sim, 0)).norm();
+            let k = scale_from_distance(&cams, 0, b, metres).unwrap();
+            // Each position is off by keyframe_pos_sigma per axis: the
+            // distance by √2 of it, the scale by that over the distance.
+            let sigma = std::f64::consts::SQRT_2 * cfg.keyframe_pos_sigma / k.slam_distance;
+            (
+                seed,
+                b,
+                metres,
+                k.scale / sim.truth.t_world_slam.scale - 1.0,
+                sigma,
+            )
+        })
+        .collect();
+    for &(seed, b, metres, error, sigma) in &runs {
+        println!(
+            "seed {seed}: poses 0 and {b}, {metres:.2} m, scale {:+.4} % (sigma {:.4} %)",
+            100.0 * error,
+            100.0 * sigma
+        );
+    }
+    for (seed, _, _, error, sigma) in runs {
+        assert!(
+            error.abs() <= 4.0 * sigma,
+            "seed {seed}: {error:+.3e} vs sigma {sigma:.3e}"
+        );
+    }
+}
+
+/// A hand-held walk: the camera at 1.4–1.7 m (slowly) with a 3 cm step bob.
+fn walk(seed: u64) -> SimConfig {
+    SimConfig {
+        seed,
+        camera_height: 1.55,
+        height_loop: 0.0,
+        height_slow: 0.15,
+        height_bob: 0.03,
+        look_height: 0.9,
+        ..SimConfig::default().reduced(4)
+    }
+}
+
+#[test]
+#[ignore = "slow: make test runs it"]
+fn planar_motion_gives_gravity_for_a_ground_vehicle_and_refuses_a_walk() {
+    let runs: Vec<(u64, f64, f64, String)> = SEEDS
+        .into_par_iter()
+        .map(|seed| {
+            let sim = simulate(&poses_only(ground_vehicle(seed))).unwrap();
+            let cams = sim.keyframe_trajectory().unwrap();
+            let p = planar_motion(&cams, defaults::PLANAR_MAX_TILT_BOUND_DEG).unwrap();
+            let up = sim.truth.t_world_slam.rotation * p.normal;
+            let gravity = up.z.clamp(-1.0, 1.0).acos().to_degrees();
+            let sim = simulate(&poses_only(walk(seed))).unwrap();
+            let cams = sim.keyframe_trajectory().unwrap();
+            let walk = planar_motion(&cams, defaults::PLANAR_MAX_TILT_BOUND_DEG)
+                .map_or_else(|e| e.to_string(), |p| format!("accepted: {p:?}"));
+            (seed, gravity, p.tilt_bound_deg, walk)
+        })
+        .collect();
+    for (seed, gravity, bound, walk) in &runs {
+        println!("seed {seed}: gravity {gravity:.4} deg (bound {bound:.4}); walk: {walk}");
+    }
+    for (seed, gravity, _, walk) in runs {
+        assert!(gravity <= 1.0, "seed {seed}: {gravity} deg");
+        assert!(
+            walk.contains("do not ride in one plane"),
+            "seed {seed}: {walk}"
+        );
+    }
+}
+
+#[test]
+#[ignore = "slow: make test runs it"]
+fn a_walk_gets_its_scale_from_the_height_at_the_first_pose() {
+    let runs: Vec<(u64, f64, f64, f64)> = SEEDS
+        .into_par_iter()
+        .map(|seed| {
+            let sim = simulate(&walk(seed)).unwrap();
+            let cloud = backproject(&sim.keyframes, &PointFilter::default(), None).unwrap();
+            let points: Vec<Vector3<f64>> = cloud
+                .points
+                .chunks_exact(3)
+                .map(|p| Vector3::new(p[0] as f64, p[1] as f64, p[2] as f64))
+                .collect();
+            let cams = sim.keyframe_trajectory().unwrap();
+            let plane = fit_ground_plane(&points, &cams, &GroundOptions::default()).unwrap();
+            let scale = |h: CameraHeight| {
+                metric_from_height(&plane, &cams, &h).unwrap().scale / sim.truth.t_world_slam.scale
+                    - 1.0
+            };
+            let first = scale(CameraHeight::First(true_centre(&sim, 0).z));
+            let constant = scale(CameraHeight::Constant(walk(seed).camera_height));
+            let up = sim.truth.t_world_slam.rotation * plane.normal;
+            (
+                seed,
+                first,
+                constant,
+                up.z.clamp(-1.0, 1.0).acos().to_degrees(),
+            )
+        })
+        .collect();
+    for &(seed, first, constant, gravity) in &runs {
+        println!(
+            "seed {seed}: first height {:+.3} %, mean height {:+.3} %, gravity {gravity:.3} deg",
+            100.0 * first,
+            100.0 * constant
+        );
+    }
+    for (seed, first, _, gravity) in runs {
+        assert!(first.abs() <= 0.02, "seed {seed}: {first:+.4}");
+        assert!(gravity <= 0.5, "seed {seed}: {gravity} deg");
     }
 }

@@ -106,3 +106,40 @@ def test_a_room_with_a_floor_is_measured(table: bool) -> None:
         sw.metric_from_height(plane, cams, -1.0)
     with pytest.raises(sw.InvalidInputError):
         sw.metric_from_height(plane, cams, [1.2, 1.2])
+
+
+def test_a_known_distance_scales_v101_and_its_flight_is_no_planar_motion() -> None:
+    points, kf, gt = v101()
+    fit = sw.align_trajectories(kf, gt).transform
+    inside = (kf.timestamps >= gt.timestamps[0]) & (kf.timestamps <= gt.timestamps[-1])
+    stamps = kf.timestamps[inside]
+    cams = sw.Trajectory(stamps, FACTOR * kf.positions[inside], kf.orientations[inside])
+    truth = fit.scale / FACTOR
+    # Two keyframes far apart, their distance measured on the ground truth (the body's centres:
+    # the camera sits a few centimetres off, turning with it).
+    body = gt.interpolate(stamps).positions
+    far = int(np.argmax(np.linalg.norm(cams.positions - cams.positions[0], axis=1)))
+    metres = float(np.linalg.norm(body[far] - body[0]))
+    scale = sw.scale_from_distance(cams, 0, far, metres)
+    print(f"V1_01: keyframes 0 and {far}, {metres:.3f} m apart: scale {scale / truth - 1:+.4%}")
+    assert abs(scale / truth - 1) < 0.02
+    # The known distance and the floor's normal make the frame; the first camera over the
+    # origin, at the height given.
+    plane = sw.ground_plane(FACTOR * points, cams)
+    frame = sw.level_frame(plane.normal, cams, scale, first_height=1.0)
+    assert np.allclose(frame.apply(cams.positions[:1])[0], [0, 0, 1.0], atol=1e-9)
+    assert frame.scale == scale
+    # A flying camera does not ride in one plane.
+    with pytest.raises(sw.DegenerateError, match="do not ride in one plane"):
+        sw.planar_motion(cams)
+    with pytest.raises(sw.InvalidInputError, match="same place"):
+        sw.scale_from_distance(cams, 3, 3, 1.0)
+
+
+def test_planar_motion_finds_up_from_cameras_circling_at_one_height() -> None:
+    _, cams = room(floor=True, table=False)
+    p = sw.planar_motion(cams)
+    assert p.normal @ [0, 0, 1] > 1 - 1e-12 and p.rms < 1e-9 and p.n == 40
+    no_orientations = sw.Trajectory(cams.timestamps, cams.positions)
+    with pytest.raises(sw.InvalidInputError, match="no orientations"):
+        sw.planar_motion(no_orientations)
