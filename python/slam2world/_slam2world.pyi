@@ -919,6 +919,7 @@ def convert(
     grid: tuple[float, float] | None = None,
     grid_resolution: float | None = None,
     grid_threshold: float = 0.5,
+    camera_height: float | str | os.PathLike[str] | None = None,
 ) -> Conversion: ...
 
 DEFAULTS: dict[str, float | int | str]

@@ -31,11 +31,16 @@ use crate::map::{GridParams, MapParams};
 use crate::pipeline::gnss::WithGnss;
 use crate::pipeline::native::ReferenceFormat;
 use crate::pipeline::outputs::output_set;
+use crate::pipeline::prior::{HeightSpec, PriorOptions};
 use crate::pipeline::reconstruction::{open_input, ReconstructionOptions, ReferenceSpec};
-use crate::pipeline::report::{ImuReport, Report, TextInfoReport};
+use crate::pipeline::report::{GroundReport, ImuReport, Report, TextInfoReport};
 use crate::pipeline::{convert_source_bounded, ConvertOptions};
 
 fn reference_format(s: &str) -> std::result::Result<ReferenceFormat, String> {
+    s.parse().map_err(|e: Error| e.to_string())
+}
+
+fn camera_height(s: &str) -> std::result::Result<HeightSpec, String> {
     s.parse().map_err(|e: Error| e.to_string())
 }
 
@@ -106,6 +111,13 @@ pub struct ConvertArgs {
     /// `T_imu_cam`: 16 numbers (row-major 4×4) or 7 (tx ty tz qx qy qz qw), metres.
     #[arg(long, value_name = "NUMBERS", allow_hyphen_values = true)]
     pub imu_from_cam: Option<String>,
+    /// The cameras' height above the ground, for a recording with no
+    /// reference sensor: metres at every pose (`1.2`), at the first pose
+    /// only (`first:0.95`, a drone on the floor), or a file of `stamp height`
+    /// lines. The ground plane of the SLAM cloud gives "up"; the heights
+    /// give the scale. With a sensor, the report compares the two.
+    #[arg(long, value_name = "M|first:M|FILE", allow_hyphen_values = true, value_parser = camera_height)]
+    pub camera_height: Option<HeightSpec>,
     /// Magnitude of gravity for the IMU path, m/s².
     #[arg(long, default_value_t = defaults::GRAVITY, value_parser = positive)]
     pub gravity: f64,
@@ -227,6 +239,7 @@ impl ConvertArgs {
             confidence: self.fit.confidence,
             gnss: self.gnss.options(),
             geo_outputs: self.gnss.outputs(),
+            prior: self.camera_height.clone().map(PriorOptions::height),
         })
     }
 
@@ -322,13 +335,18 @@ pub fn run(args: &ConvertArgs) -> Result<()> {
         Some(x) if x.kind != "droid" => "frames",
         _ => "keyframes",
     };
-    let mut s = format!(
-        "{} {rows}, {} matched ({} dropped), fit on {}\n",
-        r.keyframes,
-        r.frames_used,
-        r.frames_dropped.len(),
-        r.pairs_fitted
-    );
+    let mut s = match &r.ground {
+        Some(g) if g.used_for_transform => {
+            format!("{} {rows} over the ground plane\n", r.keyframes)
+        }
+        _ => format!(
+            "{} {rows}, {} matched ({} dropped), fit on {}\n",
+            r.keyframes,
+            r.frames_used,
+            r.frames_dropped.len(),
+            r.pairs_fitted
+        ),
+    };
     s += &format!(
         "T_world_slam: scale {:.6}, translation {:?}, quaternion xyzw {:?}\n",
         t.scale, t.translation, t.quaternion_xyzw
@@ -344,6 +362,10 @@ pub fn run(args: &ConvertArgs) -> Result<()> {
     }
     if let Some(imu) = &r.imu {
         s += &imu_summary(imu);
+        s.push('\n');
+    }
+    if let Some(g) = &r.ground {
+        s += &ground_summary(g);
         s.push('\n');
     }
     if let Some(o) = &r.octree {
@@ -501,6 +523,30 @@ fn warnings(r: &Report) -> Vec<String> {
         }
     }
     out
+}
+
+/// One line on the ground plane and the cameras' height.
+fn ground_summary(g: &GroundReport) -> String {
+    let mut s = format!(
+        "ground plane{}: {} of {} points, spread {:.3e} units, tilt from the cameras' up {}; \
+         scale {:.6} (heights rms {:.3} m)",
+        if g.used_for_transform {
+            " (gives T_world_slam)"
+        } else {
+            ""
+        },
+        g.inliers,
+        g.n_points,
+        g.spread,
+        g.tilt_from_cameras_deg
+            .map_or("unknown".into(), |d| format!("{d:.2}°")),
+        g.scale,
+        g.height_rms
+    );
+    if let (Some(ds), Some(up)) = (g.scale_vs_sensor, g.up_vs_sensor_deg) {
+        s += &format!("; vs the sensor: scale {:+.3} %, up {up:.3}°", 100.0 * ds);
+    }
+    s
 }
 
 /// One line on the inertial initialisation.

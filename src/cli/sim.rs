@@ -100,6 +100,10 @@ pub struct SimulateArgs {
     /// log of the inertial path).
     #[arg(long)]
     no_reference: bool,
+    /// Leave the raw IMU topic out (with `--no-reference`: keyframes alone,
+    /// the log of a camera with no second sensor).
+    #[arg(long)]
+    no_imu: bool,
     #[command(flatten)]
     run: RunArgs,
 }
@@ -207,9 +211,9 @@ fn truth_path_for(log: &Path) -> PathBuf {
     log.with_extension("truth.json")
 }
 
-/// Writes the simulated log (with the reference poses when `reference`) and
-/// its truth, both or neither.
-fn write_log(sim: &Simulation, log: &Path, truth: &Path, reference: bool) -> Result<()> {
+/// Writes the simulated log (with the reference poses when `reference`, the
+/// raw IMU when `imu`) and its truth, both or neither.
+fn write_log(sim: &Simulation, log: &Path, truth: &Path, reference: bool, imu: bool) -> Result<()> {
     let truth_meta = serde_json::to_string(&truth_report(sim, false))
         .map_err(|e| Error::invalid("json", e.to_string()))?;
     let mut set = OutputSet::new();
@@ -228,7 +232,7 @@ fn write_log(sim: &Simulation, log: &Path, truth: &Path, reference: bool) -> Res
         &sim.keyframes,
         Some(&live),
         reference.then_some(&sim.reference),
-        Some(&sim.imu),
+        imu.then_some(&sim.imu),
         &[("truth".to_string(), truth_meta)],
         &SlamLogOptions::default(),
     )?;
@@ -257,7 +261,7 @@ pub fn run_simulate(args: &SimulateArgs) -> Result<()> {
         });
     }
     let sim = simulate(&cfg)?;
-    write_log(&sim, &args.output, &truth, !args.no_reference)?;
+    write_log(&sim, &args.output, &truth, !args.no_reference, !args.no_imu)?;
     println!(
         "wrote {} ({} keyframes, {} reference poses, {} IMU samples) and {}",
         args.output.display(),
@@ -267,7 +271,7 @@ pub fn run_simulate(args: &SimulateArgs) -> Result<()> {
         } else {
             sim.reference.len()
         },
-        sim.imu.len(),
+        if args.no_imu { 0 } else { sim.imu.len() },
         truth.display()
     );
     Ok(())
@@ -387,7 +391,7 @@ pub fn run_demo(args: &DemoArgs) -> Result<()> {
     // The log a LSD-SLAM user records, and its truth.
     let log_path = dir.join("sim.mcap");
     let truth_file = dir.join("sim.truth.json");
-    write_log(&sim, &log_path, &truth_file, true)?;
+    write_log(&sim, &log_path, &truth_file, true, true)?;
     let t_log = t0.elapsed().as_secs_f64() - t_sim;
 
     // Convert it: read, associate, align (keyframes vs reference), backproject,

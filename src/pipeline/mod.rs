@@ -7,9 +7,11 @@
 //!   a reconstruction brings besides poses and points (its own model, frame
 //!   names, how its stamps were read);
 //! - [`options`]: everything it can be told ([`ConvertOptions`], checked once);
-//! - [`poses`] / [`imu`] / [`gnss`]: where `T_world_slam` comes from — a
-//!   metric reference trajectory, the raw IMU when there is none, or GNSS
-//!   fixes (then the world frame is ENU at an origin the report carries);
+//! - [`poses`] / [`imu`] / [`gnss`] / [`prior`]: where `T_world_slam` comes
+//!   from — a metric reference trajectory, the raw IMU when there is none,
+//!   GNSS fixes (then the world frame is ENU at an origin the report
+//!   carries), or with no sensor the ground plane and the cameras' known
+//!   height;
 //! - [`report`]: the typed model of every JSON document the commands write;
 //! - [`outputs`]: `world.mcap`, `cloud.ply`, `trajectory.txt`, `map.bt`,
 //!   `report.json`, `report.html` and the input's own model (`model/`),
@@ -34,6 +36,7 @@ pub mod native;
 pub mod options;
 pub mod outputs;
 pub mod poses;
+pub mod prior;
 pub mod reconstruction;
 pub mod report;
 pub mod session;
@@ -82,6 +85,8 @@ pub enum WorldFrame {
     Poses(Box<PoseFit>),
     /// The inertial initialisation from raw IMU samples (no reference poses).
     Imu(Box<ImuAlignment>),
+    /// The ground plane and the cameras' known height (no sensor).
+    Prior(Box<prior::PriorFit>),
 }
 
 impl WorldFrame {
@@ -90,6 +95,7 @@ impl WorldFrame {
         match self {
             WorldFrame::Poses(p) => p.alignment.transform(),
             WorldFrame::Imu(a) => a.transform,
+            WorldFrame::Prior(p) => p.transform(),
         }
     }
 
@@ -97,7 +103,7 @@ impl WorldFrame {
     pub fn poses(&self) -> Option<&PoseFit> {
         match self {
             WorldFrame::Poses(p) => Some(p),
-            WorldFrame::Imu(_) => None,
+            WorldFrame::Imu(_) | WorldFrame::Prior(_) => None,
         }
     }
 }
@@ -277,6 +283,21 @@ fn batch_len() -> usize {
     (2 * rayon::current_num_threads()).clamp(4, 32)
 }
 
+/// Keyframe `i` of `kfs` (the poses) with its pixels read back from `px`.
+fn load_keyframe(kfs: &[Keyframe], px: &SpilledKeyframes, i: usize) -> Result<Keyframe> {
+    let (idepth, var, color) = px.spill.get(px.at[i])?;
+    let k = &kfs[i];
+    Keyframe::try_new(
+        k.id,
+        k.timestamp,
+        k.pose,
+        k.camera,
+        idepth,
+        Some(var),
+        Some(color),
+    )
+}
+
 /// What [`stream_keyframes`] made.
 struct Streamed {
     file: CloudFile,
@@ -308,21 +329,9 @@ fn stream_keyframes(
         ));
     }
     let batch = batch_len();
-    let load = |i: usize| -> Result<Keyframe> {
-        let (idepth, var, color) = px.spill.get(px.at[i])?;
-        let k = &kfs[i];
-        Keyframe::try_new(
-            k.id,
-            k.timestamp,
-            k.pose,
-            k.camera,
-            idepth,
-            Some(var),
-            Some(color),
-        )
+    let load_all = |idx: &[usize]| -> Result<Vec<Keyframe>> {
+        idx.par_iter().map(|&i| load_keyframe(kfs, px, i)).collect()
     };
-    let load_all =
-        |idx: &[usize]| -> Result<Vec<Keyframe>> { idx.par_iter().map(|&i| load(i)).collect() };
     let ascending = kfs.windows(2).all(|w| w[0].id < w[1].id);
     let origins = keyframe_origins(kfs, t_of);
     let mut map = opts.map.map(OccupancyMap::try_new).transpose()?;
@@ -499,6 +508,12 @@ fn convert_with(rec: &Recording, motion: Motion<'_>, opts: &ConvertOptions) -> R
         imu = imu_of(imu, rec)?;
     }
     let live_frames = live.as_deref();
+    // The prior (ground plane and camera height) when given: the frame when
+    // no sensor is there, else compared with the sensor's.
+    let prior_fit = match &opts.prior {
+        Some(p) => Some(prior::fit(rec, &slam, p, &opts.filter)?),
+        None => None,
+    };
     let world = match (reference.as_ref(), imu.as_deref()) {
         (Some(r), _) => {
             // Against fixes, the live frames are paired with the fixes
@@ -513,12 +528,16 @@ fn convert_with(rec: &Recording, motion: Motion<'_>, opts: &ConvertOptions) -> R
             WorldFrame::Poses(Box::new(fit))
         }
         (None, Some(imu)) => WorldFrame::Imu(Box::new(imu::fit(&slam, imu, opts)?)),
+        (None, None) if prior_fit.is_some() => {
+            WorldFrame::Prior(Box::new(prior_fit.clone().expect("checked")))
+        }
         (None, None) if rec.source.reconstruction.is_some() => {
             return Err(Error::invalid(
                 "reference",
                 format!(
                     "{} is a reconstruction without a metric reference: give a reference file \
-                     (poses by time, or positions by image name)",
+                     (poses by time, or positions by image name) or the cameras' height over \
+                     the ground (camera_height)",
                     rec.source.path.display()
                 ),
             ))
@@ -526,7 +545,9 @@ fn convert_with(rec: &Recording, motion: Motion<'_>, opts: &ConvertOptions) -> R
         (None, None) => {
             return Err(Error::Mcap {
                 path: rec.source.path.clone(),
-                reason: "no reference pose topic and no raw IMU topic in the log".into(),
+                reason: "no reference pose topic and no raw IMU topic in the log: give a \
+                         reference file, or the cameras' height over the ground (camera_height)"
+                    .into(),
             })
         }
     };
@@ -723,6 +744,17 @@ fn convert_with(rec: &Recording, motion: Motion<'_>, opts: &ConvertOptions) -> R
             let imu = report::ImuReport::new(rec.source.imu_topic.clone(), true, a, None);
             (Vec::new(), None, None, None, 0, Some(imu))
         }
+        WorldFrame::Prior(_) => {
+            used.fill(true);
+            (Vec::new(), None, None, None, 0, None)
+        }
+    };
+    let ground = match (&prior_fit, &opts.prior) {
+        (Some(f), Some(p)) => Some(f.report(
+            &p.camera_height,
+            (!matches!(world, WorldFrame::Prior(_))).then_some(&t),
+        )),
+        _ => None,
     };
     let frames_dropped = (0..slam.len()).filter(|&s| !used[s]).map(id_of).collect();
     let windowed = world.poses().and_then(|p| p.windowed_report(opts));
@@ -757,6 +789,7 @@ fn convert_with(rec: &Recording, motion: Motion<'_>, opts: &ConvertOptions) -> R
             write_s: 0.0,
         },
         imu: imu_report,
+        ground,
         octree: octree_report,
         grid: grid_report,
         startup: world

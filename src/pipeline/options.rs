@@ -10,6 +10,7 @@ use crate::io::log::ReadOptions;
 use crate::map::{GridParams, MapParams};
 
 use super::gnss::{GeoOutputs, GnssOptions};
+use super::prior::PriorOptions;
 
 /// Everything `convert` can be told.
 #[derive(Clone, Debug, PartialEq)]
@@ -46,6 +47,9 @@ pub struct ConvertOptions {
     pub gnss: GnssOptions,
     /// The georeferenced clouds written beside the others.
     pub geo_outputs: GeoOutputs,
+    /// The ground plane and the cameras' known height: `T_world_slam` when
+    /// the recording has no reference sensor, else compared with it.
+    pub prior: Option<PriorOptions>,
 }
 
 impl Default for ConvertOptions {
@@ -62,6 +66,7 @@ impl Default for ConvertOptions {
             confidence: defaults::CONFIDENCE,
             gnss: GnssOptions::default(),
             geo_outputs: GeoOutputs::default(),
+            prior: None,
         }
     }
 }

@@ -301,6 +301,71 @@ pub struct PoseCheck {
     pub gravity_angle_deg: f64,
 }
 
+/// The cameras' height as `convert --camera-height` was given it.
+#[derive(Clone, Debug, PartialEq, Serialize, JsonSchema)]
+#[serde(tag = "kind", rename_all = "snake_case")]
+pub enum HeightGiven {
+    /// The same height at every pose, metres.
+    Constant {
+        /// Metres.
+        metres: f64,
+    },
+    /// The height at the first pose, metres.
+    First {
+        /// Metres.
+        metres: f64,
+    },
+    /// Heights by time from a file.
+    File {
+        /// The file.
+        path: PathBuf,
+    },
+}
+
+/// The ground plane and the cameras' known height in `report.json`
+/// (`convert --camera-height`).
+#[derive(Clone, Debug, PartialEq, Serialize, JsonSchema)]
+pub struct GroundReport {
+    /// True when `T_world_slam` came from this prior (no reference sensor).
+    pub used_for_transform: bool,
+    /// The height given.
+    pub camera_height: HeightGiven,
+    /// The plane's unit normal in the SLAM frame, towards the cameras.
+    pub normal: [f64; 3],
+    /// `normal · x + offset` is the height of `x` over the plane, SLAM units.
+    pub offset: f64,
+    /// Points within the inlier threshold of the plane.
+    pub inliers: usize,
+    /// Points the plane was fitted among.
+    pub n_points: usize,
+    /// Robust standard deviation of the inliers' distances, SLAM units.
+    pub spread: f64,
+    /// Share of the points more than three spreads under the plane.
+    pub below: f64,
+    /// Share of the cameras above the plane.
+    pub cameras_above: f64,
+    /// Degrees between the normal and the cameras' mean image "up".
+    pub tilt_from_cameras_deg: Option<f64>,
+    /// The strongest other plane under the cameras: its inliers and its
+    /// height over this one (SLAM units).
+    pub runner_up: Option<(usize, f64)>,
+    /// Metres per SLAM unit from the plane and the heights.
+    pub scale: f64,
+    /// Rms of the given heights less the fitted ones, metres.
+    pub height_rms: f64,
+    /// `[stamp, height]` of each SLAM pose over the plane, metres (at the
+    /// prior's scale).
+    pub heights: Vec<[f64; 2]>,
+    /// The prior's scale over the sensor's, less 1, when a reference sensor
+    /// set the frame.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub scale_vs_sensor: Option<f64>,
+    /// Degrees between the plane's normal and the sensor frame's z, when a
+    /// reference sensor set the frame.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub up_vs_sensor_deg: Option<f64>,
+}
+
 /// The inertial initialisation in `report.json`.
 #[derive(Clone, Debug, PartialEq, Serialize, JsonSchema)]
 pub struct ImuReport {
@@ -641,6 +706,9 @@ pub struct Report {
     /// The inertial initialisation, when the input has raw IMU samples.
     #[serde(skip_serializing_if = "Option::is_none")]
     pub imu: Option<ImuReport>,
+    /// The ground plane and the cameras' known height, when given.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub ground: Option<GroundReport>,
     /// The occupancy octree, when one was built.
     #[serde(skip_serializing_if = "Option::is_none")]
     pub octree: Option<OctreeReport>,

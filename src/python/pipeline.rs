@@ -252,6 +252,32 @@ impl PyConversion {
     }
 }
 
+/// `camera_height`: metres at every pose (a number), `"first:M"` (the
+/// first pose's), or a path to a `stamp height` file.
+fn height_spec(h: &Bound<'_, PyAny>) -> PyResult<crate::pipeline::prior::HeightSpec> {
+    use crate::pipeline::prior::HeightSpec;
+    if let Ok(v) = h.extract::<f64>() {
+        if !(v.is_finite() && v > 0.0) {
+            return Err(crate::error::Error::invalid(
+                "camera_height",
+                format!("must be a positive number of metres, got {v}"),
+            )
+            .into());
+        }
+        return Ok(HeightSpec::Constant(v));
+    }
+    if let Ok(s) = h.extract::<String>() {
+        return Ok(s.parse::<HeightSpec>()?);
+    }
+    let p: PathBuf = h.extract().map_err(|_| {
+        crate::error::Error::invalid(
+            "camera_height",
+            "expected metres (a number), \"first:M\" or a path to a `stamp height` file",
+        )
+    })?;
+    Ok(HeightSpec::File(p))
+}
+
 /// Aligns a log's keyframes or a reconstruction's frames with a metric
 /// reference and builds the world cloud. `log_or_path` is a `Log`, a
 /// `Reconstruction` or a path: a log of any container (MCAP, ROS 1 bag,
@@ -286,8 +312,13 @@ impl PyConversion {
 /// `map.pgm` + `map.yaml`, `map_height.npy` and a grid channel in
 /// `world.mcap`), cells of `grid_resolution` (a whole multiple of the
 /// octree's; default the octree's), occupied from `grid_threshold`.
+/// With no reference sensor, `camera_height` (metres at every pose, a
+/// string `"first:M"` for the first pose's, or the path of a `stamp height`
+/// file) gives `T_world_slam` from the ground plane of the SLAM cloud and
+/// the cameras' height over it (`Conversion.report()["ground"]`); with a
+/// sensor, the report compares the two.
 #[pyfunction(name = "convert")]
-#[pyo3(signature = (log_or_path, *, keyframe_topic=None, graph_topic=None, pose_topic=None, est_topic=None, tf_parent=None, tf_child=None, max_diff=0.01, offset=0.0, n_to_align=None, scale=true, method="horn", filter=None, octree_resolution=None, octree_max_range=None, prob_hit=0.7, prob_miss=0.4, clamp_min=0.1192, clamp_max=0.971, skip_init=None, robust=None, inlier_threshold=None, loss="huber", use_orientations=false, estimate_offset=false, max_offset=0.5, body_from_cam=None, compare_windowed=None, windowed_cloud=false, imu_topic=None, imu_from_cam=None, gravity=9.81, level=0.95, dof="sim3", anchor=None, association="evo", max_tilt_deg=Some(crate::defaults::MAX_TILT_DEG), reference_noise=None, fit_checks=true, reference=None, reference_format=None, reference_time_unit=None, time_unit=None, cloud=None, colmap_format=None, depth_filter=true, depth_threshold=0.005, depth_min_count=2, min_disparity_ratio=0.5, gnss=None, gnss_format=None, geoid_offset=0.0, gnss_topic=None, origin=OriginArg::Name(crate::defaults::ORIGIN.into()), lever_arm=None, gnss_weights=true, gnss_max_gap=None, las=None, laz=false, pcd=false, crs=crate::defaults::CRS, grid=None, grid_resolution=None, grid_threshold=0.5),
+#[pyo3(signature = (log_or_path, *, keyframe_topic=None, graph_topic=None, pose_topic=None, est_topic=None, tf_parent=None, tf_child=None, max_diff=0.01, offset=0.0, n_to_align=None, scale=true, method="horn", filter=None, octree_resolution=None, octree_max_range=None, prob_hit=0.7, prob_miss=0.4, clamp_min=0.1192, clamp_max=0.971, skip_init=None, robust=None, inlier_threshold=None, loss="huber", use_orientations=false, estimate_offset=false, max_offset=0.5, body_from_cam=None, compare_windowed=None, windowed_cloud=false, imu_topic=None, imu_from_cam=None, gravity=9.81, level=0.95, dof="sim3", anchor=None, association="evo", max_tilt_deg=Some(crate::defaults::MAX_TILT_DEG), reference_noise=None, fit_checks=true, reference=None, reference_format=None, reference_time_unit=None, time_unit=None, cloud=None, colmap_format=None, depth_filter=true, depth_threshold=0.005, depth_min_count=2, min_disparity_ratio=0.5, gnss=None, gnss_format=None, geoid_offset=0.0, gnss_topic=None, origin=OriginArg::Name(crate::defaults::ORIGIN.into()), lever_arm=None, gnss_weights=true, gnss_max_gap=None, las=None, laz=false, pcd=false, crs=crate::defaults::CRS, grid=None, grid_resolution=None, grid_threshold=0.5, camera_height=None),
        text_signature = "(log_or_path, *, keyframe_topic=None, graph_topic=None, pose_topic=None, \
                          est_topic=None, tf_parent=None, tf_child=None, max_diff=0.01, offset=0.0, n_to_align=None, \
                          scale=True, method='horn', filter=None, octree_resolution=None, \
@@ -303,7 +334,7 @@ impl PyConversion {
                          min_disparity_ratio=0.5, gnss=None, gnss_format=None, geoid_offset=0.0, \
                          gnss_topic=None, origin='first', lever_arm=None, gnss_weights=True, \
                          gnss_max_gap=None, las=None, laz=False, pcd=False, crs='utm', grid=None, \
-                         grid_resolution=None, grid_threshold=0.5)")]
+                         grid_resolution=None, grid_threshold=0.5, camera_height=None)")]
 #[allow(clippy::too_many_arguments)]
 fn convert_py(
     py: Python<'_>,
@@ -371,7 +402,13 @@ fn convert_py(
     grid: Option<(f64, f64)>,
     grid_resolution: Option<f64>,
     grid_threshold: f64,
+    camera_height: Option<&Bound<'_, PyAny>>,
 ) -> PyResult<PyConversion> {
+    let prior = camera_height
+        .filter(|h| !h.is_none())
+        .map(height_spec)
+        .transpose()?
+        .map(crate::pipeline::prior::PriorOptions::height);
     let gnss_file = match gnss {
         Some(path) => Some(GnssFile {
             path,
@@ -472,6 +509,7 @@ fn convert_py(
         confidence: level,
         gnss: gnss_options,
         geo_outputs,
+        prior,
     };
     // A recording in memory, with the reference file attached to a copy.
     let with_reference = |rec: &pipeline::Recording| -> crate::Result<pipeline::Conversion> {
@@ -514,11 +552,11 @@ fn convert_py(
             py,
             PyTrajectoryAlignment::new(py, p.alignment.clone())?,
         )?),
-        pipeline::WorldFrame::Imu(_) => None,
+        pipeline::WorldFrame::Imu(_) | pipeline::WorldFrame::Prior(_) => None,
     };
     let imu_alignment = match &conversion.world {
         pipeline::WorldFrame::Imu(a) => Some(Py::new(py, PyImuAlignment::from((**a).clone()))?),
-        pipeline::WorldFrame::Poses(_) => None,
+        pipeline::WorldFrame::Poses(_) | pipeline::WorldFrame::Prior(_) => None,
     };
     let octree = match conversion.octree.take() {
         Some(m) => Some(Py::new(py, PyOccupancyMap::from_core(m))?),

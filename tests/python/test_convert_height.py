@@ -1,0 +1,118 @@
+"""`convert` with no second sensor: the ground plane of the SLAM cloud and the cameras' known
+height give `T_world_slam` (`--camera-height`, Python `camera_height=`). On the EuRoC V1_01
+ORB-SLAM2 map read as a trajectory with its cloud (heights from the ground truth: the first
+keyframe's, then a `stamp height` file), against the Sim(3) fit to the ground truth; beside a
+reference, the report compares the two; a simulated LSD-SLAM log with no reference and no IMU
+converts from the CLI; bad heights are refused with the reason."""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import numpy as np
+import pytest
+from conftest import data_path
+
+import slam2world as sw
+from slam2world._slam2world import run_cli
+
+
+def v101_heights(tmp_path: Path) -> tuple[Path, Path, Path, sw.Sim3, np.ndarray]:
+    """The map's files, the ground-truth fit, and a `stamp height` file of each keyframe's height
+    over the floor (found once in the map aligned by the ground-truth fit)."""
+    d = data_path("euroc_v101_orbslam2_map")
+    kf_path = d / "KeyFrameTrajectory_TUM_Format.txt"
+    gt_path = d / "V1_01_easy_original.txt"
+    kf = sw.Trajectory.read_tum(kf_path)
+    gt = sw.Trajectory.read_tum(gt_path)
+    fit = sw.align_trajectories(kf, gt).transform
+    floor = sw.ground_plane(fit.apply(np.loadtxt(d / "MapPoints.txt")), kf.transformed(fit))
+    # The ground truth's span, a little beyond the keyframes' where it ends first.
+    stamps = np.clip(kf.timestamps, gt.timestamps[0], gt.timestamps[-1])
+    heights = gt.interpolate(stamps).positions[:, 2] + floor.offset / floor.normal[2]
+    file = tmp_path / "heights.txt"
+    np.savetxt(file, np.c_[kf.timestamps, heights], fmt="%.9f", header="stamp height")
+    return kf_path, d / "MapPoints.txt", file, fit, heights
+
+
+def test_the_camera_height_converts_v101_to_the_ground_truths_scale(tmp_path: Path) -> None:
+    kf_path, cloud, file, fit, heights = v101_heights(tmp_path)
+    rotation = fit.matrix()[:3, :3] / fit.scale
+    for given in (f"first:{heights[0]}", file):
+        c = sw.convert(kf_path, cloud=cloud, camera_height=given)
+        g = c.report["ground"]
+        t = c.transform
+        up = np.asarray(g["normal"])
+        gravity = np.degrees(np.arccos(np.clip((rotation @ up)[2], -1, 1)))
+        print(
+            f"V1_01 convert, {g['camera_height']['kind']}: plane {g['inliers']} of "
+            f"{g['n_points']}, scale {t.scale / fit.scale - 1:+.4%}, gravity {gravity:.3f} deg"
+        )
+        assert g["used_for_transform"] and g["scale"] == t.scale
+        assert abs(t.scale / fit.scale - 1) < 0.03 and gravity < 1.5
+        # The world: z up along the plane's normal, the first camera at its given height.
+        first = t.apply(sw.Trajectory.read_tum(kf_path).positions[:1])[0]
+        assert first[:2] == pytest.approx([0, 0], abs=1e-9)
+        assert first[2] == pytest.approx(heights[0], abs=0.05)
+        assert len(g["heights"]) == 74 and c.report["fit"] is None
+
+
+def test_beside_a_reference_the_report_compares_the_prior(tmp_path: Path) -> None:
+    kf_path, cloud, file, fit, _ = v101_heights(tmp_path)
+    gt = data_path("euroc_v101_orbslam2_map", "V1_01_easy_original.txt")
+    c = sw.convert(kf_path, cloud=cloud, reference=gt, camera_height=file)
+    g = c.report["ground"]
+    assert not g["used_for_transform"]
+    assert c.transform.scale == pytest.approx(fit.scale, rel=1e-6)  # the reference sets it
+    assert g["scale_vs_sensor"] == pytest.approx(g["scale"] / c.transform.scale - 1, rel=1e-9)
+    assert abs(g["scale_vs_sensor"]) < 0.03 and g["up_vs_sensor_deg"] < 1.5
+
+
+def test_bad_heights_are_refused_with_the_reason(tmp_path: Path) -> None:
+    kf_path, cloud, file, _, _ = v101_heights(tmp_path)
+    with pytest.raises(sw.InvalidInputError, match="positive number"):
+        sw.convert(kf_path, cloud=cloud, camera_height=-1.2)
+    short = tmp_path / "short.txt"
+    short.write_text("\n".join(file.read_text().splitlines()[:20]) + "\n")
+    with pytest.raises(sw.InvalidInputError, match="outside the heights' span"):
+        sw.convert(kf_path, cloud=cloud, camera_height=short)
+    bad = tmp_path / "bad.txt"
+    bad.write_text("1.0 1.2\n0.5 1.3\n")
+    with pytest.raises(sw.FormatError, match=r"bad.txt:2: stamps must increase"):
+        sw.convert(kf_path, cloud=cloud, camera_height=bad)
+    # A trajectory without its cloud has no ground to find.
+    with pytest.raises(sw.InvalidInputError, match="reference"):
+        sw.convert(kf_path, cloud=None)
+
+
+@pytest.mark.slow
+def test_a_log_with_no_second_sensor_converts_from_the_cli(
+    tmp_path: Path, capfd: pytest.CaptureFixture[str]
+) -> None:
+    log = tmp_path / "g.mcap"
+    heights = ["camera_height=1.2", "height_loop=0", "height_slow=0", "look_height=0.6"]
+    sets = [a for h in heights for a in ("--set", h)]
+    args = ["simulate", "-o", str(log), "--reduced", "4", "--no-reference", "--no-imu", *sets]
+    assert run_cli(["slam2world", *args]) == 0
+    out = tmp_path / "o"
+    capfd.readouterr()
+    assert run_cli(["slam2world", "convert", str(log), "-o", str(out)]) == 1
+    assert "camera_height" in capfd.readouterr().err
+    assert (
+        run_cli(["slam2world", "convert", str(log), "-o", str(out), "--camera-height", "1.2"]) == 0
+    )
+    assert "over the ground plane" in capfd.readouterr().out
+    report = json.loads((out / "report.json").read_text())
+    truth = json.loads((tmp_path / "g.truth.json").read_text())["t_world_slam"]
+    scale = report["t_world_slam"]["scale"]
+    assert report["ground"]["used_for_transform"] and "imu" not in report
+    assert abs(scale / truth["scale"] - 1) < 0.01
+    # The world's z is the truth's: the cloud's floor at 0 m.
+    floor = sw.read_ply(out / "cloud.ply").points
+    assert abs(np.percentile(floor[:, 2], 5)) < 0.05
+    # A bad value is a usage error (clap's exit code 2) with the reason.
+    assert (
+        run_cli(["slam2world", "convert", str(log), "-o", str(out), "--camera-height", "-1"]) == 2
+    )
+    assert "positive number of metres" in capfd.readouterr().err
