@@ -370,6 +370,18 @@ class PlanarMotion:
     @property
     def n(self) -> int: ...
 
+def height_profile(
+    points: _ArrayLike,
+    owner: _ArrayLike,
+    cameras: Trajectory,
+    height: float,
+    window: int,
+    *,
+    max_up_angle_deg: float | None = 35.0,
+    min_inliers: int = 30,
+    large_share: float = 0.25,
+    max_below: float = 0.05,
+) -> dict[str, Any]: ...
 def planar_motion(cameras: Trajectory, *, max_tilt_bound_deg: float = 3.0) -> PlanarMotion: ...
 def scale_from_distance(cameras: Trajectory, a: int, b: int, metres: float) -> float: ...
 def level_frame(

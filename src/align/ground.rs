@@ -20,6 +20,8 @@
 //!   frame has z up, its origin on the ground under the first camera and x
 //!   along the first camera's heading (yaw and the horizontal origin are not
 //!   observable, as with `--anchor first`).
+//! - [`height_profile`]: both per window of keyframes, a scale profile
+//!   along a run whose scale wanders.
 //!
 //! The thresholds follow the data: the search counts points within 1 % of
 //! the median distance from the points to the cameras; a plane found is a
@@ -552,6 +554,118 @@ pub fn metric_from_height(
         heights: h,
         height_rms,
     })
+}
+
+/// The scale of one window of keyframes ([`height_profile`]).
+#[derive(Clone, Debug, PartialEq)]
+pub struct ProfileWindow {
+    /// First camera of the window (index).
+    pub first: usize,
+    /// Last camera of the window (index, inclusive).
+    pub last: usize,
+    /// Mean stamp of its cameras.
+    pub time: f64,
+    /// Metres per SLAM unit there; `None` where no ground was found.
+    pub scale: Option<f64>,
+    /// The window's floor points (0 without a plane).
+    pub inliers: usize,
+    /// Why the window has no scale (the ground plane's refusal).
+    pub reason: Option<String>,
+}
+
+/// The scale along a run whose scale wanders: the ground plane and the
+/// cameras' `height` (metres, the same at every pose) per window of
+/// `window` consecutive cameras, the windows overlapping by half. Point `i`
+/// of `points` was seen from camera `owner[i]` (an index of `cameras`);
+/// each window fits the points of its own cameras, so that the floor under
+/// one stretch of the run scales that stretch. A window where the floor is
+/// not seen gets the reason instead of a scale. The window is a trade: its
+/// keyframes must see enough floor, and the scale must change little over
+/// it (a drifting scale puts the floor seen from each keyframe at its own
+/// distance, and the floors of a long window make a band, not a plane).
+/// Errors: `owner` of another length or naming no camera, a window of
+/// fewer than 2 cameras, a height that is not a positive number.
+pub fn height_profile(
+    points: &[Vector3<f64>],
+    owner: &[usize],
+    cameras: &Trajectory,
+    height: f64,
+    window: usize,
+    opts: &GroundOptions,
+) -> Result<Vec<ProfileWindow>> {
+    use rayon::prelude::*;
+    if owner.len() != points.len() {
+        return Err(Error::ShapeMismatch {
+            what: "point owners".into(),
+            expected: format!("({},), one camera per point", points.len()),
+            got: format!("({},)", owner.len()),
+        });
+    }
+    let n = cameras.len();
+    if let Some(&bad) = owner.iter().find(|&&o| o >= n) {
+        return Err(Error::invalid(
+            "owner",
+            format!("names camera {bad}, and there are {n}"),
+        ));
+    }
+    if window < 2 {
+        return Err(Error::invalid(
+            "window",
+            format!("must hold at least 2 cameras, got {window}"),
+        ));
+    }
+    if !(height.is_finite() && height > 0.0) {
+        return Err(Error::invalid(
+            "camera_height",
+            format!("must be a positive number of metres, got {height}"),
+        ));
+    }
+    let mut by_camera: Vec<Vec<usize>> = vec![Vec::new(); n];
+    for (i, &o) in owner.iter().enumerate() {
+        by_camera[o].push(i);
+    }
+    let window = window.min(n.max(1));
+    let step = (window / 2).max(1);
+    let mut starts: Vec<usize> = (0..n.saturating_sub(window) + 1).step_by(step).collect();
+    if let Some(&l) = starts.last() {
+        // The last window ends at the last camera.
+        if l + window < n {
+            starts.push(n - window);
+        }
+    }
+    starts
+        .par_iter()
+        .map(|&a| {
+            let b = (a + window).min(n);
+            let pts: Vec<Vector3<f64>> = by_camera[a..b]
+                .iter()
+                .flatten()
+                .map(|&i| points[i])
+                .collect();
+            let cams = Trajectory::try_new(
+                cameras.timestamps[a..b].to_vec(),
+                cameras.positions[a..b].to_vec(),
+                cameras.orientations.as_ref().map(|o| o[a..b].to_vec()),
+            )?;
+            let time = cams.timestamps.iter().sum::<f64>() / (b - a) as f64;
+            let fitted = fit_ground_plane(&pts, &cams, opts).and_then(|plane| {
+                metric_from_height(&plane, &cams, &CameraHeight::Constant(height))
+                    .map(|m| (plane.inliers, m.scale))
+            });
+            let (scale, inliers, reason) = match fitted {
+                Ok((inliers, scale)) => (Some(scale), inliers, None),
+                Err(e) => (None, 0, Some(e.to_string())),
+            };
+            Ok(ProfileWindow {
+                first: a,
+                last: b - 1,
+                time,
+                scale,
+                inliers,
+                reason,
+            })
+        })
+        .collect()
 }
 
 #[cfg(test)]

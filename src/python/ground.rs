@@ -1,5 +1,5 @@
 //! Scale and gravity with no second sensor, for Python: `ground_plane`,
-//! `metric_from_height`, `scale_from_distance`, `planar_motion`,
+//! `metric_from_height`, `height_profile`, `scale_from_distance`, `planar_motion`,
 //! `level_frame` and their results.
 
 use nalgebra::Vector3;
@@ -10,7 +10,8 @@ use super::arrays::{vec_f64, vector3, vectors};
 use super::geometry::PySim3;
 use super::trajectory::PyTrajectory;
 use crate::align::ground::{
-    fit_ground_plane, metric_from_height, CameraHeight, GroundOptions, GroundPlane, HeightScale,
+    fit_ground_plane, height_profile, metric_from_height, CameraHeight, GroundOptions, GroundPlane,
+    HeightScale,
 };
 use crate::align::priors::{level_frame, planar_motion, scale_from_distance, PlanarMotion};
 use crate::defaults;
@@ -178,6 +179,74 @@ fn metric_from_height_py(
     Ok(PyHeightScale { inner })
 }
 
+/// The scale along the run per window of `window` consecutive cameras (half
+/// overlapping), from the ground plane of each window's points and the
+/// cameras' `height` (metres): point `i` of `points` (N×3) was seen from
+/// camera `owner[i]`. A dict of arrays, one entry per window: `first`,
+/// `last` (camera indices, inclusive), `time` (mean stamp), `scale` (NaN
+/// where no ground was found), `inliers`, and `reason` (None, or why the
+/// window has no scale).
+#[pyfunction(name = "height_profile")]
+#[pyo3(
+    signature = (points, owner, cameras, height, window, *, max_up_angle_deg=Some(defaults::GROUND_MAX_UP_ANGLE_DEG), min_inliers=defaults::GROUND_MIN_INLIERS, large_share=defaults::GROUND_LARGE_SHARE, max_below=defaults::GROUND_MAX_BELOW),
+    text_signature = "(points, owner, cameras, height, window, *, max_up_angle_deg=35.0, min_inliers=30, large_share=0.25, max_below=0.05)"
+)]
+#[allow(clippy::too_many_arguments)]
+fn height_profile_py<'py>(
+    py: Python<'py>,
+    points: &Bound<'_, PyAny>,
+    owner: &Bound<'_, PyAny>,
+    cameras: &PyTrajectory,
+    height: f64,
+    window: usize,
+    max_up_angle_deg: Option<f64>,
+    min_inliers: usize,
+    large_share: f64,
+    max_below: f64,
+) -> PyResult<Bound<'py, pyo3::types::PyDict>> {
+    let pts: Vec<Vector3<f64>> = vectors(points, "points")?;
+    let own: Vec<usize> = owner.extract().map_err(|_| {
+        crate::error::Error::invalid("owner", "expected a camera index (int >= 0) per point")
+    })?;
+    let opts = GroundOptions {
+        max_up_angle_deg,
+        min_inliers,
+        large_share,
+        max_below,
+        ..GroundOptions::default()
+    };
+    let cams = cameras.inner.clone();
+    let windows = py.detach(|| height_profile(&pts, &own, &cams, height, window, &opts))?;
+    let d = pyo3::types::PyDict::new(py);
+    let ints = |f: fn(&crate::align::ground::ProfileWindow) -> usize| -> Vec<i64> {
+        windows.iter().map(|w| f(w) as i64).collect()
+    };
+    d.set_item("first", ints(|w| w.first).to_pyarray(py))?;
+    d.set_item("last", ints(|w| w.last).to_pyarray(py))?;
+    d.set_item(
+        "time",
+        windows
+            .iter()
+            .map(|w| w.time)
+            .collect::<Vec<_>>()
+            .to_pyarray(py),
+    )?;
+    d.set_item(
+        "scale",
+        windows
+            .iter()
+            .map(|w| w.scale.unwrap_or(f64::NAN))
+            .collect::<Vec<_>>()
+            .to_pyarray(py),
+    )?;
+    d.set_item("inliers", ints(|w| w.inliers).to_pyarray(py))?;
+    d.set_item(
+        "reason",
+        windows.iter().map(|w| w.reason.clone()).collect::<Vec<_>>(),
+    )?;
+    Ok(d)
+}
+
 /// The plane a ground robot's cameras ride in (`planar_motion`).
 #[pyclass(name = "PlanarMotion", module = "slam2world._slam2world", frozen)]
 pub struct PyPlanarMotion {
@@ -287,6 +356,7 @@ pub fn register(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_class::<PyHeightScale>()?;
     m.add_class::<PyPlanarMotion>()?;
     m.add_function(wrap_pyfunction!(planar_motion_py, m)?)?;
+    m.add_function(wrap_pyfunction!(height_profile_py, m)?)?;
     m.add_function(wrap_pyfunction!(scale_from_distance_py, m)?)?;
     m.add_function(wrap_pyfunction!(level_frame_py, m)?)?;
     m.add_function(wrap_pyfunction!(ground_plane_py, m)?)?;

@@ -143,3 +143,21 @@ def test_planar_motion_finds_up_from_cameras_circling_at_one_height() -> None:
     no_orientations = sw.Trajectory(cams.timestamps, cams.positions)
     with pytest.raises(sw.InvalidInputError, match="no orientations"):
         sw.planar_motion(no_orientations)
+
+
+def test_the_height_profile_scales_each_window_and_says_why_one_has_none() -> None:
+    points, cams = room(floor=True, table=False)
+    # Each point seen from its nearest camera; the floor points under the circle only.
+    owner = np.argmin(
+        np.linalg.norm(points[:, None, :2] - cams.positions[None, :, :2], axis=2), axis=1
+    )
+    p = sw.height_profile(points, owner, cams, 1.2, 10)
+    assert list(p["first"]) == [0, 5, 10, 15, 20, 25, 30] and p["last"][-1] == 39
+    assert np.allclose(p["scale"], 1.0, rtol=0.02) and p["reason"] == [None] * 7
+    # Without the floor points under the last cameras, their window has no scale.
+    seen = ~((owner >= 30) & (points[:, 2] < 0.1))
+    q = sw.height_profile(points[seen], owner[seen], cams, 1.2, 10)
+    assert np.isnan(q["scale"][-1]) and q["reason"][-1] is not None
+    assert not np.isnan(q["scale"][0])
+    with pytest.raises(sw.InvalidInputError):
+        sw.height_profile(points, owner[:-1], cams, 1.2, 10)
