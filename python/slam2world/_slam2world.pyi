@@ -932,6 +932,8 @@ def convert(
     grid_resolution: float | None = None,
     grid_threshold: float = 0.5,
     camera_height: float | str | os.PathLike[str] | None = None,
+    known_distance: tuple[int | float | str, int | float | str, float] | None = None,
+    planar_motion: bool = False,
 ) -> Conversion: ...
 
 DEFAULTS: dict[str, float | int | str]

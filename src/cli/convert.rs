@@ -31,9 +31,9 @@ use crate::map::{GridParams, MapParams};
 use crate::pipeline::gnss::WithGnss;
 use crate::pipeline::native::ReferenceFormat;
 use crate::pipeline::outputs::output_set;
-use crate::pipeline::prior::{HeightSpec, PriorOptions};
+use crate::pipeline::prior::{DistanceSpec, HeightSpec, PriorOptions};
 use crate::pipeline::reconstruction::{open_input, ReconstructionOptions, ReferenceSpec};
-use crate::pipeline::report::{GroundReport, ImuReport, Report, TextInfoReport};
+use crate::pipeline::report::{ImuReport, PriorReport, Report, TextInfoReport};
 use crate::pipeline::{convert_source_bounded, ConvertOptions};
 
 fn reference_format(s: &str) -> std::result::Result<ReferenceFormat, String> {
@@ -118,6 +118,16 @@ pub struct ConvertArgs {
     /// give the scale. With a sensor, the report compares the two.
     #[arg(long, value_name = "M|first:M|FILE", allow_hyphen_values = true, value_parser = camera_height)]
     pub camera_height: Option<HeightSpec>,
+    /// Two poses a known distance apart (each an index from 0, a stamp, or
+    /// an image name) and the distance in metres: the scale, for a
+    /// recording with no reference sensor (before a camera height).
+    #[arg(long, num_args = 3, value_names = ["A", "B", "METRES"], allow_hyphen_values = true)]
+    pub known_distance: Option<Vec<String>>,
+    /// "Up" from the plane the cameras ride in (a ground robot) instead of
+    /// the ground plane of the cloud; needs a scale (`--camera-height` or
+    /// `--known-distance`).
+    #[arg(long)]
+    pub planar_motion: bool,
     /// Magnitude of gravity for the IMU path, m/s².
     #[arg(long, default_value_t = defaults::GRAVITY, value_parser = positive)]
     pub gravity: f64,
@@ -239,8 +249,46 @@ impl ConvertArgs {
             confidence: self.fit.confidence,
             gnss: self.gnss.options(),
             geo_outputs: self.gnss.outputs(),
-            prior: self.camera_height.clone().map(PriorOptions::height),
+            prior: self.prior()?,
         })
+    }
+
+    /// The prior these flags give, if any.
+    fn prior(&self) -> Result<Option<PriorOptions>> {
+        let known_distance = match self.known_distance.as_deref() {
+            Some([a, b, m]) => Some(DistanceSpec {
+                a: a.parse()?,
+                b: b.parse()?,
+                metres: m.trim().parse().map_err(|_| {
+                    Error::invalid(
+                        "--known-distance",
+                        format!("the distance must be metres, got {m:?}"),
+                    )
+                })?,
+            }),
+            Some(other) => {
+                return Err(Error::invalid(
+                    "--known-distance",
+                    format!("expected A B METRES, got {} values", other.len()),
+                ))
+            }
+            None => None,
+        };
+        if self.camera_height.is_none() && known_distance.is_none() {
+            if self.planar_motion {
+                return Err(Error::invalid(
+                    "--planar-motion",
+                    "gives \"up\" only: give the scale too (--camera-height or --known-distance)",
+                ));
+            }
+            return Ok(None);
+        }
+        Ok(Some(PriorOptions {
+            camera_height: self.camera_height.clone(),
+            known_distance,
+            planar_motion: self.planar_motion,
+            ground: crate::align::ground::GroundOptions::default(),
+        }))
     }
 
     /// How a reconstruction input is read.
@@ -335,10 +383,13 @@ pub fn run(args: &ConvertArgs) -> Result<()> {
         Some(x) if x.kind != "droid" => "frames",
         _ => "keyframes",
     };
-    let mut s = match &r.ground {
-        Some(g) if g.used_for_transform => {
-            format!("{} {rows} over the ground plane\n", r.keyframes)
-        }
+    let mut s = match &r.prior {
+        Some(g) if g.used_for_transform => format!(
+            "{} {rows}; scale from the {}, up from the {}\n",
+            r.keyframes,
+            g.scale_from.replace('_', " "),
+            g.up_from.replace('_', " ")
+        ),
         _ => format!(
             "{} {rows}, {} matched ({} dropped), fit on {}\n",
             r.keyframes,
@@ -364,8 +415,8 @@ pub fn run(args: &ConvertArgs) -> Result<()> {
         s += &imu_summary(imu);
         s.push('\n');
     }
-    if let Some(g) = &r.ground {
-        s += &ground_summary(g);
+    if let Some(g) = &r.prior {
+        s += &prior_summary(g);
         s.push('\n');
     }
     if let Some(o) = &r.octree {
@@ -525,24 +576,43 @@ fn warnings(r: &Report) -> Vec<String> {
     out
 }
 
-/// One line on the ground plane and the cameras' height.
-fn ground_summary(g: &GroundReport) -> String {
+/// One line on the prior (ground plane, heights, known distance, planar motion).
+fn prior_summary(g: &PriorReport) -> String {
     let mut s = format!(
-        "ground plane{}: {} of {} points, spread {:.3e} units, tilt from the cameras' up {}; \
-         scale {:.6} (heights rms {:.3} m)",
+        "prior{}: scale {:.6} from the {}, up from the {}",
         if g.used_for_transform {
             " (gives T_world_slam)"
         } else {
             ""
         },
-        g.inliers,
-        g.n_points,
-        g.spread,
-        g.tilt_from_cameras_deg
-            .map_or("unknown".into(), |d| format!("{d:.2}°")),
         g.scale,
-        g.height_rms
+        g.scale_from.replace('_', " "),
+        g.up_from.replace('_', " ")
     );
+    if let Some(p) = &g.plane {
+        s += &format!(
+            "; ground plane {} of {} points, spread {:.3e} units",
+            p.inliers, p.n_points, p.spread
+        );
+        if let Some(t) = p.tilt_from_cameras_deg {
+            s += &format!(", {t:.2}° from the cameras' up");
+        }
+    }
+    if let (Some(h), Some(rms)) = (g.height_scale, g.height_rms) {
+        s += &format!("; heights: scale {h:.6} (rms {rms:.3} m)");
+    }
+    if let Some(d) = &g.known_distance {
+        s += &format!(
+            "; poses {} and {}: {} m over {:.4e} units",
+            d.poses[0], d.poses[1], d.metres, d.slam_distance
+        );
+    }
+    if let Some(m) = &g.planar_motion {
+        s += &format!(
+            "; cameras' plane: rms {:.3e} units, tilt bound {:.2}°",
+            m.rms, m.tilt_bound_deg
+        );
+    }
     if let (Some(ds), Some(up)) = (g.scale_vs_sensor, g.up_vs_sensor_deg) {
         s += &format!("; vs the sensor: scale {:+.3} %, up {up:.3}°", 100.0 * ds);
     }

@@ -511,7 +511,24 @@ fn convert_with(rec: &Recording, motion: Motion<'_>, opts: &ConvertOptions) -> R
     // The prior (ground plane and camera height) when given: the frame when
     // no sensor is there, else compared with the sensor's.
     let prior_fit = match &opts.prior {
-        Some(p) => Some(prior::fit(rec, &slam, p, &opts.filter)?),
+        Some(p) => {
+            let names: Vec<Option<String>> = rows
+                .iter()
+                .enumerate()
+                .map(|(s, r)| match r {
+                    None => rec.frame_info.get(s).and_then(|f| f.name.clone()),
+                    Some(_) => None,
+                })
+                .collect();
+            Some(prior::fit(
+                rec,
+                &slam,
+                &names,
+                p,
+                &opts.filter,
+                opts.align.max_diff,
+            )?)
+        }
         None => None,
     };
     let world = match (reference.as_ref(), imu.as_deref()) {
@@ -749,11 +766,10 @@ fn convert_with(rec: &Recording, motion: Motion<'_>, opts: &ConvertOptions) -> R
             (Vec::new(), None, None, None, 0, None)
         }
     };
-    let ground = match (&prior_fit, &opts.prior) {
-        (Some(f), Some(p)) => Some(f.report(
-            &p.camera_height,
-            (!matches!(world, WorldFrame::Prior(_))).then_some(&t),
-        )),
+    let prior = match (&prior_fit, &opts.prior) {
+        (Some(f), Some(p)) => {
+            Some(f.report(p, (!matches!(world, WorldFrame::Prior(_))).then_some(&t)))
+        }
         _ => None,
     };
     let frames_dropped = (0..slam.len()).filter(|&s| !used[s]).map(id_of).collect();
@@ -789,7 +805,7 @@ fn convert_with(rec: &Recording, motion: Motion<'_>, opts: &ConvertOptions) -> R
             write_s: 0.0,
         },
         imu: imu_report,
-        ground,
+        prior,
         octree: octree_report,
         grid: grid_report,
         startup: world

@@ -47,8 +47,9 @@ pub struct ConvertOptions {
     pub gnss: GnssOptions,
     /// The georeferenced clouds written beside the others.
     pub geo_outputs: GeoOutputs,
-    /// The ground plane and the cameras' known height: `T_world_slam` when
-    /// the recording has no reference sensor, else compared with it.
+    /// Metric scale and "up" with no second sensor (a camera height, a known
+    /// distance, planar motion): `T_world_slam` when the recording has no
+    /// reference sensor, else compared with it.
     pub prior: Option<PriorOptions>,
 }
 
@@ -106,6 +107,9 @@ impl ConvertOptions {
         }
         if let Some(w) = self.compare_windowed {
             w.check()?;
+        }
+        if let Some(p) = &self.prior {
+            p.check()?;
         }
         Ok(())
     }

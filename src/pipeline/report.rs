@@ -322,15 +322,10 @@ pub enum HeightGiven {
     },
 }
 
-/// The ground plane and the cameras' known height in `report.json`
-/// (`convert --camera-height`).
+/// The ground plane found in the SLAM cloud (`report.json`'s `prior.plane`).
 #[derive(Clone, Debug, PartialEq, Serialize, JsonSchema)]
-pub struct GroundReport {
-    /// True when `T_world_slam` came from this prior (no reference sensor).
-    pub used_for_transform: bool,
-    /// The height given.
-    pub camera_height: HeightGiven,
-    /// The plane's unit normal in the SLAM frame, towards the cameras.
+pub struct PlaneReport {
+    /// Unit normal in the SLAM frame, towards the cameras.
     pub normal: [f64; 3],
     /// `normal · x + offset` is the height of `x` over the plane, SLAM units.
     pub offset: f64,
@@ -349,18 +344,71 @@ pub struct GroundReport {
     /// The strongest other plane under the cameras: its inliers and its
     /// height over this one (SLAM units).
     pub runner_up: Option<(usize, f64)>,
-    /// Metres per SLAM unit from the plane and the heights.
+}
+
+/// Two poses a known distance apart (`prior.known_distance`).
+#[derive(Clone, Debug, PartialEq, Serialize, JsonSchema)]
+pub struct DistanceReport {
+    /// The two poses' indices among the SLAM poses.
+    pub poses: [usize; 2],
+    /// Their distance given, metres.
+    pub metres: f64,
+    /// Their distance in the SLAM frame, SLAM units.
+    pub slam_distance: f64,
+    /// Metres per SLAM unit it gives.
     pub scale: f64,
+}
+
+/// The plane the cameras ride in (`prior.planar_motion`).
+#[derive(Clone, Debug, PartialEq, Serialize, JsonSchema)]
+pub struct PlanarReport {
+    /// Unit normal in the SLAM frame, towards the cameras' image "up".
+    pub normal: [f64; 3],
+    /// Rms distance of the camera centres from the plane, SLAM units.
+    pub rms: f64,
+    /// Rms spread of the centres along the plane's narrower axis, SLAM units.
+    pub extent: f64,
+    /// Tilt, degrees, that a slope as large as the out-of-plane spread could
+    /// hide: `atan(rms / extent)`.
+    pub tilt_bound_deg: f64,
+    /// Standard error of the normal for independent errors, degrees.
+    pub sigma_deg: f64,
+}
+
+/// Metric scale and "up" with no second sensor in `report.json`
+/// (`convert --camera-height`, `--known-distance`, `--planar-motion`).
+#[derive(Clone, Debug, PartialEq, Serialize, JsonSchema)]
+pub struct PriorReport {
+    /// True when `T_world_slam` came from the prior (no reference sensor).
+    pub used_for_transform: bool,
+    /// Metres per SLAM unit of the prior.
+    pub scale: f64,
+    /// What set the scale: `known_distance` or `camera_height`.
+    pub scale_from: String,
+    /// What set "up": `ground_plane` or `planar_motion`.
+    pub up_from: String,
+    /// "Up" (the world's z) in the SLAM frame, unit.
+    pub up: [f64; 3],
+    /// The height given, if any.
+    pub camera_height: Option<HeightGiven>,
+    /// Metres per SLAM unit from the plane and the heights, when given.
+    pub height_scale: Option<f64>,
     /// Rms of the given heights less the fitted ones, metres.
-    pub height_rms: f64,
-    /// `[stamp, height]` of each SLAM pose over the plane, metres (at the
-    /// prior's scale).
+    pub height_rms: Option<f64>,
+    /// The known distance, when given.
+    pub known_distance: Option<DistanceReport>,
+    /// The ground plane, when one was fitted.
+    pub plane: Option<PlaneReport>,
+    /// The plane the cameras ride in, when it gave "up".
+    pub planar_motion: Option<PlanarReport>,
+    /// `[stamp, height]` of each SLAM pose over the ground plane, metres (at
+    /// the prior's scale; empty without a plane and heights).
     pub heights: Vec<[f64; 2]>,
     /// The prior's scale over the sensor's, less 1, when a reference sensor
     /// set the frame.
     #[serde(skip_serializing_if = "Option::is_none")]
     pub scale_vs_sensor: Option<f64>,
-    /// Degrees between the plane's normal and the sensor frame's z, when a
+    /// Degrees between the prior's "up" and the sensor frame's z, when a
     /// reference sensor set the frame.
     #[serde(skip_serializing_if = "Option::is_none")]
     pub up_vs_sensor_deg: Option<f64>,
@@ -706,9 +754,9 @@ pub struct Report {
     /// The inertial initialisation, when the input has raw IMU samples.
     #[serde(skip_serializing_if = "Option::is_none")]
     pub imu: Option<ImuReport>,
-    /// The ground plane and the cameras' known height, when given.
+    /// Metric scale and "up" with no second sensor, when a prior was given.
     #[serde(skip_serializing_if = "Option::is_none")]
-    pub ground: Option<GroundReport>,
+    pub prior: Option<PriorReport>,
     /// The occupancy octree, when one was built.
     #[serde(skip_serializing_if = "Option::is_none")]
     pub octree: Option<OctreeReport>,

@@ -252,6 +252,63 @@ impl PyConversion {
     }
 }
 
+/// A pose of `known_distance`: an index (int), a stamp (float, seconds) or
+/// an image name (str).
+fn pose_ref(p: &Bound<'_, PyAny>) -> PyResult<crate::pipeline::prior::PoseRef> {
+    use crate::pipeline::prior::PoseRef;
+    if let Ok(i) = p.extract::<usize>() {
+        return Ok(PoseRef::Index(i));
+    }
+    if let Ok(t) = p.extract::<f64>() {
+        return Ok(PoseRef::Stamp(t));
+    }
+    p.extract::<String>().map(PoseRef::Name).map_err(|_| {
+        crate::error::Error::invalid(
+            "known_distance",
+            "a pose is an index (int >= 0), a stamp (float) or an image name (str)",
+        )
+        .into()
+    })
+}
+
+/// The prior of `convert`'s `camera_height`, `known_distance` and
+/// `planar_motion`, if any.
+fn prior_options(
+    camera_height: Option<&Bound<'_, PyAny>>,
+    known_distance: Option<(Bound<'_, PyAny>, Bound<'_, PyAny>, f64)>,
+    planar_motion: bool,
+) -> PyResult<Option<crate::pipeline::prior::PriorOptions>> {
+    use crate::pipeline::prior::{DistanceSpec, PriorOptions};
+    let camera_height = camera_height
+        .filter(|h| !h.is_none())
+        .map(height_spec)
+        .transpose()?;
+    let known_distance = match known_distance {
+        Some((a, b, metres)) => Some(DistanceSpec {
+            a: pose_ref(&a)?,
+            b: pose_ref(&b)?,
+            metres,
+        }),
+        None => None,
+    };
+    if camera_height.is_none() && known_distance.is_none() {
+        if planar_motion {
+            return Err(crate::error::Error::invalid(
+                "planar_motion",
+                "gives \"up\" only: give the scale too (camera_height or known_distance)",
+            )
+            .into());
+        }
+        return Ok(None);
+    }
+    Ok(Some(PriorOptions {
+        camera_height,
+        known_distance,
+        planar_motion,
+        ground: crate::align::ground::GroundOptions::default(),
+    }))
+}
+
 /// `camera_height`: metres at every pose (a number), `"first:M"` (the
 /// first pose's), or a path to a `stamp height` file.
 fn height_spec(h: &Bound<'_, PyAny>) -> PyResult<crate::pipeline::prior::HeightSpec> {
@@ -315,10 +372,13 @@ fn height_spec(h: &Bound<'_, PyAny>) -> PyResult<crate::pipeline::prior::HeightS
 /// With no reference sensor, `camera_height` (metres at every pose, a
 /// string `"first:M"` for the first pose's, or the path of a `stamp height`
 /// file) gives `T_world_slam` from the ground plane of the SLAM cloud and
-/// the cameras' height over it (`Conversion.report()["ground"]`); with a
-/// sensor, the report compares the two.
+/// the cameras' height over it; `known_distance=(a, b, metres)` (poses by
+/// index, stamp or image name) gives the scale instead, and
+/// `planar_motion=True` takes "up" from the plane the cameras ride in
+/// (`Conversion.report["prior"]`); with a sensor, the report compares the
+/// prior with it.
 #[pyfunction(name = "convert")]
-#[pyo3(signature = (log_or_path, *, keyframe_topic=None, graph_topic=None, pose_topic=None, est_topic=None, tf_parent=None, tf_child=None, max_diff=0.01, offset=0.0, n_to_align=None, scale=true, method="horn", filter=None, octree_resolution=None, octree_max_range=None, prob_hit=0.7, prob_miss=0.4, clamp_min=0.1192, clamp_max=0.971, skip_init=None, robust=None, inlier_threshold=None, loss="huber", use_orientations=false, estimate_offset=false, max_offset=0.5, body_from_cam=None, compare_windowed=None, windowed_cloud=false, imu_topic=None, imu_from_cam=None, gravity=9.81, level=0.95, dof="sim3", anchor=None, association="evo", max_tilt_deg=Some(crate::defaults::MAX_TILT_DEG), reference_noise=None, fit_checks=true, reference=None, reference_format=None, reference_time_unit=None, time_unit=None, cloud=None, colmap_format=None, depth_filter=true, depth_threshold=0.005, depth_min_count=2, min_disparity_ratio=0.5, gnss=None, gnss_format=None, geoid_offset=0.0, gnss_topic=None, origin=OriginArg::Name(crate::defaults::ORIGIN.into()), lever_arm=None, gnss_weights=true, gnss_max_gap=None, las=None, laz=false, pcd=false, crs=crate::defaults::CRS, grid=None, grid_resolution=None, grid_threshold=0.5, camera_height=None),
+#[pyo3(signature = (log_or_path, *, keyframe_topic=None, graph_topic=None, pose_topic=None, est_topic=None, tf_parent=None, tf_child=None, max_diff=0.01, offset=0.0, n_to_align=None, scale=true, method="horn", filter=None, octree_resolution=None, octree_max_range=None, prob_hit=0.7, prob_miss=0.4, clamp_min=0.1192, clamp_max=0.971, skip_init=None, robust=None, inlier_threshold=None, loss="huber", use_orientations=false, estimate_offset=false, max_offset=0.5, body_from_cam=None, compare_windowed=None, windowed_cloud=false, imu_topic=None, imu_from_cam=None, gravity=9.81, level=0.95, dof="sim3", anchor=None, association="evo", max_tilt_deg=Some(crate::defaults::MAX_TILT_DEG), reference_noise=None, fit_checks=true, reference=None, reference_format=None, reference_time_unit=None, time_unit=None, cloud=None, colmap_format=None, depth_filter=true, depth_threshold=0.005, depth_min_count=2, min_disparity_ratio=0.5, gnss=None, gnss_format=None, geoid_offset=0.0, gnss_topic=None, origin=OriginArg::Name(crate::defaults::ORIGIN.into()), lever_arm=None, gnss_weights=true, gnss_max_gap=None, las=None, laz=false, pcd=false, crs=crate::defaults::CRS, grid=None, grid_resolution=None, grid_threshold=0.5, camera_height=None, known_distance=None, planar_motion=false),
        text_signature = "(log_or_path, *, keyframe_topic=None, graph_topic=None, pose_topic=None, \
                          est_topic=None, tf_parent=None, tf_child=None, max_diff=0.01, offset=0.0, n_to_align=None, \
                          scale=True, method='horn', filter=None, octree_resolution=None, \
@@ -334,7 +394,8 @@ fn height_spec(h: &Bound<'_, PyAny>) -> PyResult<crate::pipeline::prior::HeightS
                          min_disparity_ratio=0.5, gnss=None, gnss_format=None, geoid_offset=0.0, \
                          gnss_topic=None, origin='first', lever_arm=None, gnss_weights=True, \
                          gnss_max_gap=None, las=None, laz=False, pcd=False, crs='utm', grid=None, \
-                         grid_resolution=None, grid_threshold=0.5, camera_height=None)")]
+                         grid_resolution=None, grid_threshold=0.5, camera_height=None, \
+                         known_distance=None, planar_motion=False)")]
 #[allow(clippy::too_many_arguments)]
 fn convert_py(
     py: Python<'_>,
@@ -403,12 +464,10 @@ fn convert_py(
     grid_resolution: Option<f64>,
     grid_threshold: f64,
     camera_height: Option<&Bound<'_, PyAny>>,
+    known_distance: Option<(Bound<'_, PyAny>, Bound<'_, PyAny>, f64)>,
+    planar_motion: bool,
 ) -> PyResult<PyConversion> {
-    let prior = camera_height
-        .filter(|h| !h.is_none())
-        .map(height_spec)
-        .transpose()?
-        .map(crate::pipeline::prior::PriorOptions::height);
+    let prior = prior_options(camera_height, known_distance, planar_motion)?;
     let gnss_file = match gnss {
         Some(path) => Some(GnssFile {
             path,

@@ -255,12 +255,14 @@ fn a_failed_rerun_leaves_the_previous_outputs_and_stale_ones_go() {
     );
     // Disk full (a file size limit below one keyframe's pixels): exit 1, naming
     // the temporary folder the keyframes' pixels go to (the first file written)
-    // and the keyframe; every previous output as it was; no temporary file.
+    // and the keyframe (the first to fail: the pixels are set aside from
+    // several threads, so under load not always keyframe 0); every previous
+    // output as it was; no temporary file.
     let o = run_with_fsize(&["convert", s(&log), "-o", s(&out), "-q"], 4096);
     assert_eq!(o.status.code(), Some(1));
     let e = one_line_naming(&o, "File too large");
     assert!(
-        e.contains("temporary folder (TMPDIR)") && e.contains("keyframe 0"),
+        e.contains("temporary folder (TMPDIR)") && e.contains("(keyframe "),
         "{e}"
     );
     assert!(!e.contains("slam2world-tmp"), "{e}");

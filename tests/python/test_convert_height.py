@@ -41,15 +41,18 @@ def test_the_camera_height_converts_v101_to_the_ground_truths_scale(tmp_path: Pa
     rotation = fit.matrix()[:3, :3] / fit.scale
     for given in (f"first:{heights[0]}", file):
         c = sw.convert(kf_path, cloud=cloud, camera_height=given)
-        g = c.report["ground"]
+        g = c.report["prior"]
         t = c.transform
-        up = np.asarray(g["normal"])
+        up = np.asarray(g["up"])
+        assert up @ g["plane"]["normal"] == pytest.approx(1.0, abs=1e-12)
         gravity = np.degrees(np.arccos(np.clip((rotation @ up)[2], -1, 1)))
         print(
-            f"V1_01 convert, {g['camera_height']['kind']}: plane {g['inliers']} of "
-            f"{g['n_points']}, scale {t.scale / fit.scale - 1:+.4%}, gravity {gravity:.3f} deg"
+            f"V1_01 convert, {g['camera_height']['kind']}: plane {g['plane']['inliers']} of "
+            f"{g['plane']['n_points']}, scale {t.scale / fit.scale - 1:+.4%}, "
+            f"gravity {gravity:.3f} deg"
         )
         assert g["used_for_transform"] and g["scale"] == t.scale
+        assert g["scale_from"] == "camera_height" and g["up_from"] == "ground_plane"
         assert abs(t.scale / fit.scale - 1) < 0.03 and gravity < 1.5
         # The world: z up along the plane's normal, the first camera at its given height.
         first = t.apply(sw.Trajectory.read_tum(kf_path).positions[:1])[0]
@@ -62,7 +65,7 @@ def test_beside_a_reference_the_report_compares_the_prior(tmp_path: Path) -> Non
     kf_path, cloud, file, fit, _ = v101_heights(tmp_path)
     gt = data_path("euroc_v101_orbslam2_map", "V1_01_easy_original.txt")
     c = sw.convert(kf_path, cloud=cloud, reference=gt, camera_height=file)
-    g = c.report["ground"]
+    g = c.report["prior"]
     assert not g["used_for_transform"]
     assert c.transform.scale == pytest.approx(fit.scale, rel=1e-6)  # the reference sets it
     assert g["scale_vs_sensor"] == pytest.approx(g["scale"] / c.transform.scale - 1, rel=1e-9)
@@ -102,17 +105,64 @@ def test_a_log_with_no_second_sensor_converts_from_the_cli(
     assert (
         run_cli(["slam2world", "convert", str(log), "-o", str(out), "--camera-height", "1.2"]) == 0
     )
-    assert "over the ground plane" in capfd.readouterr().out
+    assert "scale from the camera height, up from the ground plane" in capfd.readouterr().out
     report = json.loads((out / "report.json").read_text())
     truth = json.loads((tmp_path / "g.truth.json").read_text())["t_world_slam"]
     scale = report["t_world_slam"]["scale"]
-    assert report["ground"]["used_for_transform"] and "imu" not in report
+    assert report["prior"]["used_for_transform"] and "imu" not in report
     assert abs(scale / truth["scale"] - 1) < 0.01
     # The world's z is the truth's: the cloud's floor at 0 m.
     floor = sw.read_ply(out / "cloud.ply").points
     assert abs(np.percentile(floor[:, 2], 5)) < 0.05
+    # A ground robot with no cloud needed: up from its cameras' plane, scored against the truth;
+    # the scale from two keyframes at the distance the truth puts them (the keyframes are exact
+    # but for their noise, so the scale is the truth's to that noise).
+    kf = sw.read_mcap(log).keyframes
+    slam_distance = float(np.linalg.norm(kf[20].pose.translation - kf[5].pose.translation))
+    metres = truth["scale"] * slam_distance
+    stamp = f"{kf[20].timestamp:.6f}"  # the second pose by its stamp
+    args = ["convert", str(log), "-o", str(tmp_path / "p"), "--planar-motion"]
+    assert run_cli(["slam2world", *args, "--known-distance", "5", stamp, str(metres)]) == 0
+    p = json.loads((tmp_path / "p" / "report.json").read_text())["prior"]
+    assert p["up_from"] == "planar_motion" and p["scale_from"] == "known_distance"
+    assert p["known_distance"]["poses"] == [5, 20] and p["plane"] is None
+    assert p["scale"] == pytest.approx(truth["scale"], rel=1e-6)
+    rotation = np.asarray(truth["matrix"])[:3, :3] / truth["scale"]
+    gravity = np.degrees(np.arccos(np.clip((rotation @ np.asarray(p["up"]))[2], -1, 1)))
+    assert gravity < 1.0 and p["planar_motion"]["tilt_bound_deg"] < 1.0
+    capfd.readouterr()
+    assert run_cli(["slam2world", *args]) == 1  # "up" alone
+    assert "give the scale too" in capfd.readouterr().err
     # A bad value is a usage error (clap's exit code 2) with the reason.
     assert (
         run_cli(["slam2world", "convert", str(log), "-o", str(out), "--camera-height", "-1"]) == 2
     )
     assert "positive number of metres" in capfd.readouterr().err
+
+
+def test_a_known_distance_scales_v101_by_index_or_stamp_and_its_flight_is_no_planar_motion(
+    tmp_path: Path,
+) -> None:
+    kf_path, cloud, _, fit, _ = v101_heights(tmp_path)
+    kf = sw.Trajectory.read_tum(kf_path)
+    gt = sw.Trajectory.read_tum(data_path("euroc_v101_orbslam2_map", "V1_01_easy_original.txt"))
+    # A keyframe inside the ground truth's span and the one farthest from it.
+    a = 3
+    b = int(np.argmax(np.linalg.norm(kf.positions - kf.positions[a], axis=1)))
+    body = gt.interpolate(kf.timestamps[[a, b]]).positions
+    metres = float(np.linalg.norm(body[1] - body[0]))
+    for pose_b in (b, float(kf.timestamps[b])):
+        c = sw.convert(kf_path, cloud=cloud, known_distance=(a, pose_b, metres))
+        p = c.report["prior"]
+        assert p["known_distance"]["poses"] == [a, b] and p["scale_from"] == "known_distance"
+        print(
+            f"V1_01, keyframes {a} and {b} {metres:.3f} m apart: "
+            f"{c.transform.scale / fit.scale - 1:+.4%}"
+        )
+        assert abs(c.transform.scale / fit.scale - 1) < 0.03
+    with pytest.raises(sw.InvalidInputError, match="not among"):
+        sw.convert(kf_path, cloud=cloud, known_distance=(a, 500, metres))
+    with pytest.raises(sw.DegenerateError, match="do not ride in one plane"):
+        sw.convert(kf_path, cloud=cloud, known_distance=(a, b, metres), planar_motion=True)
+    with pytest.raises(sw.InvalidInputError, match="give the scale too"):
+        sw.convert(kf_path, cloud=cloud, planar_motion=True)
