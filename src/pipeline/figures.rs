@@ -230,6 +230,17 @@ pub struct FigureData {
     pub cloud: Option<CloudData>,
     /// The occupied voxels.
     pub voxels: Option<VoxelData>,
+    /// The ground plane of a prior, when one was fitted.
+    pub ground: Option<GroundFigure>,
+}
+
+/// The ground plane in the world frame.
+#[derive(Clone, Debug, PartialEq, Serialize)]
+pub struct GroundFigure {
+    /// Unit normal ("up" of the plane), world frame.
+    pub normal: [f64; 3],
+    /// A point of the plane, metres, offset from [`FigureData::origin`].
+    pub point: [f64; 3],
 }
 
 impl FigureData {
@@ -260,6 +271,21 @@ impl FigureData {
             f.cloud = Some(decimate(cloud, f.origin, opts.max_points)?);
         }
         f.voxels = octree.map(|m| voxels(m, f.origin, opts.max_voxels));
+        f.ground = c
+            .report
+            .prior
+            .as_ref()
+            .and_then(|p| p.plane.as_ref())
+            .map(|p| {
+                let t = c.transform();
+                let n = nalgebra::Vector3::from(p.normal);
+                let w = t.transform_point(&(-p.offset * n));
+                let nw = t.rotation * n;
+                GroundFigure {
+                    normal: [nw.x, nw.y, nw.z],
+                    point: [w.x - f.origin[0], w.y - f.origin[1], w.z - f.origin[2]],
+                }
+            });
         Ok(f)
     }
 

@@ -341,3 +341,48 @@ def test_conversion_write_html_keeps_to_its_limits(tmp_path: Path) -> None:
     assert voxels["n"] <= 50 < voxels["n_total"] and voxels["shown_resolution"] > 0.1
     with pytest.raises(ValueError, match="max_points"):
         conv.write_html(page, max_points=0)
+
+
+@pytest.mark.slow
+def test_a_prior_conversion_page_draws_the_heights_and_the_ground(
+    tmp_path: Path, browser: Browser
+) -> None:
+    log = tmp_path / "g.mcap"
+    sets = ["camera_height=1.2", "height_loop=0", "height_slow=0", "look_height=0.6"]
+    args = ["simulate", "-o", str(log), "--reduced", "4", "--no-reference", "--no-imu"]
+    assert run_cli(["slam2world", *args, *[a for s in sets for a in ("--set", s)]]) == 0
+    out = tmp_path / "o"
+    assert (
+        run_cli(["slam2world", "convert", str(log), "-o", str(out), "-q", "--camera-height", "1.2"])
+        == 0
+    )
+    page = out / "report.html"
+    report = json.loads((out / "report.json").read_text())
+    # The prior's card: every number equals report.json's.
+    parser = _Numbers()
+    parser.feed(page.read_text())
+    keys = {r[1] for r in parser.rows}
+    assert {"prior.scale", "prior.plane.inliers", "prior.height_rms"} <= keys
+    assert check_numbers(parser.rows, {"report": report}) > 8
+    browser.events.clear()
+    browser.open(page_url(page))
+    browser.wait_for("document.body && document.body.dataset.ready !== undefined")
+    assert browser.evaluate("document.body.dataset.ready") == "1", browser.evaluate(
+        "document.getElementById('s2w-status').textContent"
+    )
+    assert browser.errors() == []
+    assert "heights" in browser.evaluate("document.getElementById('s2w-status').textContent")
+    rect = json.loads(
+        browser.evaluate(
+            "JSON.stringify((r => [r.left + scrollX, r.top + scrollY, r.width, r.height])"
+            "(document.getElementById('heights-plot').getBoundingClientRect()))"
+        )
+    )
+    assert pixel_std(browser.screenshot(tuple(rect)), tmp_path / "heights.png") > 0.03
+    # The ground plane is drawn in the 3-D view, and its toggle hides it.
+    assert not browser.evaluate("document.getElementById('show-ground').disabled")
+    lines = "window.s2wCloudView.layers.filter(l => l.kind === 'line' && l.visible).length"
+    shown = browser.evaluate(lines)
+    browser.evaluate("document.getElementById('show-ground').click()")
+    assert browser.evaluate(lines) == shown - 1
+    assert browser.errors() == []

@@ -22,8 +22,8 @@ use serde::Serialize;
 
 use super::figures::FigureData;
 use super::report::{
-    AlignReport, ApeReport, DemoReport, FitReport, GnssReport, ImuReport, OctreeReport, Report,
-    TransformReport, WindowedReport,
+    AlignReport, ApeReport, DemoReport, FitReport, GnssReport, ImuReport, OctreeReport,
+    PriorReport, Report, TransformReport, WindowedReport,
 };
 use crate::error::{Error, Result};
 
@@ -437,6 +437,90 @@ fn imu_card(doc: &'static str, r: &ImuReport) -> Card {
     c
 }
 
+/// Metric scale and "up" with no second sensor: what set them, the ground
+/// plane, the heights, the known distance, the cameras' plane.
+fn prior_card(doc: &'static str, r: &PriorReport) -> Card {
+    let mut c = Card::new(doc, "No second sensor: the prior");
+    c.row(
+        "gives T_world_slam",
+        if r.used_for_transform {
+            "yes"
+        } else {
+            "no (compared with the sensor)"
+        }
+        .into(),
+    );
+    c.row(
+        "scale from",
+        format!(
+            "{} ({})",
+            esc(&r.scale_from.replace('_', " ")),
+            c.num("prior.scale", r.scale, 7)
+        ),
+    );
+    c.row("up from", esc(&r.up_from.replace('_', " ")));
+    if let Some(p) = &r.plane {
+        c.row(
+            "ground plane",
+            format!(
+                "{} of {} points, spread {} units",
+                c.count("prior.plane.inliers", p.inliers),
+                c.count("prior.plane.n_points", p.n_points),
+                c.num("prior.plane.spread", p.spread, 3)
+            ),
+        );
+        if let Some(t) = p.tilt_from_cameras_deg {
+            c.row(
+                "normal from the cameras' up (deg)",
+                c.num("prior.plane.tilt_from_cameras_deg", t, 3),
+            );
+        }
+    }
+    if let (Some(h), Some(rms)) = (r.height_scale, r.height_rms) {
+        c.row(
+            "scale from the heights",
+            format!(
+                "{} (heights rms {} m)",
+                c.num("prior.height_scale", h, 7),
+                c.num("prior.height_rms", rms, 3)
+            ),
+        );
+    }
+    if let Some(d) = &r.known_distance {
+        c.row(
+            "known distance",
+            format!(
+                "poses {} and {}: {} m over {} units",
+                c.count("prior.known_distance.poses.0", d.poses[0]),
+                c.count("prior.known_distance.poses.1", d.poses[1]),
+                c.num("prior.known_distance.metres", d.metres, 6),
+                c.num("prior.known_distance.slam_distance", d.slam_distance, 6)
+            ),
+        );
+    }
+    if let Some(m) = &r.planar_motion {
+        c.row(
+            "cameras' plane",
+            format!(
+                "rms {} units off it, tilt bound {}°",
+                c.num("prior.planar_motion.rms", m.rms, 3),
+                c.num("prior.planar_motion.tilt_bound_deg", m.tilt_bound_deg, 3)
+            ),
+        );
+    }
+    if let (Some(ds), Some(up)) = (r.scale_vs_sensor, r.up_vs_sensor_deg) {
+        c.row(
+            "against the sensor",
+            format!(
+                "scale {} (relative), up {}°",
+                c.num("prior.scale_vs_sensor", ds, 4),
+                c.num("prior.up_vs_sensor_deg", up, 4)
+            ),
+        );
+    }
+    c
+}
+
 /// The GNSS reference: the ENU origin the world is, its UTM zone, the fixes.
 fn gnss_card(doc: &'static str, g: &GnssReport) -> Card {
     let mut c = Card::new(doc, "GNSS reference (world = ENU)");
@@ -637,6 +721,9 @@ fn convert_cards(r: &Report, figures: &FigureData) -> Vec<Card> {
     }
     if let Some(i) = &r.imu {
         cards.push(imu_card(doc, i));
+    }
+    if let Some(p) = &r.prior {
+        cards.push(prior_card(doc, p));
     }
     if let Some(w) = &r.windowed {
         cards.push(windowed_card(doc, w));
@@ -848,6 +935,10 @@ const FIGURES_HTML: &str = r#"<section class="figure" id="paths-section">
 <div><h2>Error over time</h2><canvas id="error-plot" class="plot" width="640" height="320"></canvas></div>
 <div><h2>Error histogram</h2><canvas id="hist-plot" class="plot" width="480" height="320"></canvas></div>
 </section>
+<section class="figure" id="heights-section">
+<h2>Camera heights over the ground <small>each SLAM pose's height over the ground plane, at the prior's scale</small></h2>
+<canvas id="heights-plot" class="plot" width="960" height="280"></canvas>
+</section>
 <section class="figure" id="cloud-section">
 <h2>World cloud <small id="cloud-caption"></small></h2>
 <div class="controls">
@@ -855,6 +946,7 @@ const FIGURES_HTML: &str = r#"<section class="figure" id="paths-section">
 <label><input type="checkbox" id="show-voxels"> occupied voxels</label>
 <label><input type="checkbox" id="show-points" checked> points</label>
 <label><input type="checkbox" id="show-paths" checked> paths</label>
+<label><input type="checkbox" id="show-ground" checked> ground plane</label>
 <label>point size <input type="range" id="point-size" min="1" max="6" value="2"></label>
 </div>
 <div class="view"><canvas id="cloud-view" class="gl" width="960" height="640"></canvas>

@@ -578,6 +578,42 @@
     drawn.push("error", "histogram");
   }
 
+  function heightsFigure() {
+    var section = document.getElementById("heights-section");
+    var p = R.prior;
+    if (!p || !p.heights || !p.heights.length) { section.style.display = "none"; return; }
+    var t0 = p.heights[0][0];
+    var x = p.heights.map(function (h) { return h[0] - t0; });
+    var y = p.heights.map(function (h) { return h[1]; });
+    var series = [
+      { kind: "line", x: x, y: y, color: "rgba(31,111,235,0.45)", width: 1 },
+      { kind: "points", x: x, y: y, color: "#1f6feb", size: 3, label: "height over the ground plane" }
+    ];
+    var h = [];
+    var ch = p.camera_height;
+    if (ch && (ch.kind === "constant" || ch.kind === "first")) {
+      h.push({ v: ch.metres, color: "#d62728", dash: true, label: (ch.kind === "first" ? "given at the first pose: " : "given: ") + fmt(ch.metres) + " m" });
+    }
+    plot2d(document.getElementById("heights-plot"), { xlabel: "time since the first pose (s)", ylabel: "height (m)", yzero: true, series: series, hlines: h });
+    drawn.push("heights");
+  }
+
+  // A square grid in the ground plane `g` (normal, point: offsets from the
+  // origin) over the bounds `b`, as one line strip (the turns on its border).
+  function groundGrid(g, b) {
+    var n = norm(g.normal);
+    var u = norm(cross(n, Math.abs(n[0]) < 0.9 ? [1, 0, 0] : [0, 1, 0])), w = cross(n, u);
+    var c = [0, 1, 2].map(function (a) { return 0.5 * (b[0][a] + b[1][a]); });
+    var d = dot(sub(c, g.point), n);
+    c = [c[0] - d * n[0], c[1] - d * n[1], c[2] - d * n[2]];
+    var h = 0.5 * Math.max(b[1][0] - b[0][0], b[1][1] - b[0][1], b[1][2] - b[0][2]) || 1;
+    var k = 10, out = [];
+    function at(s, t) { for (var a = 0; a < 3; a++) out.push(c[a] + s * u[a] + t * w[a]); }
+    for (var i = 0; i <= k; i++) { var s = -h + 2 * h * i / k; if (i % 2) { at(s, h); at(s, -h); } else { at(s, -h); at(s, h); } }
+    for (var j = 0; j <= k; j++) { var t = h - 2 * h * j / k; if (j % 2) { at(-h, t); at(h, t); } else { at(h, t); at(-h, t); } }
+    return new Float32Array(out);
+  }
+
   function cloudFigure() {
     var section = document.getElementById("cloud-section");
     if (!F.cloud && !F.voxels) { section.style.display = "none"; return; }
@@ -617,6 +653,13 @@
     var paths = [];
     if (ref) paths.push(v.add("line", ref, solid(ref.length / 3, [0.85, 0.87, 0.9])));
     paths.push(v.add("line", est, solid(est.length / 3, ORANGE)));
+    var ground = null;
+    if (F.ground) {
+      var grid = groundGrid(F.ground, b);
+      ground = v.add("line", grid, solid(grid.length / 3, [0.55, 0.7, 0.55]));
+    }
+    var groundBox = document.getElementById("show-ground");
+    if (!ground) { groundBox.checked = false; groundBox.disabled = true; groundBox.parentNode.title = "no ground plane in this conversion"; }
     v.frame(b[0], b[1]);
     var colourSel = document.getElementById("cloud-colour");
     if (!imageCol) { colourSel.querySelector("option[value=image]").disabled = true; }
@@ -627,10 +670,11 @@
       if (ptsImage) ptsImage.visible = showPts && !!byImage;
       if (vox) vox.visible = document.getElementById("show-voxels").checked;
       paths.forEach(function (p) { p.visible = document.getElementById("show-paths").checked; });
+      if (ground) ground.visible = groundBox.checked;
       v.pointSize = Number(document.getElementById("point-size").value);
       v.redraw();
     }
-    ["cloud-colour", "show-voxels", "show-points", "show-paths", "point-size"].forEach(function (id) {
+    ["cloud-colour", "show-voxels", "show-points", "show-paths", "show-ground", "point-size"].forEach(function (id) {
       document.getElementById(id).addEventListener("input", update);
       document.getElementById(id).addEventListener("change", update);
     });
@@ -646,7 +690,7 @@
     drawn.push("cloud");
   }
 
-  [["paths", pathsFigure], ["p_k", pkFigure], ["errors", errorFigures], ["cloud", cloudFigure]].forEach(function (f) {
+  [["paths", pathsFigure], ["p_k", pkFigure], ["errors", errorFigures], ["heights", heightsFigure], ["cloud", cloudFigure]].forEach(function (f) {
     try { f[1](); } catch (e) {
       fail(f[0], e);
       var el = document.getElementById(f[0] === "cloud" ? "cloud-view" : f[0] === "paths" ? "paths-view" : null);
