@@ -841,6 +841,7 @@ class Session:
         origin: str | tuple[float, float, float] = "first",
         gnss_weights: bool = True,
         gnss_max_gap: float | None = None,
+        camera_height: float | str | None = None,
     ) -> Session: ...
     def push_reference(
         self, time: float, position: _ArrayLike, orientation_xyzw: _ArrayLike | None = None

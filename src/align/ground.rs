@@ -252,8 +252,8 @@ fn search(
     tau0: f64,
     opts: &GroundOptions,
 ) -> Vec<Candidate> {
-    // The RANSAC draws run over at most 20 000 points (every k-th).
-    let stride = pts.len().div_ceil(20_000).max(1);
+    // The RANSAC draws run over at most 4 000 points (every k-th).
+    let stride = pts.len().div_ceil(4_000).max(1);
     let mut active: Vec<usize> = (0..pts.len()).step_by(stride).collect();
     let all: Vec<usize> = (0..pts.len()).collect();
     let band = 5.0 * tau0;

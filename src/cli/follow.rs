@@ -39,6 +39,10 @@ use crate::pipeline::outputs::{
 use crate::pipeline::report::{to_json_bytes, FollowReport, TransformReport};
 use crate::pipeline::session::{LogFeed, Pushed, Session, SessionOptions};
 
+fn camera_height(s: &str) -> std::result::Result<crate::pipeline::prior::HeightSpec, String> {
+    s.parse().map_err(|e: crate::error::Error| e.to_string())
+}
+
 /// Arguments of `follow`.
 #[derive(Args, Debug)]
 pub struct FollowArgs {
@@ -70,6 +74,12 @@ pub struct FollowArgs {
     /// Seconds of stable stage seen before the transform is given.
     #[arg(long, value_name = "S", default_value_t = crate::pipeline::session::STABLE_HOLD_S, value_parser = non_negative)]
     pub stable_hold: f64,
+    /// The cameras' height over the ground, for a log with no reference:
+    /// metres at every pose (`1.2`) or at the first (`first:0.95`);
+    /// `T_world_slam` comes from the ground plane of the keyframes so far as
+    /// soon as one is supported.
+    #[arg(long, value_name = "M|first:M", allow_hyphen_values = true, value_parser = camera_height)]
+    pub camera_height: Option<crate::pipeline::prior::HeightSpec>,
     /// Write ROS 2 messages into world.mcap instead of Foxglove schemas.
     #[arg(long)]
     pub ros2: bool,
@@ -150,6 +160,7 @@ pub fn run(args: &FollowArgs) -> Result<()> {
         },
         stable_hold: args.stable_hold,
         rebuild_tolerance: 0.5 * args.octree,
+        camera_height: args.camera_height.clone(),
         ..SessionOptions::default()
     };
     let grid = args.grid.as_ref().map(|z| GridParams::new(z[0], z[1]));

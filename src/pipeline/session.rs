@@ -44,6 +44,11 @@
 //!   decided once a fix at or after that time has arrived, each pair weighing
 //!   `1 / σ̄²` while every fix has a covariance. A session takes poses or
 //!   fixes, not both.
+//! - No second sensor: with [`SessionOptions::camera_height`] and no
+//!   reference, `T_world_slam` comes from the ground plane of the keyframes
+//!   so far and the height as soon as a plane is supported (the stage is
+//!   then stable), fitted again as the keyframes grow by a quarter and at
+//!   the end, where it equals `convert --camera-height` of the same log.
 //! - Not yet online: the IMU-only path (IMU samples are kept, not used) and
 //!   a lever arm (it needs the orientations the session does not fit with).
 
@@ -64,6 +69,7 @@ use crate::map::{Grid2d, MapParams, OccupancyMap};
 use crate::trajectory::{Association, GapOfStream};
 
 use super::gnss::GnssOptions;
+use super::prior::HeightSpec;
 use super::startup::{cut_of_pairs, LiveCut};
 
 /// Seconds of stable stage the detection must see before it is reported.
@@ -110,6 +116,11 @@ pub struct SessionOptions {
     /// How GNSS fixes become the reference (origin first or given, weights,
     /// `max_gap`); the mean origin and a lever arm are refused online.
     pub gnss: GnssOptions,
+    /// The cameras' height over the ground (metres at every pose, or at the
+    /// first), for a session with no reference: `T_world_slam` from the
+    /// ground plane of the keyframes so far as soon as one is supported
+    /// (a heights file is the batch convert's).
+    pub camera_height: Option<HeightSpec>,
 }
 
 impl Default for SessionOptions {
@@ -125,6 +136,7 @@ impl Default for SessionOptions {
             map,
             stable_hold: STABLE_HOLD_S,
             gnss: GnssOptions::default(),
+            camera_height: None,
         }
     }
 }
@@ -171,6 +183,24 @@ impl SessionOptions {
         }
         if self.gnss.lever_arm.is_some() {
             return refuse("lever_arm");
+        }
+        match &self.camera_height {
+            Some(HeightSpec::File(_)) => {
+                return Err(Error::invalid(
+                    "camera_height",
+                    "a file of heights is read by the batch convert: give the online session \
+                     one height (every pose, or first:M)",
+                ))
+            }
+            Some(HeightSpec::Constant(v) | HeightSpec::First(v))
+                if !(v.is_finite() && *v > 0.0) =>
+            {
+                return Err(Error::invalid(
+                    "camera_height",
+                    format!("must be a positive number of metres, got {v}"),
+                ))
+            }
+            _ => {}
         }
         for (what, v) in [
             ("stable_hold", self.stable_hold),
@@ -383,7 +413,17 @@ pub struct Session {
     building: Option<MapState>,
     rebuilds: usize,
     last_update: UpdateTiming,
+    /// With a camera height and no reference: each keyframe's points in the
+    /// SLAM frame (every k-th), with the pose they were carried by.
+    ground_points: BTreeMap<i32, (Sim3, Vec<Vector3<f64>>)>,
+    /// Keyframes came or moved since the ground plane was last fitted.
+    ground_dirty: bool,
+    /// Keyframes at the last ground fit that gave the transform.
+    ground_fitted_at: usize,
 }
+
+/// Most points of one keyframe the session's ground plane weighs.
+const GROUND_POINTS_PER_KEYFRAME: usize = 4000;
 
 fn finite3(what: &str, v: &Vector3<f64>) -> Result<()> {
     if v.iter().all(|x| x.is_finite()) {
@@ -434,6 +474,9 @@ impl Session {
             building: None,
             rebuilds: 0,
             last_update: UpdateTiming::default(),
+            ground_points: BTreeMap::new(),
+            ground_dirty: false,
+            ground_fitted_at: 0,
         })
     }
 
@@ -633,6 +676,7 @@ impl Session {
                 self.pending_kfs.push(id);
             }
         }
+        self.ground_dirty = true;
         self.match_pending(false);
         self.update()?;
         Ok(self.last_update)
@@ -647,6 +691,7 @@ impl Session {
             finite3("graph pose", &pose.translation)?;
             if let Some(k) = self.kfs.get_mut(id) {
                 k.keyframe.pose = *pose;
+                self.ground_dirty = true;
                 self.refit_moved(*id);
             }
         }
@@ -1014,6 +1059,14 @@ impl Session {
     fn update(&mut self) -> Result<()> {
         let t0 = Instant::now();
         self.last_update = UpdateTiming::default();
+        if self.reference == Reference::None && self.opts.camera_height.is_some() {
+            self.update_ground()?;
+            self.last_update.fit_s = t0.elapsed().as_secs_f64();
+            if self.transform.is_some() {
+                self.update_map()?;
+            }
+            return Ok(());
+        }
         self.detect(true);
         if self.stage == Stage::Stable {
             let from = self.cut.as_ref().map_or(f64::INFINITY, |c| c.stable_time);
@@ -1044,6 +1097,104 @@ impl Session {
         self.last_update.fit_s = t0.elapsed().as_secs_f64();
         if self.transform.is_some() {
             self.update_map()?;
+        }
+        Ok(())
+    }
+
+    /// With a camera height and no reference: `T_world_slam` from the ground
+    /// plane of the keyframes so far and the height, once a plane is
+    /// supported (the stage is then stable), fitted again as the keyframes
+    /// grow by a quarter and at the end (then equal to the batch convert's
+    /// of the same keyframes); until then, or when a later keyframe makes
+    /// the plane refused, the reason (a transform found before is kept).
+    fn update_ground(&mut self) -> Result<()> {
+        let Some(height) = self.opts.camera_height.clone() else {
+            return Ok(());
+        };
+        // Once a plane gave the transform, it is fitted again when the
+        // keyframes have grown by a quarter (and at the end): a new transform
+        // moves every inserted keyframe, and the map is built again.
+        let grown = 4 * self.kfs.len() >= 5 * self.ground_fitted_at;
+        if !self.ground_dirty || !(self.finished || self.transform.is_none() || grown) {
+            return Ok(());
+        }
+        self.ground_dirty = false;
+        let mut order: Vec<&Kf> = self.kfs.values().collect();
+        order.sort_by(|a, b| a.keyframe.timestamp.total_cmp(&b.keyframe.timestamp));
+        if order.is_empty() {
+            self.reason = "no keyframe yet: the ground plane needs the map".into();
+            return Ok(());
+        }
+        // Each keyframe's points carried by its pose now (again when it moved).
+        for k in &order {
+            let kf = &k.keyframe;
+            if self
+                .ground_points
+                .get(&kf.id)
+                .is_some_and(|(pose, _)| *pose == kf.pose)
+            {
+                continue;
+            }
+            let (c, _) = crate::cloud::backproject_batch_counted(
+                std::slice::from_ref(kf),
+                k.arrival,
+                &self.opts.filter,
+                |_| Sim3::identity(),
+                false,
+            )?;
+            let stride = c.len().div_ceil(GROUND_POINTS_PER_KEYFRAME).max(1);
+            let pts = c
+                .points
+                .chunks_exact(3)
+                .step_by(stride)
+                .map(|p| Vector3::new(p[0] as f64, p[1] as f64, p[2] as f64))
+                .collect();
+            self.ground_points.insert(kf.id, (kf.pose, pts));
+        }
+        let points: Vec<Vector3<f64>> = order
+            .iter()
+            .filter_map(|k| self.ground_points.get(&k.keyframe.id))
+            .flat_map(|(_, p)| p.iter().copied())
+            .collect();
+        let cams = crate::trajectory::Trajectory::try_new(
+            order.iter().map(|k| k.keyframe.timestamp).collect(),
+            order.iter().map(|k| k.keyframe.pose.translation).collect(),
+            Some(order.iter().map(|k| k.keyframe.pose.rotation).collect()),
+        )?;
+        let first = cams.timestamps[0];
+        let given = match height {
+            HeightSpec::First(v) => crate::align::ground::CameraHeight::First(v),
+            HeightSpec::Constant(v) => crate::align::ground::CameraHeight::Constant(v),
+            // Refused by the options' check.
+            HeightSpec::File(_) => return Ok(()),
+        };
+        let fitted = crate::align::ground::fit_ground_plane(
+            &points,
+            &cams,
+            &crate::align::ground::GroundOptions::default(),
+        )
+        .and_then(|plane| {
+            crate::align::ground::metric_from_height(&plane, &cams, &given)
+                .map(|m| (plane.inliers, plane.n_points, m.t_world_slam))
+        });
+        match fitted {
+            Ok((inliers, n, t)) => {
+                self.transform = Some(t);
+                self.ground_fitted_at = order.len();
+                self.fit_from = first;
+                self.stage = Stage::Stable;
+                if self.stable_reported_at.is_none() {
+                    self.stable_reported_at = Some(self.latest);
+                }
+                self.reason = format!(
+                    "scale and up from the ground plane ({inliers} of {n} points of {} \
+                     keyframes) and the camera height",
+                    order.len()
+                );
+            }
+            Err(e) => {
+                self.reason = format!("no ground plane yet: {e}");
+            }
         }
         Ok(())
     }

@@ -311,7 +311,7 @@ fn prior_options(
 
 /// `camera_height`: metres at every pose (a number), `"first:M"` (the
 /// first pose's), or a path to a `stamp height` file.
-fn height_spec(h: &Bound<'_, PyAny>) -> PyResult<crate::pipeline::prior::HeightSpec> {
+pub(crate) fn height_spec(h: &Bound<'_, PyAny>) -> PyResult<crate::pipeline::prior::HeightSpec> {
     use crate::pipeline::prior::HeightSpec;
     if let Ok(v) = h.extract::<f64>() {
         if !(v.is_finite() && v > 0.0) {

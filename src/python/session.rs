@@ -53,11 +53,11 @@ pub struct PySession {
 #[pymethods]
 impl PySession {
     #[new]
-    #[pyo3(signature = (*, max_diff=0.01, offset=0.0, scale=true, filter=None, octree_resolution=0.1, octree_max_range=Some(10.0), prob_hit=0.7, prob_miss=0.4, clamp_min=0.1192, clamp_max=0.971, stable_hold=5.0, rebuild_tolerance=None, origin=None, gnss_weights=true, gnss_max_gap=None),
+    #[pyo3(signature = (*, max_diff=0.01, offset=0.0, scale=true, filter=None, octree_resolution=0.1, octree_max_range=Some(10.0), prob_hit=0.7, prob_miss=0.4, clamp_min=0.1192, clamp_max=0.971, stable_hold=5.0, rebuild_tolerance=None, origin=None, gnss_weights=true, gnss_max_gap=None, camera_height=None),
            text_signature = "(*, max_diff=0.01, offset=0.0, scale=True, filter=None, octree_resolution=0.1, \
                              octree_max_range=10.0, prob_hit=0.7, prob_miss=0.4, clamp_min=0.1192, \
                              clamp_max=0.971, stable_hold=5.0, rebuild_tolerance=None, origin='first', \
-                             gnss_weights=True, gnss_max_gap=None)")]
+                             gnss_weights=True, gnss_max_gap=None, camera_height=None)")]
     #[allow(clippy::too_many_arguments)]
     fn new(
         max_diff: f64,
@@ -75,7 +75,12 @@ impl PySession {
         origin: Option<&Bound<'_, PyAny>>,
         gnss_weights: bool,
         gnss_max_gap: Option<f64>,
+        camera_height: Option<&Bound<'_, PyAny>>,
     ) -> PyResult<Self> {
+        let camera_height = match camera_height {
+            Some(h) if !h.is_none() => Some(super::pipeline::height_spec(h)?),
+            _ => None,
+        };
         let opts = SessionOptions {
             align: TrajectoryAlignOptions {
                 max_diff,
@@ -103,6 +108,7 @@ impl PySession {
                 weights: gnss_weights,
                 max_gap: gnss_max_gap,
             },
+            camera_height,
         };
         Ok(PySession {
             inner: Session::new(opts)?,

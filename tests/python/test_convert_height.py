@@ -89,15 +89,23 @@ def test_bad_heights_are_refused_with_the_reason(tmp_path: Path) -> None:
         sw.convert(kf_path, cloud=None)
 
 
-@pytest.mark.slow
-def test_a_log_with_no_second_sensor_converts_from_the_cli(
-    tmp_path: Path, capfd: pytest.CaptureFixture[str]
-) -> None:
-    log = tmp_path / "g.mcap"
+@pytest.fixture(scope="module")
+def no_sensor_log(tmp_path_factory: pytest.TempPathFactory) -> Path:
+    """A simulated ground vehicle's LSD-SLAM log (camera at 1.2 m) with no reference and no IMU,
+    its truth beside it (`g.truth.json`)."""
+    log = tmp_path_factory.mktemp("nosensor") / "g.mcap"
     heights = ["camera_height=1.2", "height_loop=0", "height_slow=0", "look_height=0.6"]
     sets = [a for h in heights for a in ("--set", h)]
     args = ["simulate", "-o", str(log), "--reduced", "4", "--no-reference", "--no-imu", *sets]
     assert run_cli(["slam2world", *args]) == 0
+    return log
+
+
+@pytest.mark.slow
+def test_a_log_with_no_second_sensor_converts_from_the_cli(
+    no_sensor_log: Path, tmp_path: Path, capfd: pytest.CaptureFixture[str]
+) -> None:
+    log = no_sensor_log
     out = tmp_path / "o"
     capfd.readouterr()
     assert run_cli(["slam2world", "convert", str(log), "-o", str(out)]) == 1
@@ -107,7 +115,7 @@ def test_a_log_with_no_second_sensor_converts_from_the_cli(
     )
     assert "scale from the camera height, up from the ground plane" in capfd.readouterr().out
     report = json.loads((out / "report.json").read_text())
-    truth = json.loads((tmp_path / "g.truth.json").read_text())["t_world_slam"]
+    truth = json.loads(log.with_suffix(".truth.json").read_text())["t_world_slam"]
     scale = report["t_world_slam"]["scale"]
     assert report["prior"]["used_for_transform"] and "imu" not in report
     assert abs(scale / truth["scale"] - 1) < 0.01
@@ -166,3 +174,35 @@ def test_a_known_distance_scales_v101_by_index_or_stamp_and_its_flight_is_no_pla
         sw.convert(kf_path, cloud=cloud, known_distance=(a, b, metres), planar_motion=True)
     with pytest.raises(sw.InvalidInputError, match="give the scale too"):
         sw.convert(kf_path, cloud=cloud, planar_motion=True)
+
+
+@pytest.mark.slow
+def test_the_session_scales_as_soon_as_the_ground_is_seen_and_ends_on_the_batch(
+    no_sensor_log: Path, tmp_path: Path, capfd: pytest.CaptureFixture[str]
+) -> None:
+    keyframes = sw.read_mcap(no_sensor_log).keyframes
+    session = sw.Session(camera_height=1.2)
+    stable_at = None
+    for i, kf in enumerate(keyframes):
+        session.push_keyframe(kf)
+        if stable_at is None and session.transform() is not None:
+            stable_at = i
+            assert session.state()["stage"] == "stable"
+            assert "ground plane" in session.state()["reason"]
+    # The viewer's filter drops the first five keyframes' points: a few more and the floor is
+    # supported, long before the end.
+    assert stable_at is not None and stable_at < len(keyframes) // 2
+    session.finish()
+    batch = sw.convert(no_sensor_log, camera_height=1.2).transform
+    online = session.transform()
+    assert online is not None and online.scale == pytest.approx(batch.scale, rel=1e-12)
+    np.testing.assert_allclose(online.matrix(), batch.matrix(), rtol=0, atol=1e-9)
+    with pytest.raises(sw.InvalidInputError, match="batch convert"):
+        sw.Session(camera_height=str(tmp_path / "heights.txt"))
+    # follow: the same from the command line.
+    out = tmp_path / "f"
+    args = ["follow", str(no_sensor_log), "-o", str(out), "--camera-height", "1.2"]
+    assert run_cli(["slam2world", *args]) == 0
+    report = json.loads((out / "report.json").read_text())
+    assert report["stage"] == "stable"
+    assert report["t_world_slam"]["scale"] == pytest.approx(batch.scale, rel=1e-12)
