@@ -132,6 +132,14 @@ pub struct PointCloud {
 }
 
 impl PointCloud {
+    /// Every `stride`-th point (from the first) as `f64` vectors.
+    pub fn points_every(&self, stride: usize) -> impl Iterator<Item = nalgebra::Vector3<f64>> + '_ {
+        self.points
+            .chunks_exact(3)
+            .step_by(stride.max(1))
+            .map(|p| nalgebra::Vector3::new(p[0] as f64, p[1] as f64, p[2] as f64))
+    }
+
     /// Builds a cloud, checking the lengths; `keyframe_ids = None` gives `-1` for all.
     pub fn try_new(
         points: Vec<f32>,

@@ -274,21 +274,11 @@ impl ConvertArgs {
             }
             None => None,
         };
-        if self.camera_height.is_none() && known_distance.is_none() {
-            if self.planar_motion {
-                return Err(Error::invalid(
-                    "--planar-motion",
-                    "gives \"up\" only: give the scale too (--camera-height or --known-distance)",
-                ));
-            }
-            return Ok(None);
-        }
-        Ok(Some(PriorOptions {
-            camera_height: self.camera_height.clone(),
+        PriorOptions::from_parts(
+            self.camera_height.clone(),
             known_distance,
-            planar_motion: self.planar_motion,
-            ground: crate::align::ground::GroundOptions::default(),
-        }))
+            self.planar_motion,
+        )
     }
 
     /// How a reconstruction input is read.

@@ -510,16 +510,14 @@ fn convert_with(rec: &Recording, motion: Motion<'_>, opts: &ConvertOptions) -> R
     let live_frames = live.as_deref();
     // The prior (ground plane and camera height) when given: the frame when
     // no sensor is there, else compared with the sensor's.
+    // Name of SLAM row `s` (frames of a reconstruction that names them).
+    let name_of = |s: usize| match rows[s] {
+        None => rec.frame_info.get(s).and_then(|f| f.name.clone()),
+        Some(_) => None,
+    };
     let prior_fit = match &opts.prior {
         Some(p) => {
-            let names: Vec<Option<String>> = rows
-                .iter()
-                .enumerate()
-                .map(|(s, r)| match r {
-                    None => rec.frame_info.get(s).and_then(|f| f.name.clone()),
-                    Some(_) => None,
-                })
-                .collect();
+            let names: Vec<Option<String>> = (0..slam.len()).map(name_of).collect();
             Some(prior::fit(
                 rec,
                 &slam,
@@ -531,8 +529,8 @@ fn convert_with(rec: &Recording, motion: Motion<'_>, opts: &ConvertOptions) -> R
         }
         None => None,
     };
-    let world = match (reference.as_ref(), imu.as_deref()) {
-        (Some(r), _) => {
+    let world = match (reference.as_ref(), imu.as_deref(), &prior_fit) {
+        (Some(r), _, _) => {
             // Against fixes, the live frames are paired with the fixes
             // interpolated at their own stamps (the online session's rule).
             let live = match (&rec.gnss, live_frames, opts.align.skip_init) {
@@ -544,11 +542,9 @@ fn convert_with(rec: &Recording, motion: Motion<'_>, opts: &ConvertOptions) -> R
             let fit = poses::fit(rec, &slam, r, weights, (live_frames, live), opts)?;
             WorldFrame::Poses(Box::new(fit))
         }
-        (None, Some(imu)) => WorldFrame::Imu(Box::new(imu::fit(&slam, imu, opts)?)),
-        (None, None) if prior_fit.is_some() => {
-            WorldFrame::Prior(Box::new(prior_fit.clone().expect("checked")))
-        }
-        (None, None) if rec.source.reconstruction.is_some() => {
+        (None, Some(imu), _) => WorldFrame::Imu(Box::new(imu::fit(&slam, imu, opts)?)),
+        (None, None, Some(f)) => WorldFrame::Prior(Box::new(f.clone())),
+        (None, None, None) if rec.source.reconstruction.is_some() => {
             return Err(Error::invalid(
                 "reference",
                 format!(
@@ -559,7 +555,7 @@ fn convert_with(rec: &Recording, motion: Motion<'_>, opts: &ConvertOptions) -> R
                 ),
             ))
         }
-        (None, None) => {
+        (None, None, None) => {
             return Err(Error::Mcap {
                 path: rec.source.path.clone(),
                 reason: "no reference pose topic and no raw IMU topic in the log: give a \
@@ -716,11 +712,6 @@ fn convert_with(rec: &Recording, motion: Motion<'_>, opts: &ConvertOptions) -> R
 
     // Keyframe id of SLAM row `s` (the row index for frames without keyframes).
     let id_of = |s: usize| rows[s].map_or(s as i32, |i| rec.keyframes[i].id);
-    // Name of SLAM row `s` (frames of a reconstruction that names them).
-    let name_of = |s: usize| match rows[s] {
-        None => rec.frame_info.get(s).and_then(|f| f.name.clone()),
-        Some(_) => None,
-    };
     let mut used = vec![false; slam.len()];
     let (pairs, fit, fit_rmse, ape, pairs_fitted, imu_report) = match &world {
         WorldFrame::Poses(p) => {

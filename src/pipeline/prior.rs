@@ -163,6 +163,31 @@ impl PriorOptions {
         }
     }
 
+    /// The prior of a conversion's `camera_height`, `known_distance` and
+    /// `planar_motion` (the CLI's flags, Python's arguments): `None` when
+    /// none is given; planar motion alone is refused (it gives no scale).
+    pub fn from_parts(
+        camera_height: Option<HeightSpec>,
+        known_distance: Option<DistanceSpec>,
+        planar_motion: bool,
+    ) -> Result<Option<Self>> {
+        if camera_height.is_none() && known_distance.is_none() {
+            if planar_motion {
+                return Err(Error::invalid(
+                    "planar_motion",
+                    "gives \"up\" only: give the scale too (camera_height or known_distance)",
+                ));
+            }
+            return Ok(None);
+        }
+        Ok(Some(PriorOptions {
+            camera_height,
+            known_distance,
+            planar_motion,
+            ground: GroundOptions::default(),
+        }))
+    }
+
     /// Checks that a scale is given.
     pub fn check(&self) -> Result<()> {
         if self.camera_height.is_none() && self.known_distance.is_none() {
@@ -350,15 +375,22 @@ pub fn fit(
     } else {
         Up::Ground
     };
+    // The ground plane is fitted unless planar motion gives "up", and a
+    // height or a distance is there (checked): both always match.
     let normal = match (&up, &plane) {
         (Up::Planar(m), _) => m.normal,
         (Up::Ground, Some(p)) => p.normal,
-        (Up::Ground, None) => unreachable!("the ground plane is fitted unless planar motion"),
+        (Up::Ground, None) => return Err(Error::invalid("prior", "no \"up\": no ground plane")),
     };
     let scale = match (&distance, &height) {
         (Some((_, _, k)), _) => k.scale,
         (None, Some(m)) => m.scale,
-        (None, None) => unreachable!("checked: a distance or a height"),
+        (None, None) => {
+            return Err(Error::invalid(
+                "prior",
+                "no scale: no height and no distance",
+            ))
+        }
     };
     // The first camera's height in metres: over the ground plane when there
     // is one, else as given, else 0.
@@ -425,12 +457,8 @@ fn slam_points(rec: &Recording, filter: &PointFilter) -> Result<Vec<Vector3<f64>
         let Some(c) = &rec.cloud else {
             return Ok(Vec::new());
         };
-        let stride = (c.len().div_ceil(MAX_POINTS)).max(1);
         return Ok(c
-            .points
-            .chunks_exact(3)
-            .step_by(stride)
-            .map(|p| Vector3::new(p[0] as f64, p[1] as f64, p[2] as f64))
+            .points_every(c.len().div_ceil(MAX_POINTS))
             .filter(|p| p.iter().all(|v| v.is_finite()))
             .collect());
     }
@@ -440,7 +468,7 @@ fn slam_points(rec: &Recording, filter: &PointFilter) -> Result<Vec<Vector3<f64>
         .iter()
         .map(|k| k.camera.width as usize * k.camera.height as usize)
         .sum();
-    let stride = (pixels.div_ceil(MAX_POINTS)).max(1);
+    let stride = pixels.div_ceil(MAX_POINTS);
     let mut out = Vec::new();
     let batch = super::batch_len();
     let order: Vec<usize> = (0..kfs.len()).collect();
@@ -459,12 +487,7 @@ fn slam_points(rec: &Recording, filter: &PointFilter) -> Result<Vec<Vector3<f64>
         };
         let (c, _) =
             backproject_batch_counted(keyframes, b * batch, filter, |_| Sim3::identity(), false)?;
-        out.extend(
-            c.points
-                .chunks_exact(3)
-                .step_by(stride)
-                .map(|p| Vector3::new(p[0] as f64, p[1] as f64, p[2] as f64)),
-        );
+        out.extend(c.points_every(stride));
     }
     Ok(out)
 }

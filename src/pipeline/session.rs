@@ -1142,12 +1142,8 @@ impl Session {
                 |_| Sim3::identity(),
                 false,
             )?;
-            let stride = c.len().div_ceil(GROUND_POINTS_PER_KEYFRAME).max(1);
             let pts = c
-                .points
-                .chunks_exact(3)
-                .step_by(stride)
-                .map(|p| Vector3::new(p[0] as f64, p[1] as f64, p[2] as f64))
+                .points_every(c.len().div_ceil(GROUND_POINTS_PER_KEYFRAME))
                 .collect();
             self.ground_points.insert(kf.id, (kf.pose, pts));
         }

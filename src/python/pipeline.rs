@@ -279,6 +279,7 @@ fn prior_options(
     planar_motion: bool,
 ) -> PyResult<Option<crate::pipeline::prior::PriorOptions>> {
     use crate::pipeline::prior::{DistanceSpec, PriorOptions};
+
     let camera_height = camera_height
         .filter(|h| !h.is_none())
         .map(height_spec)
@@ -291,22 +292,11 @@ fn prior_options(
         }),
         None => None,
     };
-    if camera_height.is_none() && known_distance.is_none() {
-        if planar_motion {
-            return Err(crate::error::Error::invalid(
-                "planar_motion",
-                "gives \"up\" only: give the scale too (camera_height or known_distance)",
-            )
-            .into());
-        }
-        return Ok(None);
-    }
-    Ok(Some(PriorOptions {
+    Ok(PriorOptions::from_parts(
         camera_height,
         known_distance,
         planar_motion,
-        ground: crate::align::ground::GroundOptions::default(),
-    }))
+    )?)
 }
 
 /// `camera_height`: metres at every pose (a number), `"first:M"` (the
