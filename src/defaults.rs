@@ -116,6 +116,9 @@ pub const GROUND_MAX_BELOW: f64 = 0.05;
 /// centres' spread off their plane (against their spread in it) may hide;
 /// a path beyond it (a line, a hand-held camera, stairs) gives no "up".
 pub const PLANAR_MAX_TILT_BOUND_DEG: f64 = 3.0;
+/// Scale profile of `convert --camera-height`: fewest keyframes per window
+/// (each window a tenth of the run beyond it).
+pub const PROFILE_MIN_WINDOW: usize = 8;
 /// Voxel edge of the octree `slam2world demo` builds, metres.
 pub const DEMO_OCTREE_RESOLUTION: f64 = 0.1;
 

@@ -11,6 +11,7 @@ import numpy.typing as npt
 __version__: str
 
 _ArrayLike = npt.ArrayLike
+_DistanceEnd = int | float | str | tuple[float, float, float] | Sequence[float]
 
 # ---------------------------------------------------------------- errors
 
@@ -327,7 +328,10 @@ class GroundPlane:
     def tilt_from_cameras_deg(self) -> float | None: ...
     @property
     def runner_up(self) -> tuple[int, float] | None: ...
+    @property
+    def tilt_sigma_deg(self) -> float: ...
     def height(self, x: _ArrayLike) -> float: ...
+    def height_sigma(self, x: _ArrayLike) -> float: ...
 
 @final
 class HeightScale:
@@ -339,6 +343,9 @@ class HeightScale:
     def heights(self) -> npt.NDArray[np.float64]: ...
     @property
     def height_rms(self) -> float: ...
+    @property
+    def scale_sigma(self) -> float: ...
+    def scale_sigma_with(self, relative: float) -> float: ...
 
 def ground_plane(
     points: _ArrayLike,
@@ -933,7 +940,8 @@ def convert(
     grid_resolution: float | None = None,
     grid_threshold: float = 0.5,
     camera_height: float | str | os.PathLike[str] | None = None,
-    known_distance: tuple[int | float | str, int | float | str, float] | None = None,
+    camera_height_sigma: float | None = None,
+    known_distance: tuple[_DistanceEnd, _DistanceEnd, float] | None = None,
     planar_motion: bool = False,
 ) -> Conversion: ...
 

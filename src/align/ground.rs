@@ -101,12 +101,140 @@ pub struct GroundPlane {
     /// The strongest other candidate: its inliers and its height over this
     /// plane (SLAM units), if any.
     pub runner_up: Option<(usize, f64)>,
+    /// How well the points fix the plane ([`PlaneUncertainty`]).
+    pub uncertainty: PlaneUncertainty,
 }
 
 impl GroundPlane {
     /// Height of `x` above the plane (SLAM units).
     pub fn height(&self, x: &Vector3<f64>) -> f64 {
         self.normal.dot(x) + self.offset
+    }
+
+    /// Standard deviation of [`GroundPlane::height`] at `x` from the
+    /// plane's own uncertainty (SLAM units).
+    pub fn height_sigma(&self, x: &Vector3<f64>) -> f64 {
+        let u = &self.uncertainty;
+        let d = x - u.centroid;
+        let g = Vector3::new(d.dot(&u.axes[0]), d.dot(&u.axes[1]), 1.0);
+        let shift = (u.band.0.dot(x) + u.band.1) - (u.core.0.dot(x) + u.core.1);
+        ((g.transpose() * u.covariance * g)[(0, 0)].max(0.0) + shift * shift).sqrt()
+    }
+
+    /// Standard deviation of the normal's direction, degrees (the
+    /// jackknife's, and the angle between the core's and the band's planes).
+    pub fn tilt_sigma_deg(&self) -> f64 {
+        let u = &self.uncertainty;
+        let c = &u.covariance;
+        let shift = u.band.0.cross(&u.core.0).norm().asin();
+        (c[(0, 0)] + c[(1, 1)] + shift * shift)
+            .max(0.0)
+            .sqrt()
+            .to_degrees()
+    }
+}
+
+/// The plane's uncertainty by a block jackknife: its core points (those it
+/// is fitted to) cut into [`JACKKNIFE_CELLS`]² cells of equal count along
+/// the plane's two axes, the plane fitted again without each cell. The
+/// cells, not the points, are the samples: the depth errors of the points
+/// one keyframe sees together are alike, and neighbouring points share
+/// keyframes, so that the spread of the points alone would promise a plane
+/// far surer than it is. A plane moved by `(a, b, c)` changes the height of
+/// `x` by `a·(x − centroid)·axes[0] + b·(x − centroid)·axes[1] + c`.
+#[derive(Clone, Debug, PartialEq)]
+pub struct PlaneUncertainty {
+    /// Centroid of the core points.
+    pub centroid: Vector3<f64>,
+    /// Two orthonormal axes in the plane.
+    pub axes: [Vector3<f64>; 2],
+    /// Covariance of `(a, b, c)`: the slopes along the axes (radians) and
+    /// the offset at the centroid (SLAM units).
+    pub covariance: Matrix3<f64>,
+    /// Cells the jackknife left out (those that left a plane to fit).
+    pub cells: usize,
+    /// The plane of all the inliers (three robust sigmas), `(normal, offset)`.
+    pub band: (Vector3<f64>, f64),
+    /// The plane of the core.
+    pub core: (Vector3<f64>, f64),
+}
+
+/// Cells along each axis of the plane's jackknife ([`PlaneUncertainty`]).
+pub const JACKKNIFE_CELLS: usize = 4;
+
+/// The [`PlaneUncertainty`] of the plane `(n, d)` fitted to `core`.
+fn plane_uncertainty(
+    core: &[Vector3<f64>],
+    n: &Vector3<f64>,
+    d: f64,
+    band: (Vector3<f64>, f64),
+) -> PlaneUncertainty {
+    let centroid = core.iter().sum::<Vector3<f64>>() / core.len().max(1) as f64;
+    let e0 = n
+        .cross(&if n.x.abs() < 0.9 {
+            Vector3::x()
+        } else {
+            Vector3::y()
+        })
+        .normalize();
+    let e1 = n.cross(&e0);
+    // Cells of equal count: quantiles along e0, then along e1 within each.
+    let k = JACKKNIFE_CELLS;
+    let mut order: Vec<usize> = (0..core.len()).collect();
+    order.sort_by(|&i, &j| core[i].dot(&e0).total_cmp(&core[j].dot(&e0)));
+    let mut cell = vec![0usize; core.len()];
+    for (a, strip) in order.chunks(core.len().div_ceil(k).max(1)).enumerate() {
+        let mut s = strip.to_vec();
+        s.sort_by(|&i, &j| core[i].dot(&e1).total_cmp(&core[j].dot(&e1)));
+        for (b, part) in s.chunks(s.len().div_ceil(k).max(1)).enumerate() {
+            for &i in part {
+                cell[i] = a * k + b;
+            }
+        }
+    }
+    let base = n.dot(&centroid) + d;
+    let thetas: Vec<Vector3<f64>> = (0..k * k)
+        .filter_map(|c| {
+            let kept: Vec<Vector3<f64>> = core
+                .iter()
+                .zip(&cell)
+                .filter(|(_, &o)| o != c)
+                .map(|(p, _)| *p)
+                .collect();
+            if kept.len() == core.len() {
+                return None;
+            }
+            let (mut m, mut e) = least_squares_plane(&kept)?;
+            if m.dot(n) < 0.0 {
+                (m, e) = (-m, -e);
+            }
+            // The change of height at centroid + u e0 + v e1, linear in u, v.
+            let dm = m - n;
+            Some(Vector3::new(
+                dm.dot(&e0),
+                dm.dot(&e1),
+                m.dot(&centroid) + e - base,
+            ))
+        })
+        .collect();
+    let b = thetas.len();
+    let covariance = if b >= 2 {
+        let mean = thetas.iter().sum::<Vector3<f64>>() / b as f64;
+        thetas
+            .iter()
+            .map(|t| (t - mean) * (t - mean).transpose())
+            .sum::<Matrix3<f64>>()
+            * ((b - 1) as f64 / b as f64)
+    } else {
+        Matrix3::from_diagonal_element(f64::INFINITY)
+    };
+    PlaneUncertainty {
+        centroid,
+        axes: [e0, e1],
+        covariance,
+        cells: b,
+        band,
+        core: (*n, d),
     }
 }
 
@@ -366,44 +494,58 @@ pub fn fit_ground_plane(
             h(a).total_cmp(&h(b))
         })
     else {
+        let largest = candidates
+            .iter()
+            .map(|c| c.inliers.len())
+            .max()
+            .unwrap_or(0);
         return Err(Error::Degenerate {
             reason: format!(
-                "no plane of {} points at least{} under the cameras: the ground is not in the \
-                 cloud ({} points)",
+                "no plane of {} points at least{} under the cameras among the cloud's {}{}: the \
+                 ground is not in the cloud, or too little of it was seen",
                 opts.min_inliers,
                 if cone.is_some() {
                     " within the cameras' tilt"
                 } else {
                     ""
                 },
-                pts.len()
+                pts.len(),
+                if largest > 0 {
+                    format!(
+                        " (the planes found, of up to {largest} points, are not under the cameras)"
+                    )
+                } else {
+                    String::new()
+                }
             ),
-            value: candidates
-                .iter()
-                .map(|c| c.inliers.len())
-                .max()
-                .unwrap_or(0) as f64,
+            value: largest as f64,
         });
     };
     let (above, tau) = (best.above, best.tau);
     // The plane itself from its core (within one robust sigma): what stands
     // on the floor (the foot of a box, its lowest edges) and depth errors
     // skew the band's upper tail, the core hardly.
-    let (n, d) = match refine(
+    let (n, d, core) = match refine(
         &pts,
         &all,
         (best.normal, best.offset),
         &cam_centroid,
         tau / 3.0,
     ) {
-        Some((n, d, core)) if core.len() >= opts.min_inliers => (n, d),
-        _ => (best.normal, best.offset),
+        Some((n, d, core)) if core.len() >= opts.min_inliers => (n, d, core),
+        _ => (best.normal, best.offset, best.inliers.clone()),
     };
+    let core: Vec<Vector3<f64>> = core.iter().map(|&i| pts[i]).collect();
     let inliers: Vec<usize> = all
         .iter()
         .copied()
         .filter(|&i| (n.dot(&pts[i]) + d).abs() < tau)
         .collect();
+    let band_points: Vec<Vector3<f64>> = inliers.iter().map(|&i| pts[i]).collect();
+    let band_plane = least_squares_plane(&band_points)
+        .map(|(m, e)| if m.dot(&n) < 0.0 { (-m, -e) } else { (m, e) })
+        .unwrap_or((n, d));
+    let uncertainty = plane_uncertainty(&core, &n, d, band_plane);
     let inliers = &inliers;
     // The largest other surface at another height (more than the search band
     // away; a candidate within it is a piece of the same noisy floor).
@@ -445,6 +587,7 @@ pub fn fit_ground_plane(
         cameras_above: above,
         tilt_from_cameras_deg: up.map(|u| u.dot(&n).clamp(-1.0, 1.0).acos().to_degrees()),
         runner_up,
+        uncertainty,
     })
 }
 
@@ -471,6 +614,22 @@ pub struct HeightScale {
     pub heights: Vec<f64>,
     /// Rms of the given heights less the fitted ones (metres; 0 for one).
     pub height_rms: f64,
+    /// Relative standard deviation of the scale from the plane's
+    /// uncertainty ([`GroundPlane::height_sigma`] where the heights are
+    /// read) and the scatter of the cameras' heights about the fit (the
+    /// median's error for one height, the least-squares fit's for a height
+    /// per pose; none for the first pose alone). The given heights' own
+    /// uncertainty adds to it ([`HeightScale::scale_sigma_with`]).
+    pub scale_sigma: f64,
+}
+
+impl HeightScale {
+    /// Relative standard deviation of the scale when the given heights
+    /// themselves are uncertain by `relative` (their sigma over their
+    /// value; the same for every pose, as a height misjudged is).
+    pub fn scale_sigma_with(&self, relative: f64) -> f64 {
+        self.scale_sigma.hypot(relative)
+    }
 }
 
 /// Scale and gravity from `plane` and the cameras' `height`: see the module
@@ -499,16 +658,31 @@ pub fn metric_from_height(
             ))
         }
     };
-    let (scale, given): (f64, Vec<(f64, f64)>) = match height {
+    let n = h.len() as f64;
+    let centre = cameras.positions.iter().sum::<Vector3<f64>>() / n;
+    // (scale, (SLAM height, metres) pairs, relative sigma of the SLAM
+    // height the scale divides by).
+    let (scale, given, sigma): (f64, Vec<(f64, f64)>, f64) = match height {
         CameraHeight::Constant(m) => {
             let m = positive(*m, "camera_height")?;
             let mut v = h.clone();
             let med = median(&mut v);
-            (m / med, h.iter().map(|&x| (x, m)).collect())
+            let mut dev: Vec<f64> = h.iter().map(|x| (x - med).abs()).collect();
+            // The median's standard error: 1.2533 robust sigmas over √n.
+            let scatter = 1.2533 * 1.4826 * median(&mut dev) / n.sqrt();
+            (
+                m / med,
+                h.iter().map(|&x| (x, m)).collect(),
+                plane.height_sigma(&centre).hypot(scatter) / med,
+            )
         }
         CameraHeight::First(m) => {
             let m = positive(*m, "camera_height")?;
-            (m / h[0], vec![(h[0], m)])
+            (
+                m / h[0],
+                vec![(h[0], m)],
+                plane.height_sigma(&cameras.positions[0]) / h[0],
+            )
         }
         CameraHeight::PerPose(v) => {
             if v.len() != h.len() {
@@ -525,9 +699,19 @@ pub fn metric_from_height(
                 .iter()
                 .zip(v)
                 .fold((0.0, 0.0), |(a, b), (x, m)| (a + x * m, b + x * x));
+            let s = num / den;
+            // The least-squares scale's error from the residuals (SLAM units).
+            let rms = (h
+                .iter()
+                .zip(v)
+                .map(|(x, m)| (m / s - x).powi(2))
+                .sum::<f64>()
+                / n)
+                .sqrt();
             (
-                num / den,
+                s,
                 h.iter().copied().zip(v.iter().copied()).collect(),
+                (plane.height_sigma(&centre) / (den / n).sqrt()).hypot(rms / den.sqrt()),
             )
         }
     };
@@ -553,6 +737,7 @@ pub fn metric_from_height(
         scale,
         heights: h,
         height_rms,
+        scale_sigma: sigma,
     })
 }
 

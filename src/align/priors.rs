@@ -80,13 +80,40 @@ pub fn scale_from_distance(
             ));
         }
     }
+    scale_between(
+        &cameras.positions[a],
+        &cameras.positions[b],
+        metres,
+        cameras,
+        &format!("poses {a} and {b}"),
+    )
+}
+
+/// The scale that makes the SLAM-frame points `a` and `b` (camera centres
+/// or map points; `what` names them in an error) `metres` apart; `cameras`
+/// give the SLAM frame's size. Errors: a distance that is not a positive
+/// number, a point not finite, the two at the same place (less than a
+/// millionth of the cameras' extent apart).
+pub fn scale_between(
+    a: &Vector3<f64>,
+    b: &Vector3<f64>,
+    metres: f64,
+    cameras: &Trajectory,
+    what: &str,
+) -> Result<KnownDistance> {
     if !(metres.is_finite() && metres > 0.0) {
         return Err(Error::invalid(
             "known_distance",
             format!("the distance must be a positive number of metres, got {metres}"),
         ));
     }
-    let d = (cameras.positions[a] - cameras.positions[b]).norm();
+    if !a.iter().chain(b.iter()).all(|v| v.is_finite()) {
+        return Err(Error::invalid(
+            "known_distance",
+            format!("{what}: the points must be finite"),
+        ));
+    }
+    let d = (a - b).norm();
     // The SLAM frame's own size: a distance below a millionth of it is the
     // same place.
     let size = cameras
@@ -96,9 +123,7 @@ pub fn scale_from_distance(
         .fold(0.0, f64::max);
     if d.is_nan() || d <= 1e-6 * size {
         return Err(Error::Degenerate {
-            reason: format!(
-                "poses {a} and {b} are at the same place: no scale from their distance"
-            ),
+            reason: format!("{what} are at the same place: no scale from their distance"),
             value: d,
         });
     }

@@ -118,9 +118,14 @@ pub struct ConvertArgs {
     /// give the scale. With a sensor, the report compares the two.
     #[arg(long, value_name = "M|first:M|FILE", allow_hyphen_values = true, value_parser = camera_height)]
     pub camera_height: Option<HeightSpec>,
-    /// Two poses a known distance apart (each an index from 0, a stamp, or
-    /// an image name) and the distance in metres: the scale, for a
-    /// recording with no reference sensor (before a camera height).
+    /// How well the camera height is known: its standard deviation, metres
+    /// (the report's scale sigma counts it with the ground plane's).
+    #[arg(long, value_name = "M", requires = "camera_height", value_parser = non_negative)]
+    pub camera_height_sigma: Option<f64>,
+    /// Two poses or map points a known distance apart (each a pose's index
+    /// from 0, stamp or image name, or a map point `x,y,z` in the SLAM
+    /// frame) and the distance in metres: the scale, for a recording with
+    /// no reference sensor (before a camera height).
     #[arg(long, num_args = 3, value_names = ["A", "B", "METRES"], allow_hyphen_values = true)]
     pub known_distance: Option<Vec<String>>,
     /// "Up" from the plane the cameras ride in (a ground robot) instead of
@@ -276,6 +281,7 @@ impl ConvertArgs {
         };
         PriorOptions::from_parts(
             self.camera_height.clone(),
+            self.camera_height_sigma,
             known_distance,
             self.planar_motion,
         )
@@ -590,11 +596,24 @@ fn prior_summary(g: &PriorReport) -> String {
     }
     if let (Some(h), Some(rms)) = (g.height_scale, g.height_rms) {
         s += &format!("; heights: scale {h:.6} (rms {rms:.3} m)");
+        if let Some(sigma) = g.scale_sigma {
+            s += &format!(", ± {:.2} %", 100.0 * sigma);
+        }
     }
     if let Some(d) = &g.known_distance {
+        let end = |k: usize| match d.poses[k] {
+            Some(i) => format!("pose {i}"),
+            None => {
+                let [x, y, z] = d.ends[k];
+                format!("point ({x}, {y}, {z})")
+            }
+        };
         s += &format!(
-            "; poses {} and {}: {} m over {:.4e} units",
-            d.poses[0], d.poses[1], d.metres, d.slam_distance
+            "; {} and {}: {} m over {:.4e} units",
+            end(0),
+            end(1),
+            d.metres,
+            d.slam_distance
         );
     }
     if let Some(m) = &g.planar_motion {

@@ -521,6 +521,7 @@ fn convert_with(rec: &Recording, motion: Motion<'_>, opts: &ConvertOptions) -> R
             Some(prior::fit(
                 rec,
                 &slam,
+                &rows,
                 &names,
                 p,
                 &opts.filter,

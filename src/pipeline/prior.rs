@@ -7,9 +7,9 @@
 //!   cloud ([`crate::align::ground::fit_ground_plane`]), or with
 //!   `planar_motion` the normal of the plane the cameras ride in
 //!   ([`crate::align::priors::planar_motion`]; no cloud needed).
-//! - The scale is that of a known distance between two poses
-//!   ([`crate::align::priors::scale_from_distance`]; poses named by index,
-//!   image name or stamp) when given, else the cameras' known height over
+//! - The scale is that of a known distance between two poses or map points
+//!   ([`crate::align::priors::scale_between`]; poses named by index, image
+//!   name or stamp, points by their SLAM coordinates) when given, else the cameras' known height over
 //!   the ground plane ([`crate::align::ground::metric_from_height`]).
 //! - The first camera's height is its height over the ground plane when
 //!   there is one, else the height given, else 0.
@@ -26,10 +26,11 @@ use nalgebra::Vector3;
 use rayon::prelude::*;
 
 use crate::align::ground::{
-    fit_ground_plane, metric_from_height, CameraHeight, GroundOptions, GroundPlane, HeightScale,
+    fit_ground_plane, height_profile, metric_from_height, CameraHeight, GroundOptions, GroundPlane,
+    HeightScale, ProfileWindow,
 };
 use crate::align::priors::{
-    level_frame, planar_motion, scale_from_distance, KnownDistance, PlanarMotion,
+    level_frame, planar_motion, scale_between, KnownDistance, PlanarMotion,
 };
 use crate::cloud::{backproject_batch_counted, PointFilter};
 use crate::defaults;
@@ -38,7 +39,9 @@ use crate::geometry::Sim3;
 use crate::keyframe::Keyframe;
 use crate::trajectory::Trajectory;
 
-use super::report::{DistanceReport, HeightGiven, PlanarReport, PlaneReport, PriorReport};
+use super::report::{
+    DistanceReport, HeightGiven, PlanarReport, PlaneReport, PriorReport, ProfileReport,
+};
 use super::source::Recording;
 
 /// Most points the plane is fitted to (every k-th of the cloud beyond it).
@@ -80,59 +83,83 @@ impl std::str::FromStr for HeightSpec {
     }
 }
 
-/// A pose named on the command line: its index, its image name, or its stamp.
+/// One end of a known distance: a pose (its index, its image name, or its
+/// stamp; its camera centre) or a map point (SLAM coordinates, as the
+/// input's cloud has them: picked in COLMAP's GUI, or in CloudCompare on
+/// the input's own cloud).
 #[derive(Clone, Debug, PartialEq)]
-pub enum PoseRef {
+pub enum DistanceEnd {
     /// Index among the SLAM poses (keyframes, or frames), from 0.
     Index(usize),
     /// Stamp, seconds (the nearest pose within `max_diff`).
     Stamp(f64),
     /// Image name (a reconstruction's frame).
     Name(String),
+    /// A point of the map, SLAM frame.
+    Point(Vector3<f64>),
 }
 
-impl std::str::FromStr for PoseRef {
+impl std::str::FromStr for DistanceEnd {
     type Err = Error;
 
     /// `12` (an index), `1403715278.762` (a stamp: a number with a point or
-    /// an exponent), else an image name.
+    /// an exponent), `0.41,-1.2,3.05` (a map point: three numbers with
+    /// commas), else an image name.
     fn from_str(s: &str) -> Result<Self> {
         let t = s.trim();
         if let Ok(i) = t.parse::<usize>() {
-            return Ok(PoseRef::Index(i));
+            return Ok(DistanceEnd::Index(i));
+        }
+        let parts: Vec<&str> = t.split(',').map(str::trim).collect();
+        if parts.len() == 3 {
+            if let Ok(v) = parts
+                .iter()
+                .map(|p| p.parse::<f64>())
+                .collect::<std::result::Result<Vec<f64>, _>>()
+            {
+                if !v.iter().all(|x| x.is_finite()) {
+                    return Err(Error::invalid(
+                        "known_distance",
+                        format!("a map point's coordinates must be finite, got {t:?}"),
+                    ));
+                }
+                return Ok(DistanceEnd::Point(Vector3::new(v[0], v[1], v[2])));
+            }
         }
         match t.parse::<f64>() {
-            Ok(v) if v.is_finite() => Ok(PoseRef::Stamp(v)),
+            Ok(v) if v.is_finite() => Ok(DistanceEnd::Stamp(v)),
             Ok(v) => Err(Error::invalid(
                 "known_distance",
                 format!("a pose's stamp must be finite, got {v}"),
             )),
             Err(_) if t.is_empty() => Err(Error::invalid(
                 "known_distance",
-                "a pose is an index, a stamp or an image name, got an empty string",
+                "an end is a pose's index, stamp or image name, or a map point x,y,z; got an \
+                 empty string",
             )),
-            Err(_) => Ok(PoseRef::Name(t.to_string())),
+            Err(_) => Ok(DistanceEnd::Name(t.to_string())),
         }
     }
 }
 
-impl std::fmt::Display for PoseRef {
+impl std::fmt::Display for DistanceEnd {
     fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
         match self {
-            PoseRef::Index(i) => write!(f, "pose {i}"),
-            PoseRef::Stamp(t) => write!(f, "the pose at {t} s"),
-            PoseRef::Name(n) => write!(f, "image {n:?}"),
+            DistanceEnd::Index(i) => write!(f, "pose {i}"),
+            DistanceEnd::Stamp(t) => write!(f, "the pose at {t} s"),
+            DistanceEnd::Name(n) => write!(f, "image {n:?}"),
+            DistanceEnd::Point(p) => write!(f, "the map point ({}, {}, {})", p.x, p.y, p.z),
         }
     }
 }
 
-/// Two poses a known distance apart.
+/// Two poses or map points a known distance apart.
 #[derive(Clone, Debug, PartialEq)]
 pub struct DistanceSpec {
-    /// The first pose.
-    pub a: PoseRef,
-    /// The second pose.
-    pub b: PoseRef,
+    /// The first end.
+    pub a: DistanceEnd,
+    /// The second end.
+    pub b: DistanceEnd,
     /// Their distance, metres.
     pub metres: f64,
 }
@@ -144,6 +171,9 @@ pub struct DistanceSpec {
 pub struct PriorOptions {
     /// The cameras' height above the ground.
     pub camera_height: Option<HeightSpec>,
+    /// The height's standard deviation, metres (how well it is known; the
+    /// scale's uncertainty in the report counts it).
+    pub camera_height_sigma: Option<f64>,
     /// Two poses a known distance apart (the scale, before a height).
     pub known_distance: Option<DistanceSpec>,
     /// "Up" from the plane the cameras ride in instead of the ground plane.
@@ -157,20 +187,29 @@ impl PriorOptions {
     pub fn height(camera_height: HeightSpec) -> Self {
         PriorOptions {
             camera_height: Some(camera_height),
+            camera_height_sigma: None,
             known_distance: None,
             planar_motion: false,
             ground: GroundOptions::default(),
         }
     }
 
-    /// The prior of a conversion's `camera_height`, `known_distance` and
-    /// `planar_motion` (the CLI's flags, Python's arguments): `None` when
-    /// none is given; planar motion alone is refused (it gives no scale).
+    /// The prior of a conversion's `camera_height` (with its sigma),
+    /// `known_distance` and `planar_motion` (the CLI's flags, Python's
+    /// arguments): `None` when none is given; planar motion alone is refused
+    /// (it gives no scale), as is a sigma without a height.
     pub fn from_parts(
         camera_height: Option<HeightSpec>,
+        camera_height_sigma: Option<f64>,
         known_distance: Option<DistanceSpec>,
         planar_motion: bool,
     ) -> Result<Option<Self>> {
+        if camera_height.is_none() && camera_height_sigma.is_some() {
+            return Err(Error::invalid(
+                "camera_height_sigma",
+                "is the uncertainty of camera_height: give the height too",
+            ));
+        }
         if camera_height.is_none() && known_distance.is_none() {
             if planar_motion {
                 return Err(Error::invalid(
@@ -180,12 +219,15 @@ impl PriorOptions {
             }
             return Ok(None);
         }
-        Ok(Some(PriorOptions {
+        let opts = PriorOptions {
             camera_height,
+            camera_height_sigma,
             known_distance,
             planar_motion,
             ground: GroundOptions::default(),
-        }))
+        };
+        opts.check()?;
+        Ok(Some(opts))
     }
 
     /// Checks that a scale is given.
@@ -196,6 +238,14 @@ impl PriorOptions {
                 "the scale needs the cameras' height over the ground (camera_height) or a known \
                  distance between two poses (known_distance)",
             ));
+        }
+        if let Some(s) = self.camera_height_sigma {
+            if !(s.is_finite() && s >= 0.0) {
+                return Err(Error::invalid(
+                    "camera_height_sigma",
+                    format!("must be a number of metres, 0 or more, got {s}"),
+                ));
+            }
         }
         if let Some(d) = &self.known_distance {
             if !(d.metres.is_finite() && d.metres > 0.0) {
@@ -221,6 +271,15 @@ pub enum Up {
     Planar(PlanarMotion),
 }
 
+/// One end of a known distance as found among the poses.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct FoundEnd {
+    /// The pose's index among the SLAM poses (`None`: a map point).
+    pub pose: Option<usize>,
+    /// Where it is, SLAM frame.
+    pub at: Vector3<f64>,
+}
+
 /// The prior's fit.
 #[derive(Clone, Debug, PartialEq)]
 pub struct PriorFit {
@@ -230,12 +289,16 @@ pub struct PriorFit {
     pub plane: Option<GroundPlane>,
     /// Scale from the plane and the heights, when heights were given.
     pub height: Option<HeightScale>,
-    /// The known distance, when given (it sets the scale).
-    pub distance: Option<(usize, usize, KnownDistance)>,
+    /// The known distance's two ends and its scale, when given (it sets
+    /// the scale).
+    pub distance: Option<([FoundEnd; 2], KnownDistance)>,
     /// Where "up" came from.
     pub up: Up,
     /// Stamps of the SLAM poses.
     pub stamps: Vec<f64>,
+    /// The scale per window of keyframes ([`height_profile`]; one height at
+    /// every pose, keyframes with depth and a run of two windows or more).
+    pub profile: Vec<ProfileWindow>,
 }
 
 impl PriorFit {
@@ -271,9 +334,25 @@ impl PriorFit {
                 HeightSpec::File(f) => HeightGiven::File { path: f.clone() },
             }),
             height_scale: self.height.as_ref().map(|m| m.scale),
+            camera_height_sigma: opts.camera_height_sigma,
+            scale_sigma_ground: self.height.as_ref().map(|m| m.scale_sigma),
+            scale_sigma: self.height.as_ref().map(|m| {
+                let stated = opts.camera_height_sigma.unwrap_or(0.0);
+                // The given height the stated sigma is relative to.
+                let metres = match &opts.camera_height {
+                    Some(HeightSpec::Constant(v) | HeightSpec::First(v)) => *v,
+                    _ => {
+                        let mut h = m.heights.clone();
+                        h.sort_by(f64::total_cmp);
+                        m.scale * h[h.len() / 2]
+                    }
+                };
+                m.scale_sigma_with(stated / metres)
+            }),
             height_rms: self.height.as_ref().map(|m| m.height_rms),
-            known_distance: self.distance.map(|(a, b, k)| DistanceReport {
-                poses: [a, b],
+            known_distance: self.distance.map(|([a, b], k)| DistanceReport {
+                poses: [a.pose, b.pose],
+                ends: [a.at.into(), b.at.into()],
                 metres: k.metres,
                 slam_distance: k.slam_distance,
                 scale: k.scale,
@@ -287,6 +366,7 @@ impl PriorFit {
                 below: p.below,
                 cameras_above: p.cameras_above,
                 tilt_from_cameras_deg: p.tilt_from_cameras_deg,
+                tilt_sigma_deg: p.tilt_sigma_deg(),
                 runner_up: p.runner_up,
             }),
             planar_motion: match &self.up {
@@ -308,6 +388,18 @@ impl PriorFit {
                     .collect(),
                 _ => Vec::new(),
             },
+            profile: self
+                .profile
+                .iter()
+                .map(|w| ProfileReport {
+                    first: w.first,
+                    last: w.last,
+                    time: w.time,
+                    scale: w.scale,
+                    inliers: w.inliers,
+                    reason: w.reason.clone(),
+                })
+                .collect(),
             scale_vs_sensor: sensor.map(|s| scale / s.scale - 1.0),
             up_vs_sensor_deg: sensor
                 .map(|s| (s.rotation * up).z.clamp(-1.0, 1.0).acos().to_degrees()),
@@ -316,7 +408,9 @@ impl PriorFit {
 }
 
 /// Fits the prior to the recording's cloud and its SLAM poses `slam`
-/// (`names[s]`: the image name of pose `s`, where it has one; `max_diff`:
+/// (`rows[s]`: the keyframe of pose `s`, as [`Recording::slam_trajectory`]
+/// gives them; `names[s]`: the image name of pose `s`, where it has one;
+/// `max_diff`:
 /// how far a stamp may lie from the pose it names). Errors: no scale given,
 /// no cloud where the ground plane is needed, the ground plane's and planar
 /// motion's refusals, the heights' (a file that does not cover the poses,
@@ -324,6 +418,7 @@ impl PriorFit {
 pub fn fit(
     rec: &Recording,
     slam: &Trajectory,
+    rows: &[Option<usize>],
     names: &[Option<String>],
     opts: &PriorOptions,
     filter: &PointFilter,
@@ -331,8 +426,9 @@ pub fn fit(
 ) -> Result<PriorFit> {
     opts.check()?;
     // The ground plane: for "up", or for the heights.
+    let mut profile = Vec::new();
     let plane = if !opts.planar_motion || opts.camera_height.is_some() {
-        let points = slam_points(rec, filter)?;
+        let (points, owner) = slam_points(rec, filter)?;
         if points.is_empty() {
             return Err(Error::invalid(
                 if opts.camera_height.is_some() {
@@ -347,7 +443,30 @@ pub fn fit(
                 ),
             ));
         }
-        Some(fit_ground_plane(&points, slam, &opts.ground)?)
+        let plane = fit_ground_plane(&points, slam, &opts.ground)?;
+        // The scale along the run, for one height at every pose and points
+        // that know their keyframe.
+        if let (Some(HeightSpec::Constant(h)), Some(owner), Some(w)) =
+            (&opts.camera_height, owner, profile_window(slam.len()))
+        {
+            // Keyframe index -> SLAM row.
+            let mut row_of = vec![usize::MAX; rec.keyframes.len()];
+            for (s, r) in rows.iter().enumerate() {
+                if let Some(k) = r {
+                    row_of[*k] = s;
+                }
+            }
+            let (pts, own): (Vec<Vector3<f64>>, Vec<usize>) = points
+                .iter()
+                .zip(&owner)
+                .filter_map(|(p, &k)| {
+                    let s = *row_of.get(k)?;
+                    (s != usize::MAX).then_some((*p, s))
+                })
+                .unzip();
+            profile = height_profile(&pts, &own, slam, *h, w, &opts.ground)?;
+        }
+        Some(plane)
     } else {
         None
     };
@@ -364,9 +483,13 @@ pub fn fit(
     };
     let distance = match &opts.known_distance {
         Some(d) => {
-            let a = pose_index(&d.a, slam, names, max_diff)?;
-            let b = pose_index(&d.b, slam, names, max_diff)?;
-            Some((a, b, scale_from_distance(slam, a, b, d.metres)?))
+            let ends = [
+                find_end(&d.a, slam, names, max_diff)?,
+                find_end(&d.b, slam, names, max_diff)?,
+            ];
+            let what = format!("{} and {}", d.a, d.b);
+            let k = scale_between(&ends[0].at, &ends[1].at, d.metres, slam, &what)?;
+            Some((ends, k))
         }
         None => None,
     };
@@ -383,7 +506,7 @@ pub fn fit(
         (Up::Ground, None) => return Err(Error::invalid("prior", "no \"up\": no ground plane")),
     };
     let scale = match (&distance, &height) {
-        (Some((_, _, k)), _) => k.scale,
+        (Some((_, k)), _) => k.scale,
         (None, Some(m)) => m.scale,
         (None, None) => {
             return Err(Error::invalid(
@@ -406,21 +529,24 @@ pub fn fit(
         distance,
         up,
         stamps: slam.timestamps.clone(),
+        profile,
     })
 }
 
-/// The index among `slam` of the pose `r` names.
-fn pose_index(
-    r: &PoseRef,
+/// The end `r` names: a map point as given, a pose by its index among
+/// `slam` and its camera centre.
+fn find_end(
+    r: &DistanceEnd,
     slam: &Trajectory,
     names: &[Option<String>],
     max_diff: f64,
-) -> Result<usize> {
+) -> Result<FoundEnd> {
     let n = slam.len();
     let found = match r {
-        PoseRef::Index(i) => (*i < n).then_some(*i),
-        PoseRef::Name(name) => names.iter().position(|m| m.as_deref() == Some(name)),
-        PoseRef::Stamp(t) => {
+        DistanceEnd::Point(p) => return Ok(FoundEnd { pose: None, at: *p }),
+        DistanceEnd::Index(i) => (*i < n).then_some(*i),
+        DistanceEnd::Name(name) => names.iter().position(|m| m.as_deref() == Some(name)),
+        DistanceEnd::Stamp(t) => {
             let k = slam.timestamps.partition_point(|s| s < t);
             [k.checked_sub(1), (k < n).then_some(k)]
                 .into_iter()
@@ -433,43 +559,55 @@ fn pose_index(
                 .filter(|&i| (slam.timestamps[i] - t).abs() <= max_diff)
         }
     };
-    found.ok_or_else(|| {
+    let i = found.ok_or_else(|| {
         Error::invalid(
             "known_distance",
             format!(
                 "{r} is not among the {n} SLAM poses{}",
                 match r {
-                    PoseRef::Index(_) => format!(" (0 .. {})", n.max(1) - 1),
-                    PoseRef::Stamp(_) => format!(" (none within {max_diff} s)"),
-                    PoseRef::Name(_) => String::new(),
+                    DistanceEnd::Index(_) => format!(" (0 .. {})", n.max(1) - 1),
+                    DistanceEnd::Stamp(_) => format!(" (none within {max_diff} s)"),
+                    DistanceEnd::Name(_) | DistanceEnd::Point(_) => String::new(),
                 }
             ),
         )
+    })?;
+    Ok(FoundEnd {
+        pose: Some(i),
+        at: slam.positions[i],
     })
 }
 
+/// Points of the SLAM cloud, and the keyframe (index) of each when known.
+type SlamPoints = (Vec<Vector3<f64>>, Option<Vec<usize>>);
+
 /// The recording's cloud in the SLAM frame, at most [`MAX_POINTS`] (every
 /// k-th): its keyframes backprojected (their pixels read back a batch at a
-/// time when on disk), else its own cloud.
-fn slam_points(rec: &Recording, filter: &PointFilter) -> Result<Vec<Vector3<f64>>> {
+/// time when on disk), each point with the index in `rec.keyframes` of the
+/// keyframe it came from; else its own cloud (no owners).
+fn slam_points(rec: &Recording, filter: &PointFilter) -> Result<SlamPoints> {
     let kfs = &rec.keyframes;
     if kfs.is_empty() {
         let Some(c) = &rec.cloud else {
-            return Ok(Vec::new());
+            return Ok((Vec::new(), None));
         };
-        return Ok(c
+        let points = c
             .points_every(c.len().div_ceil(MAX_POINTS))
             .filter(|p| p.iter().all(|v| v.is_finite()))
-            .collect());
+            .collect();
+        return Ok((points, None));
     }
+    let index: std::collections::HashMap<i32, usize> =
+        kfs.iter().enumerate().map(|(k, kf)| (kf.id, k)).collect();
     // The pixels with depth are a share of the images: the stride bounds
     // the points kept by the pixels there are.
     let pixels: usize = kfs
         .iter()
         .map(|k| k.camera.width as usize * k.camera.height as usize)
         .sum();
-    let stride = pixels.div_ceil(MAX_POINTS);
+    let stride = pixels.div_ceil(MAX_POINTS).max(1);
     let mut out = Vec::new();
+    let mut owner = Vec::new();
     let batch = super::batch_len();
     let order: Vec<usize> = (0..kfs.len()).collect();
     for (b, idx) in order.chunks(batch).enumerate() {
@@ -488,8 +626,23 @@ fn slam_points(rec: &Recording, filter: &PointFilter) -> Result<Vec<Vector3<f64>
         let (c, _) =
             backproject_batch_counted(keyframes, b * batch, filter, |_| Sim3::identity(), false)?;
         out.extend(c.points_every(stride));
+        owner.extend(
+            c.keyframe_ids
+                .iter()
+                .step_by(stride)
+                .map(|id| index.get(id).copied().unwrap_or(usize::MAX)),
+        );
     }
-    Ok(out)
+    Ok((out, Some(owner)))
+}
+
+/// Keyframes per window of the scale profile of a run of `n` keyframes:
+/// a tenth of the run (about twenty windows, half overlapping), at least
+/// [`defaults::PROFILE_MIN_WINDOW`]; `None` when the run holds fewer than
+/// two such windows.
+pub fn profile_window(n: usize) -> Option<usize> {
+    let w = n.div_ceil(10).max(defaults::PROFILE_MIN_WINDOW);
+    (n >= 2 * w).then_some(w)
 }
 
 /// The heights of the `stamp height` file at `path` at each of `stamps`
@@ -550,4 +703,56 @@ fn heights_at(path: &Path, stamps: &[f64]) -> Result<Vec<f64>> {
             })
         })
         .collect()
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn a_distance_end_is_an_index_a_stamp_a_point_or_a_name() {
+        let end = |s: &str| s.parse::<DistanceEnd>();
+        assert_eq!(end(" 12 ").unwrap(), DistanceEnd::Index(12));
+        assert_eq!(
+            end("1403715278.762").unwrap(),
+            DistanceEnd::Stamp(1403715278.762)
+        );
+        assert_eq!(
+            end("0.41, -1.2,3.05").unwrap(),
+            DistanceEnd::Point(Vector3::new(0.41, -1.2, 3.05))
+        );
+        assert_eq!(
+            end("frame,0001.png").unwrap(),
+            DistanceEnd::Name("frame,0001.png".into())
+        );
+        assert!(end("1,nan,2").unwrap_err().to_string().contains("finite"));
+        assert!(end(" ").is_err());
+    }
+
+    #[test]
+    fn the_profile_window_is_a_tenth_of_the_run_from_its_least() {
+        let least = defaults::PROFILE_MIN_WINDOW;
+        assert_eq!(profile_window(2 * least - 1), None);
+        assert_eq!(profile_window(2 * least), Some(least));
+        assert_eq!(profile_window(300), Some(30));
+    }
+
+    #[test]
+    fn a_height_sigma_needs_a_height_and_planar_motion_a_scale() {
+        let d = DistanceSpec {
+            a: DistanceEnd::Index(0),
+            b: DistanceEnd::Index(1),
+            metres: 1.0,
+        };
+        assert!(PriorOptions::from_parts(None, Some(0.1), Some(d), false).is_err());
+        assert!(PriorOptions::from_parts(None, None, None, true).is_err());
+        assert_eq!(
+            PriorOptions::from_parts(None, None, None, false).unwrap(),
+            None
+        );
+        let h = Some(HeightSpec::Constant(1.2));
+        assert!(PriorOptions::from_parts(h.clone(), Some(-0.1), None, false).is_err());
+        let p = PriorOptions::from_parts(h, Some(0.05), None, false).unwrap();
+        assert_eq!(p.unwrap().camera_height_sigma, Some(0.05));
+    }
 }

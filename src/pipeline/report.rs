@@ -341,6 +341,8 @@ pub struct PlaneReport {
     pub cameras_above: f64,
     /// Degrees between the normal and the cameras' mean image "up".
     pub tilt_from_cameras_deg: Option<f64>,
+    /// Standard deviation of the normal's direction, degrees.
+    pub tilt_sigma_deg: f64,
     /// The strongest other plane under the cameras: its inliers and its
     /// height over this one (SLAM units).
     pub runner_up: Option<(usize, f64)>,
@@ -349,14 +351,34 @@ pub struct PlaneReport {
 /// Two poses a known distance apart (`prior.known_distance`).
 #[derive(Clone, Debug, PartialEq, Serialize, JsonSchema)]
 pub struct DistanceReport {
-    /// The two poses' indices among the SLAM poses.
-    pub poses: [usize; 2],
+    /// The two ends' indices among the SLAM poses (`null`: a map point).
+    pub poses: [Option<usize>; 2],
+    /// The two ends in the SLAM frame (camera centres or map points).
+    pub ends: [[f64; 3]; 2],
     /// Their distance given, metres.
     pub metres: f64,
     /// Their distance in the SLAM frame, SLAM units.
     pub slam_distance: f64,
     /// Metres per SLAM unit it gives.
     pub scale: f64,
+}
+
+/// One window of the scale profile (`prior.profile`).
+#[derive(Clone, Debug, PartialEq, Serialize, JsonSchema)]
+pub struct ProfileReport {
+    /// First SLAM pose of the window (index).
+    pub first: usize,
+    /// Last SLAM pose of the window (index, inclusive).
+    pub last: usize,
+    /// Mean stamp of its poses, seconds.
+    pub time: f64,
+    /// Metres per SLAM unit there (`null` where no ground was found).
+    pub scale: Option<f64>,
+    /// The window's ground plane inliers (0 without a plane).
+    pub inliers: usize,
+    /// Why the window has no scale.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub reason: Option<String>,
 }
 
 /// The plane the cameras ride in (`prior.planar_motion`).
@@ -393,6 +415,14 @@ pub struct PriorReport {
     pub camera_height: Option<HeightGiven>,
     /// Metres per SLAM unit from the plane and the heights, when given.
     pub height_scale: Option<f64>,
+    /// The height's standard deviation given, metres.
+    pub camera_height_sigma: Option<f64>,
+    /// Relative standard deviation of `height_scale` from the ground plane
+    /// and the scatter of the cameras' heights.
+    pub scale_sigma_ground: Option<f64>,
+    /// Relative standard deviation of `height_scale`: `scale_sigma_ground`
+    /// and the given height's own (`camera_height_sigma` over the height).
+    pub scale_sigma: Option<f64>,
     /// Rms of the given heights less the fitted ones, metres.
     pub height_rms: Option<f64>,
     /// The known distance, when given.
@@ -404,6 +434,10 @@ pub struct PriorReport {
     /// `[stamp, height]` of each SLAM pose over the ground plane, metres (at
     /// the prior's scale; empty without a plane and heights).
     pub heights: Vec<[f64; 2]>,
+    /// The scale per window of keyframes along the run (one height at every
+    /// pose, keyframes with depth; empty otherwise): where it wanders, the
+    /// monocular scale drifted.
+    pub profile: Vec<ProfileReport>,
     /// The prior's scale over the sensor's, less 1, when a reference sensor
     /// set the frame.
     #[serde(skip_serializing_if = "Option::is_none")]

@@ -81,6 +81,17 @@ impl PyGroundPlane {
     fn height(&self, x: &Bound<'_, PyAny>) -> PyResult<f64> {
         Ok(self.inner.height(&vector3(x, "x")?))
     }
+    /// Standard deviation of `height(x)` from the plane's own uncertainty
+    /// (a block jackknife over its points, and how far the plane of its
+    /// whole inlier band lies from that of its core), SLAM units.
+    fn height_sigma(&self, x: &Bound<'_, PyAny>) -> PyResult<f64> {
+        Ok(self.inner.height_sigma(&vector3(x, "x")?))
+    }
+    /// Standard deviation of the normal's direction, degrees.
+    #[getter]
+    fn tilt_sigma_deg(&self) -> f64 {
+        self.inner.tilt_sigma_deg()
+    }
     fn __repr__(&self) -> String {
         let n = self.inner.normal;
         format!(
@@ -120,10 +131,24 @@ impl PyHeightScale {
     fn height_rms(&self) -> f64 {
         self.inner.height_rms
     }
+    /// Relative standard deviation of the scale from the plane and the
+    /// scatter of the cameras' heights (not counting the given heights' own
+    /// uncertainty: see `scale_sigma_with`).
+    #[getter]
+    fn scale_sigma(&self) -> f64 {
+        self.inner.scale_sigma
+    }
+    /// Relative standard deviation of the scale when the given heights are
+    /// uncertain by `relative` (their sigma over their value).
+    fn scale_sigma_with(&self, relative: f64) -> f64 {
+        self.inner.scale_sigma_with(relative)
+    }
     fn __repr__(&self) -> String {
         format!(
-            "HeightScale(scale={:.9}, height_rms={:.4})",
-            self.inner.scale, self.inner.height_rms
+            "HeightScale(scale={:.9} ± {:.2} %, height_rms={:.4})",
+            self.inner.scale,
+            100.0 * self.inner.scale_sigma,
+            self.inner.height_rms
         )
     }
 }

@@ -252,29 +252,35 @@ impl PyConversion {
     }
 }
 
-/// A pose of `known_distance`: an index (int), a stamp (float, seconds) or
-/// an image name (str).
-fn pose_ref(p: &Bound<'_, PyAny>) -> PyResult<crate::pipeline::prior::PoseRef> {
-    use crate::pipeline::prior::PoseRef;
+/// An end of `known_distance`: a pose's index (int), stamp (float,
+/// seconds) or image name (str), or a map point (three floats, SLAM frame).
+fn distance_end(p: &Bound<'_, PyAny>) -> PyResult<crate::pipeline::prior::DistanceEnd> {
+    use crate::pipeline::prior::DistanceEnd;
     if let Ok(i) = p.extract::<usize>() {
-        return Ok(PoseRef::Index(i));
+        return Ok(DistanceEnd::Index(i));
     }
     if let Ok(t) = p.extract::<f64>() {
-        return Ok(PoseRef::Stamp(t));
+        return Ok(DistanceEnd::Stamp(t));
     }
-    p.extract::<String>().map(PoseRef::Name).map_err(|_| {
-        crate::error::Error::invalid(
+    if let Ok(name) = p.extract::<String>() {
+        return Ok(DistanceEnd::Name(name));
+    }
+    let point = super::arrays::vector3(p, "known_distance")?;
+    if !point.iter().all(|v| v.is_finite()) {
+        return Err(crate::error::Error::invalid(
             "known_distance",
-            "a pose is an index (int >= 0), a stamp (float) or an image name (str)",
+            "a map point's coordinates must be finite",
         )
-        .into()
-    })
+        .into());
+    }
+    Ok(DistanceEnd::Point(point))
 }
 
 /// The prior of `convert`'s `camera_height`, `known_distance` and
 /// `planar_motion`, if any.
 fn prior_options(
     camera_height: Option<&Bound<'_, PyAny>>,
+    camera_height_sigma: Option<f64>,
     known_distance: Option<(Bound<'_, PyAny>, Bound<'_, PyAny>, f64)>,
     planar_motion: bool,
 ) -> PyResult<Option<crate::pipeline::prior::PriorOptions>> {
@@ -286,14 +292,15 @@ fn prior_options(
         .transpose()?;
     let known_distance = match known_distance {
         Some((a, b, metres)) => Some(DistanceSpec {
-            a: pose_ref(&a)?,
-            b: pose_ref(&b)?,
+            a: distance_end(&a)?,
+            b: distance_end(&b)?,
             metres,
         }),
         None => None,
     };
     Ok(PriorOptions::from_parts(
         camera_height,
+        camera_height_sigma,
         known_distance,
         planar_motion,
     )?)
@@ -362,13 +369,15 @@ pub(crate) fn height_spec(h: &Bound<'_, PyAny>) -> PyResult<crate::pipeline::pri
 /// With no reference sensor, `camera_height` (metres at every pose, a
 /// string `"first:M"` for the first pose's, or the path of a `stamp height`
 /// file) gives `T_world_slam` from the ground plane of the SLAM cloud and
-/// the cameras' height over it; `known_distance=(a, b, metres)` (poses by
-/// index, stamp or image name) gives the scale instead, and
+/// the cameras' height over it (`camera_height_sigma`: its uncertainty,
+/// metres, counted in the report's scale sigma); `known_distance=(a, b,
+/// metres)` (poses by index, stamp or image name, or map points as three
+/// SLAM coordinates) gives the scale instead, and
 /// `planar_motion=True` takes "up" from the plane the cameras ride in
 /// (`Conversion.report["prior"]`); with a sensor, the report compares the
 /// prior with it.
 #[pyfunction(name = "convert")]
-#[pyo3(signature = (log_or_path, *, keyframe_topic=None, graph_topic=None, pose_topic=None, est_topic=None, tf_parent=None, tf_child=None, max_diff=0.01, offset=0.0, n_to_align=None, scale=true, method="horn", filter=None, octree_resolution=None, octree_max_range=None, prob_hit=0.7, prob_miss=0.4, clamp_min=0.1192, clamp_max=0.971, skip_init=None, robust=None, inlier_threshold=None, loss="huber", use_orientations=false, estimate_offset=false, max_offset=0.5, body_from_cam=None, compare_windowed=None, windowed_cloud=false, imu_topic=None, imu_from_cam=None, gravity=9.81, level=0.95, dof="sim3", anchor=None, association="evo", max_tilt_deg=Some(crate::defaults::MAX_TILT_DEG), reference_noise=None, fit_checks=true, reference=None, reference_format=None, reference_time_unit=None, time_unit=None, cloud=None, colmap_format=None, depth_filter=true, depth_threshold=0.005, depth_min_count=2, min_disparity_ratio=0.5, gnss=None, gnss_format=None, geoid_offset=0.0, gnss_topic=None, origin=OriginArg::Name(crate::defaults::ORIGIN.into()), lever_arm=None, gnss_weights=true, gnss_max_gap=None, las=None, laz=false, pcd=false, crs=crate::defaults::CRS, grid=None, grid_resolution=None, grid_threshold=0.5, camera_height=None, known_distance=None, planar_motion=false),
+#[pyo3(signature = (log_or_path, *, keyframe_topic=None, graph_topic=None, pose_topic=None, est_topic=None, tf_parent=None, tf_child=None, max_diff=0.01, offset=0.0, n_to_align=None, scale=true, method="horn", filter=None, octree_resolution=None, octree_max_range=None, prob_hit=0.7, prob_miss=0.4, clamp_min=0.1192, clamp_max=0.971, skip_init=None, robust=None, inlier_threshold=None, loss="huber", use_orientations=false, estimate_offset=false, max_offset=0.5, body_from_cam=None, compare_windowed=None, windowed_cloud=false, imu_topic=None, imu_from_cam=None, gravity=9.81, level=0.95, dof="sim3", anchor=None, association="evo", max_tilt_deg=Some(crate::defaults::MAX_TILT_DEG), reference_noise=None, fit_checks=true, reference=None, reference_format=None, reference_time_unit=None, time_unit=None, cloud=None, colmap_format=None, depth_filter=true, depth_threshold=0.005, depth_min_count=2, min_disparity_ratio=0.5, gnss=None, gnss_format=None, geoid_offset=0.0, gnss_topic=None, origin=OriginArg::Name(crate::defaults::ORIGIN.into()), lever_arm=None, gnss_weights=true, gnss_max_gap=None, las=None, laz=false, pcd=false, crs=crate::defaults::CRS, grid=None, grid_resolution=None, grid_threshold=0.5, camera_height=None, camera_height_sigma=None, known_distance=None, planar_motion=false),
        text_signature = "(log_or_path, *, keyframe_topic=None, graph_topic=None, pose_topic=None, \
                          est_topic=None, tf_parent=None, tf_child=None, max_diff=0.01, offset=0.0, n_to_align=None, \
                          scale=True, method='horn', filter=None, octree_resolution=None, \
@@ -385,7 +394,7 @@ pub(crate) fn height_spec(h: &Bound<'_, PyAny>) -> PyResult<crate::pipeline::pri
                          gnss_topic=None, origin='first', lever_arm=None, gnss_weights=True, \
                          gnss_max_gap=None, las=None, laz=False, pcd=False, crs='utm', grid=None, \
                          grid_resolution=None, grid_threshold=0.5, camera_height=None, \
-                         known_distance=None, planar_motion=False)")]
+                         camera_height_sigma=None, known_distance=None, planar_motion=False)")]
 #[allow(clippy::too_many_arguments)]
 fn convert_py(
     py: Python<'_>,
@@ -454,10 +463,16 @@ fn convert_py(
     grid_resolution: Option<f64>,
     grid_threshold: f64,
     camera_height: Option<&Bound<'_, PyAny>>,
+    camera_height_sigma: Option<f64>,
     known_distance: Option<(Bound<'_, PyAny>, Bound<'_, PyAny>, f64)>,
     planar_motion: bool,
 ) -> PyResult<PyConversion> {
-    let prior = prior_options(camera_height, known_distance, planar_motion)?;
+    let prior = prior_options(
+        camera_height,
+        camera_height_sigma,
+        known_distance,
+        planar_motion,
+    )?;
     let gnss_file = match gnss {
         Some(path) => Some(GnssFile {
             path,

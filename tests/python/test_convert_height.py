@@ -59,6 +59,24 @@ def test_the_camera_height_converts_v101_to_the_ground_truths_scale(tmp_path: Pa
         assert first[:2] == pytest.approx([0, 0], abs=1e-9)
         assert first[2] == pytest.approx(heights[0], abs=0.05)
         assert len(g["heights"]) == 74 and c.report["fit"] is None
+        # The scale's stated sigma: the plane's (jackknife and band) and the heights' scatter,
+        # and the given height's own. These heights are the body's (the IMU's) from the ground
+        # truth, and the camera sits 2 cm under it (along the body's x, which points up): known
+        # to about 2 cm. So given, the sigma covers the error. (The normal's sigma is no bar for
+        # the gravity error here: the motion capture's z need not be the floor's normal to 0.4°.)
+        err = t.scale / fit.scale - 1
+        wide = sw.convert(kf_path, cloud=cloud, camera_height=given, camera_height_sigma=0.02)
+        w = wide.report["prior"]
+        print(
+            f"  scale sigma {w['scale_sigma']:.4%} (ground {g['scale_sigma_ground']:.4%}), "
+            f"normal sigma {g['plane']['tilt_sigma_deg']:.3f} deg"
+        )
+        assert 0 < g["scale_sigma"] == g["scale_sigma_ground"] < 0.02
+        assert abs(err) <= 3 * w["scale_sigma"]
+        assert g["plane"]["tilt_sigma_deg"] > 0
+        assert w["camera_height_sigma"] == 0.02 and wide.transform.scale == t.scale
+        stated = 0.02 / (heights[0] if isinstance(given, str) else np.median(heights))
+        assert w["scale_sigma"] == pytest.approx(np.hypot(g["scale_sigma"], stated), rel=0.02)
 
 
 def test_beside_a_reference_the_report_compares_the_prior(tmp_path: Path) -> None:
@@ -84,6 +102,10 @@ def test_bad_heights_are_refused_with_the_reason(tmp_path: Path) -> None:
     bad.write_text("1.0 1.2\n0.5 1.3\n")
     with pytest.raises(sw.FormatError, match=r"bad.txt:2: stamps must increase"):
         sw.convert(kf_path, cloud=cloud, camera_height=bad)
+    with pytest.raises(sw.InvalidInputError, match="give the height too"):
+        sw.convert(kf_path, cloud=cloud, camera_height_sigma=0.05)
+    with pytest.raises(sw.InvalidInputError, match="camera_height_sigma"):
+        sw.convert(kf_path, cloud=cloud, camera_height=1.2, camera_height_sigma=-0.1)
     # A trajectory without its cloud has no ground to find.
     with pytest.raises(sw.InvalidInputError, match="reference"):
         sw.convert(kf_path, cloud=None)
@@ -110,15 +132,21 @@ def test_a_log_with_no_second_sensor_converts_from_the_cli(
     capfd.readouterr()
     assert run_cli(["slam2world", "convert", str(log), "-o", str(out)]) == 1
     assert "camera_height" in capfd.readouterr().err
-    assert (
-        run_cli(["slam2world", "convert", str(log), "-o", str(out), "--camera-height", "1.2"]) == 0
-    )
+    args = ["convert", str(log), "-o", str(out), "--camera-height", "1.2"]
+    assert run_cli(["slam2world", *args, "--camera-height-sigma", "0.02"]) == 0
     assert "scale from the camera height, up from the ground plane" in capfd.readouterr().out
     report = json.loads((out / "report.json").read_text())
     truth = json.loads(log.with_suffix(".truth.json").read_text())["t_world_slam"]
     scale = report["t_world_slam"]["scale"]
     assert report["prior"]["used_for_transform"] and "imu" not in report
     assert abs(scale / truth["scale"] - 1) < 0.01
+    # The scale along the run: every window's within 2 % of the truth (no drift here).
+    windows = [w for w in report["prior"]["profile"] if w["scale"] is not None]
+    assert report["prior"]["camera_height_sigma"] == 0.02
+    assert report["prior"]["scale_sigma"] > 0.02 / 1.2
+    assert len(windows) >= 2 and windows[-1]["last"] == len(report["prior"]["heights"]) - 1
+    for w in windows:
+        assert abs(w["scale"] / truth["scale"] - 1) < 0.02, w
     # The world's z is the truth's: the cloud's floor at 0 m.
     floor = sw.read_ply(out / "cloud.ply").points
     assert abs(np.percentile(floor[:, 2], 5)) < 0.05
@@ -130,6 +158,12 @@ def test_a_log_with_no_second_sensor_converts_from_the_cli(
     metres = truth["scale"] * slam_distance
     stamp = f"{kf[20].timestamp:.6f}"  # the second pose by its stamp
     args = ["convert", str(log), "-o", str(tmp_path / "p"), "--planar-motion"]
+    # The first end as a map point (the camera centre's SLAM coordinates) gives the same.
+    centre = ",".join(repr(float(v)) for v in kf[5].pose.translation)
+    assert run_cli(["slam2world", *args, "--known-distance", centre, stamp, str(metres)]) == 0
+    p = json.loads((tmp_path / "p" / "report.json").read_text())["prior"]
+    assert p["known_distance"]["poses"] == [None, 20]
+    assert p["scale"] == pytest.approx(truth["scale"], rel=1e-6)
     assert run_cli(["slam2world", *args, "--known-distance", "5", stamp, str(metres)]) == 0
     p = json.loads((tmp_path / "p" / "report.json").read_text())["prior"]
     assert p["up_from"] == "planar_motion" and p["scale_from"] == "known_distance"
@@ -168,6 +202,23 @@ def test_a_known_distance_scales_v101_by_index_or_stamp_and_its_flight_is_no_pla
             f"{c.transform.scale / fit.scale - 1:+.4%}"
         )
         assert abs(c.transform.scale / fit.scale - 1) < 0.03
+    # Two map points (SLAM coordinates, as a viewer of the map shows them), the distance the
+    # ground-truth fit puts them apart: the fit's scale, whichever end is a point or a pose.
+    points = np.loadtxt(cloud)
+    i, j = 10, int(np.argmax(np.linalg.norm(points - points[10], axis=1)))
+    apart = float(np.linalg.norm(fit.apply(points[[i]])[0] - fit.apply(points[[j]])[0]))
+    c = sw.convert(kf_path, cloud=cloud, known_distance=(tuple(points[i]), points[j], apart))
+    d = c.report["prior"]["known_distance"]
+    assert d["poses"] == [None, None] and d["ends"][1] == pytest.approx(points[j], abs=1e-12)
+    assert c.transform.scale == pytest.approx(fit.scale, rel=1e-9)
+    pose_to_point = float(
+        np.linalg.norm(fit.apply(kf.positions[[a]])[0] - fit.apply(points[[j]])[0])
+    )
+    c = sw.convert(kf_path, cloud=cloud, known_distance=(a, list(points[j]), pose_to_point))
+    assert c.report["prior"]["known_distance"]["poses"] == [a, None]
+    assert c.transform.scale == pytest.approx(fit.scale, rel=1e-9)
+    with pytest.raises(sw.InvalidInputError, match="finite"):
+        sw.convert(kf_path, cloud=cloud, known_distance=(a, (0.0, np.nan, 1.0), metres))
     with pytest.raises(sw.InvalidInputError, match="not among"):
         sw.convert(kf_path, cloud=cloud, known_distance=(a, 500, metres))
     with pytest.raises(sw.DegenerateError, match="do not ride in one plane"):

@@ -362,7 +362,7 @@ def test_a_prior_conversion_page_draws_the_heights_and_the_ground(
     parser = _Numbers()
     parser.feed(page.read_text())
     keys = {r[1] for r in parser.rows}
-    assert {"prior.scale", "prior.plane.inliers", "prior.height_rms"} <= keys
+    assert {"prior.scale", "prior.plane.inliers", "prior.height_rms", "prior.scale_sigma"} <= keys
     assert check_numbers(parser.rows, {"report": report}) > 8
     browser.events.clear()
     browser.open(page_url(page))
@@ -379,6 +379,18 @@ def test_a_prior_conversion_page_draws_the_heights_and_the_ground(
         )
     )
     assert pixel_std(browser.screenshot(tuple(rect)), tmp_path / "heights.png") > 0.03
+    # The scale along the run: drawn, its caption counting the report's windows.
+    windows = [w for w in report["prior"]["profile"] if w["scale"] is not None]
+    assert "profile" in browser.evaluate("document.getElementById('s2w-status').textContent")
+    caption = browser.evaluate("document.getElementById('profile-caption').textContent")
+    assert caption.startswith(f"{len(windows)} windows of ")
+    rect = json.loads(
+        browser.evaluate(
+            "JSON.stringify((r => [r.left + scrollX, r.top + scrollY, r.width, r.height])"
+            "(document.getElementById('profile-plot').getBoundingClientRect()))"
+        )
+    )
+    assert pixel_std(browser.screenshot(tuple(rect)), tmp_path / "profile.png") > 0.03
     # The ground plane is drawn in the 3-D view, and its toggle hides it.
     assert not browser.evaluate("document.getElementById('show-ground').disabled")
     lines = "window.s2wCloudView.layers.filter(l => l.kind === 'line' && l.visible).length"

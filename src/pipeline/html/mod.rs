@@ -475,6 +475,10 @@ fn prior_card(doc: &'static str, r: &PriorReport) -> Card {
                 c.num("prior.plane.tilt_from_cameras_deg", t, 3),
             );
         }
+        c.row(
+            "normal's sigma (deg)",
+            c.num("prior.plane.tilt_sigma_deg", p.tilt_sigma_deg, 3),
+        );
     }
     if let (Some(h), Some(rms)) = (r.height_scale, r.height_rms) {
         c.row(
@@ -486,13 +490,37 @@ fn prior_card(doc: &'static str, r: &PriorReport) -> Card {
             ),
         );
     }
+    if let (Some(s), Some(g)) = (r.scale_sigma, r.scale_sigma_ground) {
+        c.row(
+            "scale's sigma (relative)",
+            format!(
+                "{} (ground plane and heights' scatter {}{})",
+                c.num("prior.scale_sigma", s, 3),
+                c.num("prior.scale_sigma_ground", g, 3),
+                match r.camera_height_sigma {
+                    Some(m) => format!(", height ± {} m", c.num("prior.camera_height_sigma", m, 3)),
+                    None => String::new(),
+                }
+            ),
+        );
+    }
     if let Some(d) = &r.known_distance {
+        let end = |k: usize| match d.poses[k] {
+            Some(i) => format!(
+                "pose {}",
+                c.count(&format!("prior.known_distance.poses.{k}"), i)
+            ),
+            None => format!(
+                "map point {}",
+                c.nums(&format!("prior.known_distance.ends.{k}"), &d.ends[k], 6)
+            ),
+        };
         c.row(
             "known distance",
             format!(
-                "poses {} and {}: {} m over {} units",
-                c.count("prior.known_distance.poses.0", d.poses[0]),
-                c.count("prior.known_distance.poses.1", d.poses[1]),
+                "{} and {}: {} m over {} units",
+                end(0),
+                end(1),
                 c.num("prior.known_distance.metres", d.metres, 6),
                 c.num("prior.known_distance.slam_distance", d.slam_distance, 6)
             ),
@@ -938,6 +966,10 @@ const FIGURES_HTML: &str = r#"<section class="figure" id="paths-section">
 <section class="figure" id="heights-section">
 <h2>Camera heights over the ground <small>each SLAM pose's height over the ground plane, at the prior's scale</small></h2>
 <canvas id="heights-plot" class="plot" width="960" height="280"></canvas>
+</section>
+<section class="figure" id="profile-section">
+<h2>Scale along the run <small>the ground plane and the height per window of keyframes, against the run's one scale: <span id="profile-caption"></span></small></h2>
+<canvas id="profile-plot" class="plot" width="960" height="280"></canvas>
 </section>
 <section class="figure" id="cloud-section">
 <h2>World cloud <small id="cloud-caption"></small></h2>

@@ -598,6 +598,29 @@
     drawn.push("heights");
   }
 
+  function profileFigure() {
+    var section = document.getElementById("profile-section");
+    var p = R.prior;
+    var w = p && p.profile ? p.profile.filter(function (v) { return v.scale !== null; }) : [];
+    if (!w.length) { section.style.display = "none"; return; }
+    var t0 = p.heights.length ? p.heights[0][0] : w[0].time;
+    var x = w.map(function (v) { return v.time - t0; });
+    var y = w.map(function (v) { return 100 * (v.scale / p.scale - 1); });
+    var series = [
+      { kind: "line", x: x, y: y, color: "rgba(44,160,44,0.45)", width: 1 },
+      { kind: "points", x: x, y: y, color: "#2ca02c", size: 4, label: "window's scale against the run's" }
+    ];
+    var h = [{ v: 0, color: "#555", dash: true, label: "the run's scale" }];
+    if (p.scale_sigma !== null && p.scale_sigma !== undefined) {
+      h.push({ v: 100 * p.scale_sigma, color: "#d62728", dash: true, label: "± its sigma" });
+      h.push({ v: -100 * p.scale_sigma, color: "#d62728", dash: true });
+    }
+    var missing = p.profile.length - w.length;
+    document.getElementById("profile-caption").textContent = w.length + " windows of " + (w[0].last - w[0].first + 1) + " keyframes" + (missing ? ", " + missing + " without the ground" : "");
+    plot2d(document.getElementById("profile-plot"), { xlabel: "time since the first pose (s)", ylabel: "scale (%)", series: series, hlines: h });
+    drawn.push("profile");
+  }
+
   // A square grid in the ground plane `g` (normal, point: offsets from the
   // origin) over the bounds `b`, as one line strip (the turns on its border).
   function groundGrid(g, b) {
@@ -690,7 +713,7 @@
     drawn.push("cloud");
   }
 
-  [["paths", pathsFigure], ["p_k", pkFigure], ["errors", errorFigures], ["heights", heightsFigure], ["cloud", cloudFigure]].forEach(function (f) {
+  [["paths", pathsFigure], ["p_k", pkFigure], ["errors", errorFigures], ["heights", heightsFigure], ["profile", profileFigure], ["cloud", cloudFigure]].forEach(function (f) {
     try { f[1](); } catch (e) {
       fail(f[0], e);
       var el = document.getElementById(f[0] === "cloud" ? "cloud-view" : f[0] === "paths" ? "paths-view" : null);
