@@ -64,6 +64,16 @@ pub fn pending_signal() -> Option<i32> {
     }
 }
 
+/// The signal received while the guards were last alive, even once they are
+/// gone (until a guard is made again): how a caller tells a run that ended
+/// on a signal from one that saw none.
+pub fn received() -> Option<i32> {
+    match pending().load(Ordering::SeqCst) {
+        0 => None,
+        s => Some(s as i32),
+    }
+}
+
 /// Marks `signal` as received, as the handler does (for callers that learn
 /// of an interruption another way, such as Python's own signal check).
 pub fn request(signal: i32) {

@@ -26,6 +26,8 @@ pub mod imu;
 pub mod interrupt;
 pub mod io;
 pub mod keyframe;
+#[cfg(feature = "live")]
+pub mod live;
 pub mod map;
 pub mod pipeline;
 pub mod sim;

@@ -18,6 +18,7 @@ pub mod follow;
 pub mod imu_init;
 pub mod inspect;
 pub mod schema;
+pub mod serve;
 pub mod sim;
 pub mod transform_cloud;
 
@@ -51,6 +52,8 @@ enum Command {
     Demo(sim::DemoArgs),
     /// Align EST to REF and carry a SLAM-frame point cloud (PLY or x y z text) into the world frame.
     TransformCloud(Box<transform_cloud::TransformCloudArgs>),
+    /// Serve a conversion's metric world (OUT/world.mcap) on a Foxglove WebSocket until Ctrl-C.
+    Serve(serve::ServeArgs),
     /// Print the JSON Schema of a document the commands write (report.json, align --json, …).
     Schema(schema::SchemaArgs),
     /// Convert many logs on Ray (one task per log): the `slam2world` console script of the Python package runs it.
@@ -82,6 +85,7 @@ fn run(cli: Cli) -> Result<()> {
         Command::Demo(args) => sim::run_demo(&args),
         Command::TransformCloud(args) => transform_cloud::run(*args),
         Command::Schema(args) => schema::run(&args),
+        Command::Serve(args) => serve::run(&args),
         Command::Batch(_) => Err(crate::Error::invalid(
             "batch",
             "batch runs on Ray from the Python package: pip install 'slam2world[ray]', then run \

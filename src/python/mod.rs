@@ -18,6 +18,7 @@ mod geometry;
 mod ground;
 mod imu;
 mod io;
+mod live;
 mod map;
 mod pipeline;
 mod reconstruction;
@@ -48,5 +49,6 @@ fn _slam2world(m: &Bound<'_, PyModule>) -> PyResult<()> {
     reconstruction::register(m)?;
     geo::register(m)?;
     session::register(m)?;
+    live::register(m)?;
     Ok(())
 }

@@ -1,0 +1,19 @@
+//! Live in Foxglove: the metric world served on a Foxglove WebSocket
+//! (the official `foxglove` SDK crate's server, protocol `foxglove.sdk.v1`),
+//! so that Foxglove's 3-D panel shows it without a file being opened.
+//!
+//! - [`WorldServer`]: a finished conversion's `world.mcap` (`slam2world
+//!   serve OUT/`, Python `slam2world.serve`): every channel of the file is
+//!   advertised with its topic, encoding and schema, and a client that
+//!   subscribes to one gets that channel's messages, in the file's order and
+//!   with their log times (a late client gets them too: the world is
+//!   latched). A layout made for the file works on the server as it is.
+//!
+//! The server binds `127.0.0.1` unless another address is named. Messages go
+//! to each client through its own bounded queue in the SDK (the oldest
+//! dropped for a client that lags), so that a slow client never holds up
+//! the others.
+
+mod world_server;
+
+pub use world_server::{ServeOptions, WorldServer};

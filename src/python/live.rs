@@ -1,0 +1,114 @@
+//! Live in Foxglove, for Python: `serve` and the `WorldServer` it returns.
+
+use std::path::PathBuf;
+
+use pyo3::prelude::*;
+
+use crate::live::{ServeOptions, WorldServer};
+
+/// A conversion's `world.mcap` on a Foxglove WebSocket (`serve`): open
+/// `url` in Foxglove ("Open connection", Foxglove WebSocket). Serves until
+/// `stop()`, the end of a `with` block, or its collection.
+#[pyclass(name = "WorldServer", module = "slam2world._slam2world")]
+pub struct PyWorldServer {
+    inner: Option<WorldServer>,
+    url: String,
+    port: u16,
+    path: PathBuf,
+    topics: Vec<String>,
+}
+
+#[pymethods]
+impl PyWorldServer {
+    /// `ws://HOST:PORT`.
+    #[getter]
+    fn url(&self) -> String {
+        self.url.clone()
+    }
+    /// The port it listens on (the one taken, when 0 was asked).
+    #[getter]
+    fn port(&self) -> u16 {
+        self.port
+    }
+    /// The file served.
+    #[getter]
+    fn path(&self) -> PathBuf {
+        self.path.clone()
+    }
+    /// The topics served, in the file's channel order.
+    #[getter]
+    fn topics(&self) -> Vec<String> {
+        self.topics.clone()
+    }
+    /// True until `stop()`.
+    #[getter]
+    fn running(&self) -> bool {
+        self.inner.is_some()
+    }
+    /// Clients connected now.
+    fn client_count(&self) -> usize {
+        self.inner.as_ref().map_or(0, |s| s.client_count())
+    }
+    /// Stops serving (the port is free when it returns); again: nothing.
+    fn stop(&mut self, py: Python<'_>) {
+        if let Some(s) = self.inner.take() {
+            py.detach(|| s.stop());
+        }
+    }
+    fn __enter__(slf: PyRef<'_, Self>) -> PyRef<'_, Self> {
+        slf
+    }
+    fn __exit__(
+        &mut self,
+        py: Python<'_>,
+        _exc_type: Option<&Bound<'_, PyAny>>,
+        _exc: Option<&Bound<'_, PyAny>>,
+        _tb: Option<&Bound<'_, PyAny>>,
+    ) -> bool {
+        self.stop(py);
+        false
+    }
+    fn __repr__(&self) -> String {
+        format!(
+            "WorldServer(url={:?}, path={:?}, topics={}, running={})",
+            self.url,
+            self.path.display().to_string(),
+            self.topics.len(),
+            if self.inner.is_some() {
+                "True"
+            } else {
+                "False"
+            }
+        )
+    }
+}
+
+/// Serves `world` (a conversion's output folder, or its `world.mcap`) on a
+/// Foxglove WebSocket at `host:port` (this machine only by default; port 0
+/// takes a free one): every channel of the file advertised as it is, its
+/// messages sent to each client that subscribes. Raises `InvalidInputError`
+/// for an address that cannot be bound or a folder without `world.mcap`,
+/// `FileError` / `FormatError` for the file.
+#[pyfunction(name = "serve")]
+#[pyo3(signature = (world, *, host="127.0.0.1", port=8765))]
+fn serve_py(py: Python<'_>, world: PathBuf, host: &str, port: u16) -> PyResult<PyWorldServer> {
+    let opts = ServeOptions {
+        host: host.to_string(),
+        port,
+    };
+    let s = py.detach(|| WorldServer::start(&world, &opts))?;
+    Ok(PyWorldServer {
+        url: s.url(),
+        port: s.port(),
+        path: s.path().to_path_buf(),
+        topics: s.topics().to_vec(),
+        inner: Some(s),
+    })
+}
+
+/// Adds `serve` and `WorldServer` to the module.
+pub fn register(m: &Bound<'_, PyModule>) -> PyResult<()> {
+    m.add_class::<PyWorldServer>()?;
+    m.add_function(wrap_pyfunction!(serve_py, m)?)?;
+    Ok(())
+}

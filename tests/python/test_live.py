@@ -1,0 +1,155 @@
+"""Live in Foxglove: a converted world served on a Foxglove WebSocket (`slam2world serve OUT/`,
+`slam2world.serve`), checked by a client written against the protocol's specification
+(github.com/foxglove/ws-protocol, subprotocol `foxglove.sdk.v1`): a plain `websockets` client
+that reads the server's JSON `serverInfo` and `advertise`, sends `subscribe`, and decodes the
+binary message frames (opcode 1: subscription id u32, log time u64, payload; little-endian).
+What it receives is compared with `world.mcap` as the `mcap` package reads it."""
+
+from __future__ import annotations
+
+import base64
+import json
+import signal
+import socket
+import struct
+import subprocess
+import sys
+import time
+from collections import defaultdict
+from pathlib import Path
+
+import pytest
+from mcap.reader import make_reader
+from websockets.sync.client import connect
+
+import slam2world as sw
+from slam2world._slam2world import run_cli
+
+SUBPROTOCOL = "foxglove.sdk.v1"
+
+
+@pytest.fixture(scope="module")
+def world(tmp_path_factory: pytest.TempPathFactory) -> Path:
+    """A simulated run converted with its octree: `OUT/world.mcap`."""
+    d = tmp_path_factory.mktemp("live")
+    log, out = d / "run.mcap", d / "out"
+    assert run_cli(["slam2world", "simulate", "-o", str(log), "--reduced", "4"]) == 0
+    args = ["convert", str(log), "-o", str(out), "-q", "--octree", "0.2", "--grid", "0.1", "1.0"]
+    assert run_cli(["slam2world", *args]) == 0
+    return out
+
+
+def file_messages(path: Path) -> tuple[dict[str, dict], dict[str, list[tuple[int, bytes]]]]:
+    """Channels (topic -> encoding and schema) and messages (topic -> (log time, data)) of an
+    MCAP file, read by the `mcap` package."""
+    channels: dict[str, dict] = {}
+    messages: dict[str, list[tuple[int, bytes]]] = defaultdict(list)
+    with path.open("rb") as f:
+        for schema, channel, message in make_reader(f).iter_messages(log_time_order=False):
+            channels[channel.topic] = {
+                "encoding": channel.message_encoding,
+                "schemaName": schema.name if schema else "",
+                "schemaEncoding": schema.encoding if schema else "",
+                "schema": schema.data if schema else b"",
+            }
+            messages[channel.topic].append((message.log_time, bytes(message.data)))
+    return channels, dict(messages)
+
+
+def receive_world(url: str, want: dict[str, int], timeout: float = 30.0) -> tuple[dict, dict]:
+    """Connects to `url`, subscribes to every advertised channel and collects its messages
+    until each topic has `want[topic]` of them: (advertised channels by topic, messages by
+    topic)."""
+    advertised: dict[str, dict] = {}
+    got: dict[str, list[tuple[int, bytes]]] = defaultdict(list)
+    with connect(url, subprotocols=[SUBPROTOCOL], max_size=None) as ws:
+        assert ws.subprotocol == SUBPROTOCOL
+        info = json.loads(ws.recv(timeout=timeout))
+        assert info["op"] == "serverInfo" and info["name"] == "slam2world"
+        by_sub: dict[int, str] = {}
+        deadline = time.monotonic() + timeout
+        while any(len(got[t]) < n for t, n in want.items()):
+            frame = ws.recv(timeout=max(0.1, deadline - time.monotonic()))
+            if isinstance(frame, str):
+                msg = json.loads(frame)
+                if msg["op"] == "advertise":
+                    subs = []
+                    for ch in msg["channels"]:
+                        advertised[ch["topic"]] = ch
+                        sub = len(by_sub) + 1
+                        by_sub[sub] = ch["topic"]
+                        subs.append({"id": sub, "channelId": ch["id"]})
+                    ws.send(json.dumps({"op": "subscribe", "subscriptions": subs}))
+                continue
+            assert frame[0] == 1, f"opcode {frame[0]}"
+            sub, log_time = struct.unpack_from("<IQ", frame, 1)
+            got[by_sub[sub]].append((log_time, bytes(frame[13:])))
+    return advertised, dict(got)
+
+
+def schema_bytes(ch: dict) -> bytes:
+    """An advertised channel's schema as bytes: base64 for binary encodings (protobuf)."""
+    if ch.get("schemaEncoding") == "protobuf":
+        return base64.b64decode(ch["schema"])
+    return str(ch.get("schema", "")).encode()
+
+
+@pytest.mark.slow
+def test_a_client_of_the_protocol_gets_every_channel_of_world_mcap(world: Path) -> None:
+    channels, messages = file_messages(world / "world.mcap")
+    assert {"/world/cloud", "/tf", "/world/slam_trajectory", "/slam2world/octomap"} <= set(channels)
+    want = {t: len(m) for t, m in messages.items()}
+    with sw.serve(world, port=0) as srv:
+        assert srv.url == f"ws://127.0.0.1:{srv.port}" and srv.running
+        assert sorted(srv.topics) == sorted(channels)
+        # Two clients, the second after the first has it all: the world is latched.
+        for _ in range(2):
+            advertised, got = receive_world(srv.url, want)
+            assert set(advertised) == set(channels)
+            for topic, ch in channels.items():
+                a = advertised[topic]
+                assert a["encoding"] == ch["encoding"] and a["schemaName"] == ch["schemaName"]
+                assert a["schemaEncoding"] == ch["schemaEncoding"]
+                assert schema_bytes(a) == ch["schema"], topic
+                assert got[topic] == messages[topic], topic
+    assert not srv.running
+    # Nothing listens there any more.
+    with pytest.raises(ConnectionRefusedError), socket.socket() as s:
+        s.connect(("127.0.0.1", srv.port))
+
+
+def test_bad_worlds_and_taken_ports_are_refused_with_the_reason(
+    world: Path, tmp_path: Path
+) -> None:
+    with pytest.raises(sw.InvalidInputError, match="no world.mcap"):
+        sw.serve(tmp_path, port=0)
+    with pytest.raises(sw.FileError, match="No such file"):
+        sw.serve(tmp_path / "missing.mcap", port=0)
+    bad = tmp_path / "bad.mcap"
+    bad.write_bytes(b"not an mcap file at all")
+    with pytest.raises(sw.FormatError):
+        sw.serve(bad, port=0)
+    with sw.serve(world, port=0) as srv:
+        with pytest.raises(sw.InvalidInputError, match="cannot listen"):
+            sw.serve(world, port=srv.port)
+        srv.stop()
+        srv.stop()  # again: nothing
+
+
+@pytest.mark.slow
+def test_the_cli_serves_until_ctrl_c(world: Path) -> None:
+    argv = [sys.executable, "-m", "slam2world.cli", "serve", str(world), "--port", "0"]
+    with subprocess.Popen(argv, stdout=subprocess.PIPE, text=True) as proc:
+        try:
+            assert proc.stdout is not None
+            line = proc.stdout.readline()
+            assert line.startswith(f"serving {world / 'world.mcap'} on ws://127.0.0.1:"), line
+            url = line.split(" on ", 1)[1].split(" ", 1)[0]
+            _, messages = file_messages(world / "world.mcap")
+            _, got = receive_world(url, {"/tf": len(messages["/tf"])})
+            assert got["/tf"] == messages["/tf"]
+            proc.send_signal(signal.SIGINT)
+            assert proc.wait(timeout=20) == 0
+        finally:
+            if proc.poll() is None:
+                proc.kill()
