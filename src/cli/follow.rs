@@ -15,6 +15,10 @@
 //! `--idle-timeout` seconds without growth, or on Ctrl-C (exit 130, the last
 //! complete outputs left as they were); at the end of the log the map is made
 //! exact ([`Session::finish`]) and written once more.
+//!
+//! With `--serve [HOST:]PORT` each `world.mcap` written also goes to the
+//! clients of a Foxglove WebSocket ([`WorldServer::watch`]), and the final
+//! one is served after the end until Ctrl-C (exit 0).
 
 use std::fs::File;
 use std::io::{Read, Seek, SeekFrom};
@@ -32,12 +36,17 @@ use crate::io::mcap::write::{write_world_mcap_extra_into, ExtraChannel};
 use crate::io::mcap::{WorldFlavor, WorldScene};
 use crate::io::messages::decode::MessageKind;
 use crate::io::nav2::{write_nav2_into, Nav2Files};
+use crate::live::{ServeOptions, WorldServer};
 use crate::map::{GridParams, MapParams, VoxelState};
 use crate::pipeline::outputs::{
     MAP_BT, MAP_HEIGHT_NPY, MAP_PGM, MAP_YAML, REPORT_JSON, WORLD_MCAP,
 };
 use crate::pipeline::report::{to_json_bytes, FollowReport, TransformReport};
 use crate::pipeline::session::{LogFeed, Pushed, Session, SessionOptions};
+
+fn serve_at(s: &str) -> std::result::Result<ServeOptions, String> {
+    s.parse().map_err(|e: Error| e.to_string())
+}
 
 fn camera_height(s: &str) -> std::result::Result<crate::pipeline::prior::HeightSpec, String> {
     s.parse().map_err(|e: crate::error::Error| e.to_string())
@@ -83,6 +92,11 @@ pub struct FollowArgs {
     /// Write ROS 2 messages into world.mcap instead of Foxglove schemas.
     #[arg(long)]
     pub ros2: bool,
+    /// Serve the world on a Foxglove WebSocket as it grows (`PORT` on this
+    /// machine, or `HOST:PORT`; 0: a free port, printed), and the final one
+    /// once the log ends, until Ctrl-C.
+    #[arg(long, value_name = "[HOST:]PORT", value_parser = serve_at)]
+    pub serve: Option<ServeOptions>,
     /// No status lines.
     #[arg(short, long)]
     pub quiet: bool,
@@ -172,6 +186,19 @@ pub fn run(args: &FollowArgs) -> Result<()> {
     OutputSet::folder(&args.output, NAMES)?
         .with_inputs([&args.log])
         .check_output(&args.output.join(REPORT_JSON))?;
+    let server = match &args.serve {
+        Some(at) => {
+            let s = WorldServer::watch(&args.output.join(WORLD_MCAP), at)?;
+            print(&format!(
+                "serving {} on {} as it is written; open it in Foxglove (Open connection, \
+                 Foxglove WebSocket)\n",
+                s.path().display(),
+                s.url()
+            ))?;
+            Some(s)
+        }
+        None => None,
+    };
     // Wait for the file to appear (the writer may start after us).
     let t_start = Instant::now();
     while !args.log.exists() {
@@ -257,6 +284,9 @@ pub fn run(args: &FollowArgs) -> Result<()> {
                     keyframes += 1;
                     report.update(&feed.session, id, decode_s, &timing, latency);
                     write_outputs(args, &feed.session, &report, grid.as_ref())?;
+                    if let Some(s) = &server {
+                        s.refresh();
+                    }
                     if !args.quiet {
                         status_line(&feed.session, id, latency)?;
                     }
@@ -275,6 +305,9 @@ pub fn run(args: &FollowArgs) -> Result<()> {
     report.finished = true;
     report.end = if ended { "end of log" } else { "idle timeout" }.into();
     write_outputs(args, session, &report, grid.as_ref())?;
+    if let Some(s) = &server {
+        s.refresh();
+    }
     if !args.quiet {
         let s = session.state();
         print(&format!(
@@ -291,6 +324,16 @@ pub fn run(args: &FollowArgs) -> Result<()> {
                 Err(e) => format!("no transform: {e}"),
             }
         ))?;
+    }
+    if let Some(s) = server {
+        print(&format!(
+            "follow: serving the final world on {} until Ctrl-C\n",
+            s.url()
+        ))?;
+        while crate::interrupt::pending_signal().is_none() {
+            std::thread::sleep(Duration::from_millis(100));
+        }
+        s.stop();
     }
     Ok(())
 }

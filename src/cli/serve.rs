@@ -34,13 +34,14 @@ pub fn run(args: &ServeArgs) -> Result<()> {
             port: args.port,
         },
     )?;
+    let topics = server.topics();
     print(&format!(
         "serving {} on {} ({} topics: {}); open it in Foxglove (Open connection, Foxglove \
          WebSocket); Ctrl-C stops\n",
         server.path().display(),
         server.url(),
-        server.topics().len(),
-        server.topics().join(", ")
+        topics.len(),
+        topics.join(", ")
     ))?;
     while crate::interrupt::pending_signal().is_none() {
         std::thread::sleep(Duration::from_millis(100));

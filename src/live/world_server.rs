@@ -35,10 +35,41 @@ impl Default for ServeOptions {
     }
 }
 
-/// What the listener asks of the worker.
+impl std::str::FromStr for ServeOptions {
+    type Err = Error;
+
+    /// `PORT` (on `127.0.0.1`) or `HOST:PORT`.
+    fn from_str(s: &str) -> Result<Self> {
+        let t = s.trim();
+        let (host, port) = match t.rsplit_once(':') {
+            Some((h, p)) => (h.trim_start_matches('[').trim_end_matches(']'), p),
+            None => ("127.0.0.1", t),
+        };
+        let port = port.parse::<u16>().map_err(|_| {
+            Error::invalid(
+                "serve",
+                format!("expected PORT or HOST:PORT (a port 0..65535), got {t:?}"),
+            )
+        })?;
+        if host.is_empty() {
+            return Err(Error::invalid(
+                "serve",
+                format!("expected PORT or HOST:PORT, got {t:?}"),
+            ));
+        }
+        Ok(ServeOptions {
+            host: host.to_string(),
+            port,
+        })
+    }
+}
+
+/// What the listener and the owner ask of the worker.
 enum Request {
     /// Send channel `channel`'s messages to client `sink`.
     Send { sink: SinkId, channel: ChannelId },
+    /// The file was written again: read it, and send it to every subscriber.
+    Refresh,
     /// The server stops.
     Stop,
 }
@@ -62,22 +93,105 @@ impl ServerListener for Listener {
     }
 }
 
-/// A channel of the file as served: its id in the file and the SDK's channel.
-type Served = HashMap<ChannelId, (u16, Arc<RawChannel>)>;
+/// The file as served: what the worker reads and sends.
+struct Served {
+    path: PathBuf,
+    context: Arc<Context>,
+    file: Option<McapFile>,
+    /// By topic: the channel's id in the file as last read (`None`: not in
+    /// it), and the SDK's channel.
+    channels: HashMap<String, (Option<u16>, Arc<RawChannel>)>,
+    /// The SDK's channel ids to topics.
+    topics_by_id: HashMap<ChannelId, String>,
+    /// The topics, in the order they were first served (shared with the owner).
+    topics: Arc<Mutex<Vec<String>>>,
+}
 
-/// A finished conversion's `world.mcap` served on a Foxglove WebSocket:
-/// each channel of the file advertised as it is (topic, message encoding,
-/// schema, metadata), and its messages sent, in the file's order and with
-/// their log times, to each client that subscribes (when it subscribes: the
-/// world is latched for late clients). The file is read again per
+impl Served {
+    /// Reads the file (again), advertising the topics it did not have
+    /// before. The channels keep their topic's first encoding and schema.
+    fn load(&mut self) -> Result<()> {
+        let file = McapFile::open(&self.path)?;
+        let infos = file.channels()?;
+        for c in self.channels.values_mut() {
+            c.0 = None;
+        }
+        for info in infos.values() {
+            if let Some(c) = self.channels.get_mut(&info.topic) {
+                c.0 = Some(info.id);
+                continue;
+            }
+            let schema = (info.schema_id != 0).then(|| {
+                Schema::new(
+                    info.schema_name.clone(),
+                    info.schema_encoding.clone(),
+                    info.schema_data.clone(),
+                )
+            });
+            let channel = ChannelBuilder::new(info.topic.clone())
+                .context(&self.context)
+                .message_encoding(info.message_encoding.clone())
+                .schema(schema)
+                .metadata(info.metadata.clone())
+                .build_raw()
+                .map_err(|e| Error::Mcap {
+                    path: self.path.clone(),
+                    reason: format!("channel {}: {e}", info.topic),
+                })?;
+            self.topics_by_id.insert(channel.id(), info.topic.clone());
+            self.channels
+                .insert(info.topic.clone(), (Some(info.id), channel));
+            self.topics
+                .lock()
+                .unwrap_or_else(|e| e.into_inner())
+                .push(info.topic.clone());
+        }
+        self.file = Some(file);
+        Ok(())
+    }
+
+    /// Sends `topic`'s messages of the file as last read to `sink` (`None`:
+    /// every subscriber).
+    fn send(&self, topic: &str, sink: Option<SinkId>) {
+        let (Some(file), Some((Some(id), out))) = (&self.file, self.channels.get(topic)) else {
+            return;
+        };
+        if !out.has_sinks() {
+            return;
+        }
+        // A file that changed since it was read sends nothing more: its
+        // next version comes with a refresh.
+        let Ok(scan) = file.scan(|c| c.id == *id) else {
+            return;
+        };
+        for m in scan.iter() {
+            out.log_with_meta_to_sink(
+                m.data,
+                PartialMetadata {
+                    log_time: Some(m.log_time),
+                },
+                sink,
+            );
+        }
+    }
+}
+
+/// A conversion's `world.mcap` served on a Foxglove WebSocket: each channel
+/// of the file advertised as it is (topic, message encoding, schema,
+/// metadata), and its messages sent, in the file's order and with their log
+/// times, to each client that subscribes (when it subscribes: the world is
+/// latched for late clients). [`WorldServer::watch`] serves a file that a
+/// running conversion writes again and again (`follow --serve`):
+/// [`WorldServer::refresh`] reads its new version and sends it to every
+/// subscriber, the topics it gained advertised. The file is read again per
 /// subscription, one channel's chunks at a time, so that the server holds
-/// no more of a large world than one channel. Stops on [`WorldServer::stop`]
-/// or when dropped.
+/// no more of a large world than one channel. Stops on
+/// [`WorldServer::stop`] or when dropped.
 pub struct WorldServer {
     path: PathBuf,
     host: String,
     port: u16,
-    topics: Vec<String>,
+    topics: Arc<Mutex<Vec<String>>>,
     handle: Option<WebSocketServerHandle>,
     worker: Option<JoinHandle<()>>,
     tx: mpsc::Sender<Request>,
@@ -90,7 +204,7 @@ impl std::fmt::Debug for WorldServer {
         f.debug_struct("WorldServer")
             .field("path", &self.path)
             .field("url", &self.url())
-            .field("topics", &self.topics)
+            .field("topics", &self.topics())
             .finish()
     }
 }
@@ -120,37 +234,37 @@ impl WorldServer {
     /// machine's).
     pub fn start(world: &Path, opts: &ServeOptions) -> Result<Self> {
         let path = world_file(world)?;
-        let file = McapFile::open(&path)?;
-        let infos = file.channels()?;
-        if infos.is_empty() {
+        let server = Self::launch(path.clone(), opts, true)?;
+        if server.topics().is_empty() {
             return Err(Error::Mcap {
                 path,
                 reason: "no channel to serve".into(),
             });
         }
-        let ctx = Context::new();
-        let mut served: Served = HashMap::new();
-        let mut topics = Vec::new();
-        for info in infos.values() {
-            let schema = (info.schema_id != 0).then(|| {
-                Schema::new(
-                    info.schema_name.clone(),
-                    info.schema_encoding.clone(),
-                    info.schema_data.clone(),
-                )
-            });
-            let channel = ChannelBuilder::new(info.topic.clone())
-                .context(&ctx)
-                .message_encoding(info.message_encoding.clone())
-                .schema(schema)
-                .metadata(info.metadata.clone())
-                .build_raw()
-                .map_err(|e| Error::Mcap {
-                    path: path.clone(),
-                    reason: format!("channel {}: {e}", info.topic),
-                })?;
-            topics.push(info.topic.clone());
-            served.insert(channel.id(), (info.id, channel));
+        Ok(server)
+    }
+
+    /// Serves the file at `path`, which a running conversion writes (again
+    /// and again, each time whole: renamed into place): nothing until the
+    /// first [`WorldServer::refresh`] (a file there now is an earlier run's),
+    /// then each version written. Errors: an address that cannot be bound.
+    pub fn watch(path: &Path, opts: &ServeOptions) -> Result<Self> {
+        Self::launch(path.to_path_buf(), opts, false)
+    }
+
+    fn launch(path: PathBuf, opts: &ServeOptions, read: bool) -> Result<Self> {
+        let context = Context::new();
+        let topics = Arc::new(Mutex::new(Vec::new()));
+        let mut served = Served {
+            path: path.clone(),
+            context: context.clone(),
+            file: None,
+            channels: HashMap::new(),
+            topics_by_id: HashMap::new(),
+            topics: topics.clone(),
+        };
+        if read {
+            served.load()?;
         }
         let (tx, rx) = mpsc::channel();
         let listener = Arc::new(Listener {
@@ -159,7 +273,7 @@ impl WorldServer {
         let handle = WebSocketServer::new()
             .name("slam2world")
             .bind(opts.host.clone(), opts.port)
-            .context(&ctx)
+            .context(&context)
             .listener(listener)
             .start_blocking()
             .map_err(|e| {
@@ -171,7 +285,7 @@ impl WorldServer {
         let port = handle.port();
         let worker = std::thread::Builder::new()
             .name("slam2world-serve".into())
-            .spawn(move || send_on_request(&file, &served, &rx))
+            .spawn(move || work(served, &rx))
             .map_err(|e| Error::io(&path, e))?;
         Ok(WorldServer {
             path,
@@ -181,8 +295,15 @@ impl WorldServer {
             handle: Some(handle),
             worker: Some(worker),
             tx,
-            _context: ctx,
+            _context: context,
         })
+    }
+
+    /// The file was written again: its new version goes to every
+    /// subscriber (refreshes that pile up while one is sent are one).
+    /// Returns at once.
+    pub fn refresh(&self) {
+        let _ = self.tx.send(Request::Refresh);
     }
 
     /// The port it listens on.
@@ -192,7 +313,11 @@ impl WorldServer {
 
     /// `ws://HOST:PORT`, what Foxglove's "Open connection" takes.
     pub fn url(&self) -> String {
-        format!("ws://{}:{}", self.host, self.port)
+        if self.host.contains(':') {
+            format!("ws://[{}]:{}", self.host, self.port)
+        } else {
+            format!("ws://{}:{}", self.host, self.port)
+        }
     }
 
     /// The file served.
@@ -200,9 +325,12 @@ impl WorldServer {
         &self.path
     }
 
-    /// The topics served, in the file's channel order.
-    pub fn topics(&self) -> &[String] {
-        &self.topics
+    /// The topics served so far, in the order they were first served.
+    pub fn topics(&self) -> Vec<String> {
+        self.topics
+            .lock()
+            .unwrap_or_else(|e| e.into_inner())
+            .clone()
     }
 
     /// Clients connected now.
@@ -234,25 +362,70 @@ impl Drop for WorldServer {
 }
 
 /// The worker: each subscription's channel read from the file and sent to
-/// the client that asked, until the server stops.
-fn send_on_request(file: &McapFile, served: &Served, rx: &mpsc::Receiver<Request>) {
-    while let Ok(Request::Send { sink, channel }) = rx.recv() {
-        let Some((id, out)) = served.get(&channel) else {
-            continue;
-        };
-        // The file was read whole at the start; one that changed since
-        // sends nothing more.
-        let Ok(scan) = file.scan(|c| c.id == *id) else {
-            continue;
-        };
-        for m in scan.iter() {
-            out.log_with_meta_to_sink(
-                m.data,
-                PartialMetadata {
-                    log_time: Some(m.log_time),
-                },
-                Some(sink),
-            );
+/// the client that asked, each refresh to every subscriber, until the
+/// server stops.
+fn work(mut served: Served, rx: &mpsc::Receiver<Request>) {
+    while let Ok(req) = rx.recv() {
+        match req {
+            Request::Stop => return,
+            Request::Send { sink, channel } => {
+                if let Some(topic) = served.topics_by_id.get(&channel) {
+                    served.send(topic, Some(sink));
+                }
+            }
+            Request::Refresh => {
+                // Refreshes queued behind this one are this one; the
+                // subscriptions among them come after it.
+                let mut later = Vec::new();
+                let mut stop = false;
+                while let Ok(r) = rx.try_recv() {
+                    match r {
+                        Request::Refresh => {}
+                        Request::Stop => stop = true,
+                        send => later.push(send),
+                    }
+                }
+                // A version that cannot be read keeps the last one.
+                if served.load().is_ok() {
+                    let mut topics: Vec<String> = served.channels.keys().cloned().collect();
+                    topics.sort();
+                    for t in &topics {
+                        served.send(t, None);
+                    }
+                }
+                for r in later {
+                    if let Request::Send { sink, channel } = r {
+                        if let Some(topic) = served.topics_by_id.get(&channel) {
+                            served.send(topic, Some(sink));
+                        }
+                    }
+                }
+                if stop {
+                    return;
+                }
+            }
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn serve_at_is_a_port_or_a_host_and_port() {
+        let at = |s: &str| s.parse::<ServeOptions>();
+        assert_eq!(
+            at("8765").unwrap(),
+            ServeOptions {
+                host: "127.0.0.1".into(),
+                port: 8765
+            }
+        );
+        assert_eq!(at("0.0.0.0:9000").unwrap().host, "0.0.0.0");
+        assert_eq!(at("[::1]:0").unwrap().host, "::1");
+        for bad in ["", "http", "host:", ":80", "1.2.3.4:70000"] {
+            assert!(at(bad).is_err(), "{bad}");
         }
     }
 }

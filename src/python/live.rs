@@ -101,7 +101,7 @@ fn serve_py(py: Python<'_>, world: PathBuf, host: &str, port: u16) -> PyResult<P
         url: s.url(),
         port: s.port(),
         path: s.path().to_path_buf(),
-        topics: s.topics().to_vec(),
+        topics: s.topics(),
         inner: Some(s),
     })
 }

@@ -14,6 +14,7 @@ import socket
 import struct
 import subprocess
 import sys
+import threading
 import time
 from collections import defaultdict
 from pathlib import Path
@@ -151,5 +152,72 @@ def test_the_cli_serves_until_ctrl_c(world: Path) -> None:
             proc.send_signal(signal.SIGINT)
             assert proc.wait(timeout=20) == 0
         finally:
+            if proc.poll() is None:
+                proc.kill()
+
+
+@pytest.mark.slow
+def test_follow_serves_the_world_as_it_is_written_and_the_final_one_until_ctrl_c(
+    tmp_path: Path,
+) -> None:
+    log, out = tmp_path / "run.mcap", tmp_path / "out"
+    assert run_cli(["slam2world", "simulate", "-o", str(log), "--reduced", "4"]) == 0
+    argv = [sys.executable, "-m", "slam2world.cli", "follow", str(log), "-o", str(out)]
+    argv += ["--serve", "0", "--grid", "0.1", "1.0", "--stable-hold", "0.3", "-q"]
+    received: dict[str, list[tuple[int, bytes]]] = defaultdict(list)
+    errors: list[BaseException] = []
+    stop = threading.Event()
+
+    def collect(url: str) -> None:
+        """Subscribes to every channel as it is advertised and keeps what arrives."""
+        try:
+            with connect(url, subprotocols=[SUBPROTOCOL], max_size=None) as ws:
+                topics: dict[int, str] = {}
+                while not stop.is_set():
+                    try:
+                        frame = ws.recv(timeout=0.2)
+                    except TimeoutError:
+                        continue
+                    if isinstance(frame, str):
+                        msg = json.loads(frame)
+                        if msg["op"] == "advertise":
+                            subs = []
+                            for ch in msg["channels"]:
+                                topics[ch["id"]] = ch["topic"]
+                                subs.append({"id": ch["id"], "channelId": ch["id"]})
+                            ws.send(json.dumps({"op": "subscribe", "subscriptions": subs}))
+                        continue
+                    sub, log_time = struct.unpack_from("<IQ", frame, 1)
+                    received[topics[sub]].append((log_time, bytes(frame[13:])))
+        except BaseException as e:  # noqa: BLE001 - reported by the test below
+            errors.append(e)
+
+    with subprocess.Popen(argv, stdout=subprocess.PIPE, text=True) as proc:
+        try:
+            assert proc.stdout is not None
+            line = proc.stdout.readline()
+            assert line.startswith(f"serving {out / 'world.mcap'} on ws://127.0.0.1:"), line
+            url = line.split(" on ", 1)[1].split(" ", 1)[0]
+            client = threading.Thread(target=collect, args=(url,))
+            client.start()
+            # Serving the final world: the file no longer changes.
+            line = proc.stdout.readline()
+            assert line.startswith("follow: serving the final world on "), line
+            _, messages = file_messages(out / "world.mcap")
+            assert {"/tf", "/slam2world/octomap", "/slam2world/grid"} <= set(messages)
+            deadline = time.monotonic() + 30
+            while time.monotonic() < deadline and any(
+                received[t][-len(m) :] != m for t, m in messages.items()
+            ):
+                time.sleep(0.1)
+            stop.set()
+            client.join(timeout=10)
+            assert errors == []
+            for topic, m in messages.items():
+                assert received[topic][-len(m) :] == m, topic
+            proc.send_signal(signal.SIGINT)
+            assert proc.wait(timeout=20) == 0
+        finally:
+            stop.set()
             if proc.poll() is None:
                 proc.kill()
