@@ -36,7 +36,7 @@ use crate::io::mcap::write::{write_world_mcap_extra_into, ExtraChannel};
 use crate::io::mcap::{WorldFlavor, WorldScene};
 use crate::io::messages::decode::MessageKind;
 use crate::io::nav2::{write_nav2_into, Nav2Files};
-use crate::live::{ServeOptions, WorldServer};
+use crate::live::{ServeOptions, WorldServer, WsSource};
 use crate::map::{GridParams, MapParams, VoxelState};
 use crate::pipeline::outputs::{
     MAP_BT, MAP_HEIGHT_NPY, MAP_PGM, MAP_YAML, REPORT_JSON, WORLD_MCAP,
@@ -56,7 +56,8 @@ fn camera_height(s: &str) -> std::result::Result<crate::pipeline::prior::HeightS
 #[derive(Args, Debug)]
 pub struct FollowArgs {
     /// The MCAP log being written (LSD-SLAM keyframes, live frames, graph,
-    /// reference poses).
+    /// reference poses), or a running Foxglove WebSocket server
+    /// (`ws://HOST:PORT`: the SDK's, `foxglove_bridge`) publishing them.
     pub log: PathBuf,
     /// Output folder (created when missing).
     #[arg(short, long)]
@@ -181,11 +182,15 @@ pub fn run(args: &FollowArgs) -> Result<()> {
     if let Some(g) = &grid {
         g.check()?;
     }
-    let mut feed = LogFeed::new(opts)?;
+    let feed = LogFeed::new(opts)?;
+    let url = ws_url(&args.log);
     // Refuse a bad output folder (a file, the log's own folder entry) first.
-    OutputSet::folder(&args.output, NAMES)?
-        .with_inputs([&args.log])
-        .check_output(&args.output.join(REPORT_JSON))?;
+    let set = OutputSet::folder(&args.output, NAMES)?;
+    match url {
+        Some(_) => set,
+        None => set.with_inputs([&args.log]),
+    }
+    .check_output(&args.output.join(REPORT_JSON))?;
     let server = match &args.serve {
         Some(at) => {
             let s = WorldServer::watch(&args.output.join(WORLD_MCAP), at)?;
@@ -199,143 +204,281 @@ pub fn run(args: &FollowArgs) -> Result<()> {
         }
         None => None,
     };
-    // Wait for the file to appear (the writer may start after us).
-    let t_start = Instant::now();
-    while !args.log.exists() {
-        crate::interrupt::check()?;
-        if t_start.elapsed().as_secs_f64() > args.idle_timeout {
-            return Err(Error::io(
-                &args.log,
-                std::io::Error::new(std::io::ErrorKind::NotFound, "no such file"),
-            ));
+    let mut run = Follower {
+        args,
+        feed,
+        report: FollowReport::new(&args.log),
+        keyframes: 0,
+        grid,
+        server,
+    };
+    let end = match url {
+        Some(u) => run.follow_ws(u)?,
+        None => run.follow_file()?,
+    };
+    run.finish(end)
+}
+
+/// The URL of a live source: `LOG` given as `ws://…`.
+fn ws_url(log: &Path) -> Option<&str> {
+    log.to_str().filter(|s| s.starts_with("ws://"))
+}
+
+/// One follow run: the session fed message by message, the outputs written
+/// after every keyframe.
+struct Follower<'a> {
+    args: &'a FollowArgs,
+    feed: LogFeed,
+    report: FollowReport,
+    keyframes: usize,
+    grid: Option<GridParams>,
+    server: Option<WorldServer>,
+}
+
+impl Follower<'_> {
+    /// One message of `topic` (`kind` read from its schema name); `source`
+    /// names the input in an error.
+    fn message(
+        &mut self,
+        topic: &str,
+        kind: Option<MessageKind>,
+        encoding: &str,
+        data: &[u8],
+        source: &Path,
+    ) -> Result<()> {
+        let pushed = self
+            .feed
+            .push(topic, kind, encoding, data)
+            .map_err(|e| Error::Mcap {
+                path: source.to_path_buf(),
+                reason: e.to_string(),
+            })?;
+        if let Pushed::Keyframe {
+            id,
+            decode_s,
+            timing,
+        } = pushed
+        {
+            let latency = decode_s + timing.fit_s + timing.backproject_s + timing.insert_s;
+            self.keyframes += 1;
+            self.report
+                .update(&self.feed.session, id, decode_s, &timing, latency);
+            write_outputs(
+                self.args,
+                &self.feed.session,
+                &self.report,
+                self.grid.as_ref(),
+            )?;
+            if let Some(s) = &self.server {
+                s.refresh();
+            }
+            if !self.args.quiet {
+                status_line(&self.feed.session, id, latency)?;
+            }
         }
-        std::thread::sleep(Duration::from_secs_f64(args.poll));
+        Ok(())
     }
-    let mut tail = Tail::open(&args.log)?;
-    let mut schemas: std::collections::HashMap<u16, String> = Default::default();
-    let mut chans: std::collections::HashMap<u16, Chan> = Default::default();
-    let mut last_growth = Instant::now();
-    let mut keyframes = 0usize;
-    let mut ended = false;
-    let mut report = FollowReport::new(&args.log);
-    'outer: loop {
-        crate::interrupt::check()?;
-        let event = match tail.reader.next_event() {
-            None => break,
-            Some(e) => e.map_err(|e| Error::Mcap {
+
+    /// Follows the growing MCAP file; returns why it ended.
+    fn follow_file(&mut self) -> Result<String> {
+        let args = self.args;
+        // Wait for the file to appear (the writer may start after us).
+        let t_start = Instant::now();
+        while !args.log.exists() {
+            crate::interrupt::check()?;
+            if t_start.elapsed().as_secs_f64() > args.idle_timeout {
+                return Err(Error::io(
+                    &args.log,
+                    std::io::Error::new(std::io::ErrorKind::NotFound, "no such file"),
+                ));
+            }
+            std::thread::sleep(Duration::from_secs_f64(args.poll));
+        }
+        let mut tail = Tail::open(&args.log)?;
+        let mut schemas: std::collections::HashMap<u16, String> = Default::default();
+        let mut chans: std::collections::HashMap<u16, Chan> = Default::default();
+        let mut last_growth = Instant::now();
+        loop {
+            crate::interrupt::check()?;
+            let event = match tail.reader.next_event() {
+                None => return Ok("idle timeout".into()),
+                Some(e) => e.map_err(|e| Error::Mcap {
+                    path: args.log.clone(),
+                    reason: e.to_string(),
+                })?,
+            };
+            let (opcode, data) = match event {
+                mcap::sans_io::LinearReadEvent::ReadRequest(n) => {
+                    loop {
+                        if tail.feed(&args.log, n)? > 0 {
+                            last_growth = Instant::now();
+                            break;
+                        }
+                        crate::interrupt::check()?;
+                        if last_growth.elapsed().as_secs_f64() > args.idle_timeout {
+                            return Ok("idle timeout".into());
+                        }
+                        std::thread::sleep(Duration::from_secs_f64(args.poll));
+                    }
+                    continue;
+                }
+                mcap::sans_io::LinearReadEvent::Record { opcode, data } => (opcode, data.to_vec()),
+            };
+            let record = mcap::parse_record(opcode, &data).map_err(|e| Error::Mcap {
                 path: args.log.clone(),
                 reason: e.to_string(),
-            })?,
-        };
-        let (opcode, data) = match event {
-            mcap::sans_io::LinearReadEvent::ReadRequest(n) => {
-                loop {
-                    if tail.feed(&args.log, n)? > 0 {
-                        last_growth = Instant::now();
-                        break;
+            })?;
+            use mcap::records::Record;
+            match record {
+                Record::Schema { header, .. } => {
+                    schemas.insert(header.id, header.name);
+                }
+                Record::Channel(c) => {
+                    let name = schemas.get(&c.schema_id).cloned().unwrap_or_default();
+                    chans.insert(
+                        c.id,
+                        Chan {
+                            topic: c.topic,
+                            encoding: c.message_encoding,
+                            kind: MessageKind::from_schema(&name),
+                        },
+                    );
+                }
+                Record::Message { header, data } => {
+                    let Some(ch) = chans.get(&header.channel_id) else {
+                        continue;
+                    };
+                    let (topic, kind, encoding) = (ch.topic.clone(), ch.kind, ch.encoding.clone());
+                    self.message(&topic, kind, &encoding, &data, &args.log)?;
+                }
+                Record::Footer(_) | Record::DataEnd(_) => return Ok("end of log".into()),
+                _ => {}
+            }
+        }
+    }
+
+    /// Follows a Foxglove WebSocket server at `url`: its channels that
+    /// slam2world reads subscribed, their messages fed as they come. A lost
+    /// connection is tried again with back-off (0.1 s doubling to 2 s, what
+    /// came meanwhile is lost, and the report counts the losses) until
+    /// `--idle-timeout` passes without a message; returns why it ended.
+    fn follow_ws(&mut self, url: &str) -> Result<String> {
+        let args = self.args;
+        let idle = Duration::from_secs_f64(args.idle_timeout);
+        let wait = Duration::from_secs_f64(args.poll.clamp(0.001, 1.0));
+        let mut last_message = Instant::now();
+        let mut source: Option<WsSource> = None;
+        let mut backoff = Duration::from_millis(100);
+        loop {
+            crate::interrupt::check()?;
+            if last_message.elapsed() > idle {
+                return Ok(match source {
+                    Some(_) => "idle timeout".into(),
+                    None => format!(
+                        "server gone ({} connection{} lost)",
+                        self.report.disconnections,
+                        if self.report.disconnections == 1 {
+                            ""
+                        } else {
+                            "s"
+                        }
+                    ),
+                });
+            }
+            let Some(src) = source.as_mut() else {
+                match WsSource::connect(url, idle.min(Duration::from_secs(5))) {
+                    Ok(mut s) => {
+                        s.set_wait(wait)?;
+                        if !args.quiet {
+                            print(&format!("follow: connected to {url}\n"))?;
+                        }
+                        source = Some(s);
+                        backoff = Duration::from_millis(100);
                     }
-                    crate::interrupt::check()?;
-                    if last_growth.elapsed().as_secs_f64() > args.idle_timeout {
-                        break 'outer;
+                    Err(e) if self.report.disconnections == 0 && self.keyframes == 0 => {
+                        // Never connected: the server may start after us,
+                        // within the idle timeout.
+                        if last_message.elapsed() + backoff > idle {
+                            return Err(e);
+                        }
+                        std::thread::sleep(backoff);
+                        backoff = (backoff * 2).min(Duration::from_secs(2));
                     }
-                    std::thread::sleep(Duration::from_secs_f64(args.poll));
+                    Err(_) => {
+                        std::thread::sleep(backoff);
+                        backoff = (backoff * 2).min(Duration::from_secs(2));
+                    }
                 }
                 continue;
-            }
-            mcap::sans_io::LinearReadEvent::Record { opcode, data } => (opcode, data.to_vec()),
-        };
-        let record = mcap::parse_record(opcode, &data).map_err(|e| Error::Mcap {
-            path: args.log.clone(),
-            reason: e.to_string(),
-        })?;
-        use mcap::records::Record;
-        match record {
-            Record::Schema { header, .. } => {
-                schemas.insert(header.id, header.name);
-            }
-            Record::Channel(c) => {
-                let name = schemas.get(&c.schema_id).cloned().unwrap_or_default();
-                chans.insert(
-                    c.id,
-                    Chan {
-                        topic: c.topic,
-                        encoding: c.message_encoding,
-                        kind: MessageKind::from_schema(&name),
-                    },
-                );
-            }
-            Record::Message { header, data } => {
-                let Some(ch) = chans.get(&header.channel_id) else {
-                    continue;
-                };
-                let pushed = feed
-                    .push(&ch.topic, ch.kind, &ch.encoding, &data)
-                    .map_err(|e| Error::Mcap {
-                        path: args.log.clone(),
-                        reason: e.to_string(),
-                    })?;
-                if let Pushed::Keyframe {
-                    id,
-                    decode_s,
-                    timing,
-                } = pushed
-                {
-                    let latency = decode_s + timing.fit_s + timing.backproject_s + timing.insert_s;
-                    keyframes += 1;
-                    report.update(&feed.session, id, decode_s, &timing, latency);
-                    write_outputs(args, &feed.session, &report, grid.as_ref())?;
-                    if let Some(s) = &server {
-                        s.refresh();
-                    }
-                    if !args.quiet {
-                        status_line(&feed.session, id, latency)?;
-                    }
+            };
+            match src.recv() {
+                Ok(Some(m)) => {
+                    last_message = Instant::now();
+                    let source_name = PathBuf::from(format!("{url} {}", m.channel.topic));
+                    self.message(
+                        &m.channel.topic,
+                        m.channel.kind,
+                        &m.channel.encoding,
+                        &m.data,
+                        &source_name,
+                    )?;
+                }
+                Ok(None) => {}
+                Err(e) => {
+                    self.report.disconnections += 1;
+                    eprintln!(
+                        "slam2world: follow: connection lost after {} messages ({e}); \
+                         trying again, what the server sends meanwhile is lost",
+                        src.received
+                    );
+                    source = None;
                 }
             }
-            Record::Footer(_) | Record::DataEnd(_) => {
-                ended = true;
-                break;
-            }
-            _ => {}
         }
     }
-    let session = &mut feed.session;
-    let timing = session.finish()?;
-    report.update(session, -1, 0.0, &timing, 0.0);
-    report.finished = true;
-    report.end = if ended { "end of log" } else { "idle timeout" }.into();
-    write_outputs(args, session, &report, grid.as_ref())?;
-    if let Some(s) = &server {
-        s.refresh();
-    }
-    if !args.quiet {
-        let s = session.state();
-        print(&format!(
-            "follow: {} keyframes, {} live frames, stage {} ({}); {}\n",
-            keyframes,
-            s.frames,
-            s.stage.name(),
-            report.end,
-            match session.transform() {
-                Ok(t) => format!(
-                    "T_world_slam scale {:.6}, rmse {:.4} m over {} pairs",
-                    t.transform.scale, t.rmse, t.pairs
-                ),
-                Err(e) => format!("no transform: {e}"),
-            }
-        ))?;
-    }
-    if let Some(s) = server {
-        print(&format!(
-            "follow: serving the final world on {} until Ctrl-C\n",
-            s.url()
-        ))?;
-        while crate::interrupt::pending_signal().is_none() {
-            std::thread::sleep(Duration::from_millis(100));
+
+    /// The end: the map made exact, the outputs written once more, the
+    /// final world served until Ctrl-C with `--serve`.
+    fn finish(mut self, end: String) -> Result<()> {
+        let args = self.args;
+        let session = &mut self.feed.session;
+        let timing = session.finish()?;
+        self.report.update(session, -1, 0.0, &timing, 0.0);
+        self.report.finished = true;
+        self.report.end = end;
+        write_outputs(args, session, &self.report, self.grid.as_ref())?;
+        if let Some(s) = &self.server {
+            s.refresh();
         }
-        s.stop();
+        if !args.quiet {
+            let s = session.state();
+            print(&format!(
+                "follow: {} keyframes, {} live frames, stage {} ({}); {}\n",
+                self.keyframes,
+                s.frames,
+                s.stage.name(),
+                self.report.end,
+                match session.transform() {
+                    Ok(t) => format!(
+                        "T_world_slam scale {:.6}, rmse {:.4} m over {} pairs",
+                        t.transform.scale, t.rmse, t.pairs
+                    ),
+                    Err(e) => format!("no transform: {e}"),
+                }
+            ))?;
+        }
+        if let Some(s) = self.server.take() {
+            print(&format!(
+                "follow: serving the final world on {} until Ctrl-C\n",
+                s.url()
+            ))?;
+            while crate::interrupt::pending_signal().is_none() {
+                std::thread::sleep(Duration::from_millis(100));
+            }
+            s.stop();
+        }
+        Ok(())
     }
-    Ok(())
 }
 
 fn status_line(session: &Session, id: i32, latency: f64) -> Result<()> {

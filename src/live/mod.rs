@@ -8,6 +8,9 @@
 //!   subscribes to one gets that channel's messages, in the file's order and
 //!   with their log times (a late client gets them too: the world is
 //!   latched). A layout made for the file works on the server as it is.
+//! - [`WsSource`]: the input side, a client of a running Foxglove WebSocket
+//!   server (the SDK's, `foxglove_bridge`'s) whose SLAM, reference and IMU
+//!   channels `follow ws://HOST:PORT` reads as it reads a growing log.
 //!
 //! The server binds `127.0.0.1` unless another address is named. Messages go
 //! to each client through its own bounded queue in the SDK (the oldest
@@ -15,5 +18,7 @@
 //! the others.
 
 mod world_server;
+mod ws_source;
 
 pub use world_server::{ServeOptions, WorldServer};
+pub use ws_source::{WsChannel, WsMessage, WsSource, SUBPROTOCOLS};

@@ -642,8 +642,12 @@ pub struct FollowReport {
     pub latency_s: f64,
     /// True in the report written at the end (the map then exact).
     pub finished: bool,
-    /// Why it ended: `end of log`, `idle timeout` (empty while running).
+    /// Why it ended: `end of log`, `idle timeout`, `server gone (…)`
+    /// (empty while running).
     pub end: String,
+    /// Times the connection to a live source (`follow ws://`) was lost;
+    /// what the server sent meanwhile is lost.
+    pub disconnections: usize,
 }
 
 impl FollowReport {
@@ -667,6 +671,7 @@ impl FollowReport {
             fixes_dropped: 0,
             fit_rmse: None,
             pairs_fitted: 0,
+            disconnections: 0,
             decode_s: 0.0,
             fit_s: 0.0,
             backproject_s: 0.0,

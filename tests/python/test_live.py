@@ -1,9 +1,10 @@
-"""Live in Foxglove: a converted world served on a Foxglove WebSocket (`slam2world serve OUT/`,
+"""Live in Foxglove. Out: a converted world served on a Foxglove WebSocket (`slam2world serve OUT/`,
 `slam2world.serve`), checked by a client written against the protocol's specification
 (github.com/foxglove/ws-protocol, subprotocol `foxglove.sdk.v1`): a plain `websockets` client
 that reads the server's JSON `serverInfo` and `advertise`, sends `subscribe`, and decodes the
 binary message frames (opcode 1: subscription id u32, log time u64, payload; little-endian).
-What it receives is compared with `world.mcap` as the `mcap` package reads it."""
+What it receives is compared with `world.mcap` as the `mcap` package reads it. In: `follow
+ws://` against the Foxglove SDK's own Python server (`foxglove-sdk` from PyPI)."""
 
 from __future__ import annotations
 
@@ -18,7 +19,9 @@ import threading
 import time
 from collections import defaultdict
 from pathlib import Path
+from typing import Any
 
+import foxglove
 import pytest
 from mcap.reader import make_reader
 from websockets.sync.client import connect
@@ -221,3 +224,70 @@ def test_follow_serves_the_world_as_it_is_written_and_the_final_one_until_ctrl_c
             stop.set()
             if proc.poll() is None:
                 proc.kill()
+
+
+class _Subscriptions(foxglove.ServerListener):
+    """Counts the subscriptions a server gets, by topic."""
+
+    def __init__(self) -> None:
+        self.topics: list[str] = []
+
+    def on_subscribe(self, client: foxglove.websocket.Client, channel: Any) -> None:
+        self.topics.append(channel.topic)
+
+
+@pytest.mark.slow
+def test_follow_a_foxglove_sdk_server_ends_where_convert_of_the_log_does(tmp_path: Path) -> None:
+    """The Foxglove SDK's own Python server (not this project's code) publishes a simulated run's
+    messages in real time; `follow ws://` subscribes, follows, sees the server go, and ends on
+    the transform and the octree that `convert` of the same log gives."""
+    log, out = tmp_path / "run.mcap", tmp_path / "out"
+    argv = ["slam2world", "simulate", "-o", str(log), "--reduced", "8", "--seed", "2"]
+    assert run_cli(argv) == 0
+    with log.open("rb") as f:
+        msgs = list(make_reader(f).iter_messages(log_time_order=True))
+    listener = _Subscriptions()
+    server = foxglove.start_server(port=0, server_listener=listener)
+    channels: dict[int, foxglove.Channel] = {}
+    for s, c, _ in msgs:
+        if c.id not in channels:
+            schema = foxglove.Schema(name=s.name, encoding=s.encoding, data=s.data)
+            channels[c.id] = foxglove.Channel(
+                c.topic, message_encoding=c.message_encoding, schema=schema
+            )
+    url = f"ws://127.0.0.1:{server.port}"
+    follow = [sys.executable, "-m", "slam2world.cli", "follow", url, "-o", str(out)]
+    follow += ["--stable-hold", "0.3", "--idle-timeout", "3", "--grid", "0.25", "0.75", "-q"]
+    with subprocess.Popen(follow, stderr=subprocess.PIPE, text=True) as proc:
+        try:
+            # Published once the client has subscribed (one subscribe for all it reads).
+            deadline = time.monotonic() + 30
+            while not listener.topics and time.monotonic() < deadline:
+                time.sleep(0.05)
+            time.sleep(0.5)
+            assert {"/lsd_slam/keyframes", "/ground_truth/pose"} <= set(listener.topics)
+            t0, wall0 = msgs[0][2].log_time, time.monotonic()
+            for _, c, m in msgs:
+                wait = (m.log_time - t0) * 1e-9 - (time.monotonic() - wall0)
+                if wait > 0:
+                    time.sleep(wait)
+                channels[c.id].log(m.data, log_time=m.log_time)
+            time.sleep(1.0)
+            server.stop()
+            assert proc.wait(timeout=60) == 0
+            assert proc.stderr is not None
+            assert "connection lost" in proc.stderr.read()
+        finally:
+            server.stop()
+            if proc.poll() is None:
+                proc.kill()
+    report = json.loads((out / "report.json").read_text())
+    assert report["finished"] and report["end"].startswith("server gone")
+    assert report["disconnections"] == 1
+    conv = sw.convert(log, skip_init="auto", octree_resolution=0.1, octree_max_range=10.0)
+    t = conv.report["t_world_slam"]
+    assert report["t_world_slam"]["scale"] == pytest.approx(t["scale"], rel=1e-9)
+    assert report["t_world_slam"]["translation"] == pytest.approx(t["translation"], abs=1e-9)
+    assert conv.octree is not None
+    conv.octree.write_bt(tmp_path / "batch.bt")
+    assert (out / "map.bt").read_bytes() == (tmp_path / "batch.bt").read_bytes()
