@@ -119,6 +119,12 @@ pub const PLANAR_MAX_TILT_BOUND_DEG: f64 = 3.0;
 /// Scale profile of `convert --camera-height`: fewest keyframes per window
 /// (each window a tenth of the run beyond it).
 pub const PROFILE_MIN_WINDOW: usize = 8;
+/// `follow`'s world cloud (`world.mcap`, live in Foxglove): most points kept
+/// of one keyframe (every k-th beyond).
+pub const LIVE_KEYFRAME_POINTS: usize = 20_000;
+/// `follow`'s world cloud: most points in all (every k-th beyond; 8 MB of
+/// Foxglove points).
+pub const LIVE_MAX_POINTS: usize = 500_000;
 /// Voxel edge of the octree `slam2world demo` builds, metres.
 pub const DEMO_OCTREE_RESOLUTION: f64 = 0.1;
 

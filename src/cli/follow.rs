@@ -7,7 +7,8 @@
 //! [`Session`] in log order. After every keyframe the outputs in `OUT/` are
 //! replaced as one set of atomic renames — `report.json` (stage, transform,
 //! timing), and once the transform is known `map.bt`, `world.mcap` (the
-//! transform, the occupied voxels and the 2-D grid: a rolling file, the
+//! transform, the world cloud bounded for a viewer ([`LiveCloud`]), the
+//! keyframe path, the occupied voxels and the 2-D grid: a rolling file, the
 //! latest state) and with `--grid` nav2's `map.pgm` + `map.yaml` +
 //! `map_height.npy` — so that a reader never sees a half-written file. One
 //! status line per keyframe goes to stdout (stage, scale, rmse, points,
@@ -28,6 +29,7 @@ use std::time::{Duration, Instant};
 use clap::Args;
 
 use super::args::{finite, non_negative, positive, print};
+use crate::cloud::PointFilter;
 use crate::defaults;
 use crate::error::{Error, Result};
 use crate::io::atomic::OutputSet;
@@ -36,7 +38,7 @@ use crate::io::mcap::write::{write_world_mcap_extra_into, ExtraChannel};
 use crate::io::mcap::{WorldFlavor, WorldScene};
 use crate::io::messages::decode::MessageKind;
 use crate::io::nav2::{write_nav2_into, Nav2Files};
-use crate::live::{ServeOptions, WorldServer, WsSource};
+use crate::live::{LiveCloud, ServeOptions, WorldServer, WsSource};
 use crate::map::{GridParams, MapParams, VoxelState};
 use crate::pipeline::outputs::{
     MAP_BT, MAP_HEIGHT_NPY, MAP_PGM, MAP_YAML, REPORT_JSON, WORLD_MCAP,
@@ -211,6 +213,11 @@ pub fn run(args: &FollowArgs) -> Result<()> {
         keyframes: 0,
         grid,
         server,
+        cloud: LiveCloud::new(
+            PointFilter::default(),
+            defaults::LIVE_KEYFRAME_POINTS,
+            defaults::LIVE_MAX_POINTS,
+        ),
     };
     let end = match url {
         Some(u) => run.follow_ws(u)?,
@@ -233,6 +240,7 @@ struct Follower<'a> {
     keyframes: usize,
     grid: Option<GridParams>,
     server: Option<WorldServer>,
+    cloud: LiveCloud,
 }
 
 impl Follower<'_> {
@@ -268,6 +276,7 @@ impl Follower<'_> {
                 &self.feed.session,
                 &self.report,
                 self.grid.as_ref(),
+                &mut self.cloud,
             )?;
             if let Some(s) = &self.server {
                 s.refresh();
@@ -446,7 +455,13 @@ impl Follower<'_> {
         self.report.update(session, -1, 0.0, &timing, 0.0);
         self.report.finished = true;
         self.report.end = end;
-        write_outputs(args, session, &self.report, self.grid.as_ref())?;
+        write_outputs(
+            args,
+            session,
+            &self.report,
+            self.grid.as_ref(),
+            &mut self.cloud,
+        )?;
         if let Some(s) = &self.server {
             s.refresh();
         }
@@ -505,6 +520,7 @@ fn write_outputs(
     session: &Session,
     report: &FollowReport,
     grid: Option<&GridParams>,
+    cloud: &mut LiveCloud,
 ) -> Result<()> {
     let mut set = OutputSet::folder(&args.output, NAMES)?.with_inputs([&args.log]);
     if let (Some(map), Ok(t)) = (session.map(), session.transform()) {
@@ -527,10 +543,12 @@ fn write_outputs(
             None => Vec::new(),
         };
         let extra: Vec<ExtraChannel<'_>> = channels.iter().map(GridChannel::as_extra).collect();
+        let (points, colors) = cloud.update(session.keyframes(), &t.transform)?;
+        let slam = keyframe_path(session)?.transformed(&t.transform);
         let scene = WorldScene {
-            cloud: crate::io::spill::CloudRef::Memory(&[], None),
+            cloud: crate::io::spill::CloudRef::Memory(&points, colors.as_deref()),
             t_world_slam: t.transform,
-            slam_trajectory: None,
+            slam_trajectory: Some(&slam),
             reference: None,
             stamp,
             world_frame: "world",
@@ -550,6 +568,17 @@ fn write_outputs(
     }
     set.write_bytes(&set.path(REPORT_JSON), &to_json_bytes(report)?)?;
     set.commit().map(|_| ())
+}
+
+/// The session's keyframe poses (SLAM frame), in time order.
+fn keyframe_path(session: &Session) -> Result<crate::trajectory::Trajectory> {
+    let mut kfs: Vec<&crate::keyframe::Keyframe> = session.keyframes().collect();
+    kfs.sort_by(|a, b| a.timestamp.total_cmp(&b.timestamp));
+    crate::trajectory::Trajectory::try_new(
+        kfs.iter().map(|k| k.timestamp).collect(),
+        kfs.iter().map(|k| k.pose.translation).collect(),
+        Some(kfs.iter().map(|k| k.pose.rotation).collect()),
+    )
 }
 
 impl FollowReport {

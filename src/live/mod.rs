@@ -17,8 +17,11 @@
 //! dropped for a client that lags), so that a slow client never holds up
 //! the others.
 
+mod cloud;
 mod world_server;
 mod ws_source;
+
+pub use cloud::LiveCloud;
 
 pub use world_server::{ServeOptions, WorldServer};
 pub use ws_source::{WsChannel, WsMessage, WsSource, SUBPROTOCOLS};

@@ -22,8 +22,10 @@ from pathlib import Path
 from typing import Any
 
 import foxglove
+import numpy as np
 import pytest
 from mcap.reader import make_reader
+from mcap_protobuf.decoder import DecoderFactory as ProtobufDecoderFactory
 from websockets.sync.client import connect
 
 import slam2world as sw
@@ -291,3 +293,14 @@ def test_follow_a_foxglove_sdk_server_ends_where_convert_of_the_log_does(tmp_pat
     assert conv.octree is not None
     conv.octree.write_bt(tmp_path / "batch.bt")
     assert (out / "map.bt").read_bytes() == (tmp_path / "batch.bt").read_bytes()
+    # follow's world cloud: convert's points, every k-th of them (bounded for a viewer).
+    with (out / "world.mcap").open("rb") as f:
+        reader = make_reader(f, decoder_factories=[ProtobufDecoderFactory()])
+        clouds = [m for s, _, _, m in reader.iter_decoded_messages() if s.name.endswith("Cloud")]
+    assert len(clouds) == 1
+    rec = np.frombuffer(clouds[0].data, dtype=[("p", "<f4", (3,)), ("c", "u1", (4,))])
+    full = conv.cloud.points
+    assert 0 < len(rec) <= len(full)
+    sample = rec["p"][:: max(1, len(rec) // 200)].astype(np.float64)
+    nearest = [np.sqrt(((full - p) ** 2).sum(axis=1).min()) for p in sample]
+    assert max(nearest) < 1e-3

@@ -1,0 +1,176 @@
+//! [`LiveCloud`]: the world cloud of a growing session, bounded for a
+//! viewer.
+
+use std::collections::HashMap;
+
+use crate::cloud::{backproject_batch_counted, PointFilter};
+use crate::error::Result;
+use crate::geometry::Sim3;
+use crate::keyframe::Keyframe;
+
+/// One keyframe's points as last backprojected.
+struct Entry {
+    /// The pose they were backprojected with.
+    pose: Sim3,
+    /// SLAM-frame coordinates (`n × 3`), every k-th of the keyframe's.
+    points: Vec<f32>,
+    /// Their colours (`n × 3`), when the keyframe has them.
+    colors: Option<Vec<u8>>,
+}
+
+/// The world cloud of a session that grows keyframe by keyframe, for a
+/// viewer (`follow`'s `world.mcap`, live in Foxglove): each keyframe's
+/// points backprojected once, in the SLAM frame, at most `per_keyframe` of
+/// them (every k-th), and again only when the graph moves the keyframe; the
+/// world cloud is then all of them under `T_world_slam`, at most
+/// `max_points` (every k-th beyond). An update costs the new or moved
+/// keyframes' backprojection and one transform of at most `max_points`
+/// points, not the whole run's pixels again.
+pub struct LiveCloud {
+    filter: PointFilter,
+    per_keyframe: usize,
+    max_points: usize,
+    cache: HashMap<i32, Entry>,
+}
+
+impl LiveCloud {
+    /// An empty cloud: `filter` as the conversion's, the two bounds.
+    pub fn new(filter: PointFilter, per_keyframe: usize, max_points: usize) -> Self {
+        LiveCloud {
+            filter,
+            per_keyframe: per_keyframe.max(1),
+            max_points: max_points.max(1),
+            cache: HashMap::new(),
+        }
+    }
+
+    /// Keyframes backprojected so far.
+    pub fn len(&self) -> usize {
+        self.cache.len()
+    }
+
+    /// True before the first keyframe.
+    pub fn is_empty(&self) -> bool {
+        self.cache.is_empty()
+    }
+
+    /// Brings the cache up to `keyframes` (in the session's order: the
+    /// filter's keyframe index is the position there), then gives the world
+    /// cloud under `t_world_slam`: coordinates (`n × 3`) and, when every
+    /// keyframe has them, colours. Errors: the backprojection's (a filter
+    /// out of range).
+    pub fn update<'a>(
+        &mut self,
+        keyframes: impl Iterator<Item = &'a Keyframe>,
+        t_world_slam: &Sim3,
+    ) -> Result<(Vec<f32>, Option<Vec<u8>>)> {
+        let mut order = Vec::new();
+        for (i, kf) in keyframes.enumerate() {
+            order.push(kf.id);
+            if self.cache.get(&kf.id).is_some_and(|e| e.pose == kf.pose) {
+                continue;
+            }
+            let (c, _) = backproject_batch_counted(
+                std::slice::from_ref(kf),
+                i,
+                &self.filter,
+                |_| Sim3::identity(),
+                kf.color.is_some(),
+            )?;
+            let stride = c.len().div_ceil(self.per_keyframe).max(1);
+            let points: Vec<f32> = c
+                .points
+                .chunks_exact(3)
+                .step_by(stride)
+                .flatten()
+                .copied()
+                .collect();
+            let colors = c.colors.map(|col| {
+                col.chunks_exact(3)
+                    .step_by(stride)
+                    .flatten()
+                    .copied()
+                    .collect()
+            });
+            self.cache.insert(
+                kf.id,
+                Entry {
+                    pose: kf.pose,
+                    points,
+                    colors,
+                },
+            );
+        }
+        self.cache.retain(|id, _| order.contains(id));
+        let total: usize = self.cache.values().map(|e| e.points.len() / 3).sum();
+        let stride = total.div_ceil(self.max_points).max(1);
+        let with_colors = self.cache.values().all(|e| e.colors.is_some());
+        let mut points = Vec::with_capacity(3 * total.div_ceil(stride));
+        let mut colors = Vec::new();
+        let mut k = 0usize;
+        for id in &order {
+            let e = &self.cache[id];
+            for (j, p) in e.points.chunks_exact(3).enumerate() {
+                if k % stride == 0 {
+                    points.extend_from_slice(p);
+                    if let (true, Some(c)) = (with_colors, &e.colors) {
+                        colors.extend_from_slice(&c[3 * j..3 * j + 3]);
+                    }
+                }
+                k += 1;
+            }
+        }
+        t_world_slam.transform_points_in_place(&mut points)?;
+        Ok((points, with_colors.then_some(colors)))
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::cloud::backproject;
+    use crate::sim::{simulate, SimConfig};
+
+    #[test]
+    fn unbounded_it_is_the_batch_cloud_and_bounded_every_kth_of_it() {
+        let sim = simulate(&SimConfig {
+            width: 64,
+            height: 48,
+            ..SimConfig::default().reduced(8)
+        })
+        .unwrap();
+        let kfs = &sim.keyframes;
+        let t = sim.truth.t_world_slam;
+        let filter = PointFilter::default();
+        let batch = backproject(kfs, &filter, Some(&t)).unwrap();
+        let mut all = LiveCloud::new(filter, usize::MAX, usize::MAX);
+        // Half the keyframes, then all: the first half is not backprojected again.
+        all.update(kfs[..kfs.len() / 2].iter(), &t).unwrap();
+        let (p, c) = all.update(kfs.iter(), &t).unwrap();
+        assert_eq!(all.len(), kfs.len());
+        assert_eq!(p.len(), batch.points.len());
+        for (a, b) in p.iter().zip(&batch.points) {
+            assert!((a - b).abs() < 1e-4, "{a} {b}");
+        }
+        assert_eq!(c.as_deref(), batch.colors.as_deref());
+        // A keyframe moved by the graph is backprojected again.
+        let mut moved = kfs.clone();
+        moved[3].pose.translation.x += 0.5;
+        let (q, _) = all.update(moved.iter(), &t).unwrap();
+        let again = backproject(&moved, &filter, Some(&t)).unwrap();
+        assert_eq!(q.len(), again.points.len());
+        assert!(q
+            .iter()
+            .zip(&again.points)
+            .all(|(a, b)| (a - b).abs() < 1e-4));
+        // Bounded: at most the budget, each point one of the batch's.
+        let mut small = LiveCloud::new(filter, 50, 400);
+        let (s, _) = small.update(kfs.iter(), &t).unwrap();
+        assert!(!s.is_empty() && s.len() / 3 <= 400);
+        let first = &s[..3];
+        assert!(batch
+            .points
+            .chunks_exact(3)
+            .any(|b| b.iter().zip(first).all(|(x, y)| (x - y).abs() < 1e-4)));
+    }
+}
