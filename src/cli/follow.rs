@@ -8,8 +8,8 @@
 //! replaced as one set of atomic renames — `report.json` (stage, transform,
 //! timing), and once the transform is known `map.bt`, `world.mcap` (the
 //! transform, the world cloud bounded for a viewer ([`LiveCloud`]), the
-//! keyframe path, the occupied voxels and the 2-D grid: a rolling file, the
-//! latest state) and with `--grid` nav2's `map.pgm` + `map.yaml` +
+//! keyframe path, the occupied voxels, the 2-D grid and the session's state
+//! as JSON on `/slam2world/state`: a rolling file, the latest state) and with `--grid` nav2's `map.pgm` + `map.yaml` +
 //! `map_height.npy` — so that a reader never sees a half-written file. One
 //! status line per keyframe goes to stdout (stage, scale, rmse, points,
 //! latency). It stops at the end of the log (the MCAP footer), after
@@ -542,7 +542,15 @@ fn write_outputs(
             Some((g, _)) => grid_channels(g, stamp, "world", flavor)?,
             None => Vec::new(),
         };
-        let extra: Vec<ExtraChannel<'_>> = channels.iter().map(GridChannel::as_extra).collect();
+        let mut extra: Vec<ExtraChannel<'_>> = channels.iter().map(GridChannel::as_extra).collect();
+        let state =
+            serde_json::to_vec(report).map_err(|e| Error::invalid("report", e.to_string()))?;
+        extra.push(ExtraChannel {
+            topic: crate::io::mcap::write::topics::STATE,
+            schema: ("slam2world.FollowReport", "jsonschema", state_schema()),
+            message_encoding: "json",
+            data: &state,
+        });
         let (points, colors) = cloud.update(session.keyframes(), &t.transform)?;
         let slam = keyframe_path(session)?.transformed(&t.transform);
         let scene = WorldScene {
@@ -568,6 +576,14 @@ fn write_outputs(
     }
     set.write_bytes(&set.path(REPORT_JSON), &to_json_bytes(report)?)?;
     set.commit().map(|_| ())
+}
+
+/// The JSON Schema of the state channel's messages (`report.json`'s).
+fn state_schema() -> &'static [u8] {
+    static SCHEMA: std::sync::OnceLock<Vec<u8>> = std::sync::OnceLock::new();
+    SCHEMA.get_or_init(|| {
+        serde_json::to_vec(&schemars::schema_for!(FollowReport)).unwrap_or_default()
+    })
 }
 
 /// The session's keyframe poses (SLAM frame), in time order.

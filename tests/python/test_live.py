@@ -209,7 +209,9 @@ def test_follow_serves_the_world_as_it_is_written_and_the_final_one_until_ctrl_c
             line = proc.stdout.readline()
             assert line.startswith("follow: serving the final world on "), line
             _, messages = file_messages(out / "world.mcap")
-            assert {"/tf", "/slam2world/octomap", "/slam2world/grid"} <= set(messages)
+            assert {"/tf", "/slam2world/octomap", "/slam2world/grid", "/slam2world/state"} <= set(
+                messages
+            )
             deadline = time.monotonic() + 30
             while time.monotonic() < deadline and any(
                 received[t][-len(m) :] != m for t, m in messages.items()
@@ -220,6 +222,11 @@ def test_follow_serves_the_world_as_it_is_written_and_the_final_one_until_ctrl_c
             assert errors == []
             for topic, m in messages.items():
                 assert received[topic][-len(m) :] == m, topic
+            # The session's state as JSON: report.json's, at the end.
+            state = json.loads(received["/slam2world/state"][-1][1])
+            assert state == json.loads((out / "report.json").read_text())
+            assert state["finished"] and state["stage"] == "stable"
+            assert {"/world/cloud", "/world/slam_trajectory"} <= set(messages)
             proc.send_signal(signal.SIGINT)
             assert proc.wait(timeout=20) == 0
         finally:
@@ -296,7 +303,7 @@ def test_follow_a_foxglove_sdk_server_ends_where_convert_of_the_log_does(tmp_pat
     # follow's world cloud: convert's points, every k-th of them (bounded for a viewer).
     with (out / "world.mcap").open("rb") as f:
         reader = make_reader(f, decoder_factories=[ProtobufDecoderFactory()])
-        clouds = [m for s, _, _, m in reader.iter_decoded_messages() if s.name.endswith("Cloud")]
+        clouds = [m for _, _, _, m in reader.iter_decoded_messages(topics=["/world/cloud"])]
     assert len(clouds) == 1
     rec = np.frombuffer(clouds[0].data, dtype=[("p", "<f4", (3,)), ("c", "u1", (4,))])
     full = conv.cloud.points

@@ -70,6 +70,9 @@ pub mod topics {
     pub const REFERENCE: &str = "/world/reference";
     /// `world → slam` transform.
     pub const TF: &str = "/tf";
+    /// The online session's state (`follow`: its `report.json` as a JSON
+    /// message, stage, transform, fit and timing).
+    pub const STATE: &str = "/slam2world/state";
     /// The occupied voxels of the occupancy map (`foxglove.SceneUpdate` cubes,
     /// or a `PointCloud2` of leaf centres in the ROS 2 flavour).
     pub const OCTOMAP: &str = "/slam2world/octomap";
