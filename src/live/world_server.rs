@@ -64,6 +64,9 @@ impl std::str::FromStr for ServeOptions {
     }
 }
 
+/// How long [`WorldServer::stop`] waits for its clients' sends to end.
+const STOP_WAIT: std::time::Duration = std::time::Duration::from_secs(2);
+
 /// What the listener and the owner ask of the worker.
 enum Request {
     /// Send channel `channel`'s messages to client `sink`.
@@ -338,15 +341,30 @@ impl WorldServer {
         self.handle.as_ref().map_or(0, |h| h.client_count())
     }
 
-    /// Stops serving: the clients are disconnected and the port is free
-    /// when this returns.
+    /// Stops serving: no client is accepted when this returns, and the
+    /// clients are disconnected (one that reads nothing is left behind
+    /// after 2 s, not waited for).
     pub fn stop(mut self) {
         self.shut_down();
     }
 
     fn shut_down(&mut self) {
         if let Some(h) = self.handle.take() {
-            h.stop().wait_blocking();
+            // The server stops accepting at once; its clients' tasks end as
+            // their sends do, and a client that reads nothing never lets its
+            // send end: it is left behind after STOP_WAIT (the process's end
+            // closes it).
+            let shutdown = h.stop();
+            let (tx, rx) = mpsc::channel();
+            let waiter = std::thread::Builder::new()
+                .name("slam2world-serve-stop".into())
+                .spawn(move || {
+                    shutdown.wait_blocking();
+                    let _ = tx.send(());
+                });
+            if waiter.is_ok() {
+                let _ = rx.recv_timeout(STOP_WAIT);
+            }
         }
         let _ = self.tx.send(Request::Stop);
         if let Some(w) = self.worker.take() {

@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import base64
 import json
+import os
 import signal
 import socket
 import struct
@@ -311,3 +312,50 @@ def test_follow_a_foxglove_sdk_server_ends_where_convert_of_the_log_does(tmp_pat
     sample = rec["p"][:: max(1, len(rec) // 200)].astype(np.float64)
     nearest = [np.sqrt(((full - p) ** 2).sum(axis=1).min()) for p in sample]
     assert max(nearest) < 1e-3
+
+
+def test_a_client_that_reads_nothing_neither_holds_the_others_nor_the_stop(tmp_path: Path) -> None:
+    """60 MB on one channel to a client that subscribes and never reads: another client still
+    gets it all, and `stop()` returns within its 2 s wait."""
+    from mcap.writer import Writer
+
+    big = tmp_path / "big.mcap"
+    with big.open("wb") as f:
+        w = Writer(f)
+        w.start()
+        sid = w.register_schema(name="blob", encoding="jsonschema", data=b"{}")
+        cid = w.register_channel(topic="/blob", message_encoding="json", schema_id=sid)
+        for i in range(60):
+            w.add_message(cid, log_time=i, data=b"[" + b"0," * (1 << 19) + b"0]", publish_time=i)
+        w.finish()
+    srv = sw.serve(big, port=0)
+    host, port = "127.0.0.1", srv.port
+    stalled = socket.create_connection((host, port))
+    key = base64.b64encode(os.urandom(16)).decode()
+    stalled.sendall(
+        (
+            f"GET / HTTP/1.1\r\nHost: {host}:{port}\r\nUpgrade: websocket\r\n"
+            f"Connection: Upgrade\r\nSec-WebSocket-Key: {key}\r\nSec-WebSocket-Version: 13\r\n"
+            f"Sec-WebSocket-Protocol: {SUBPROTOCOL}\r\n\r\n"
+        ).encode()
+    )
+    stalled.settimeout(5)
+    seen = b""
+    while b'"topic"' not in seen:
+        seen += stalled.recv(65536)
+    channel = int(seen.split(b'"id":', 1)[1].split(b",", 1)[0])
+    body = json.dumps(
+        {"op": "subscribe", "subscriptions": [{"id": 1, "channelId": channel}]}
+    ).encode()
+    mask = os.urandom(4)
+    frame = bytes([0x81, 0x80 | 126]) + struct.pack(">H", len(body)) + mask
+    stalled.sendall(frame + bytes(b ^ mask[i % 4] for i, b in enumerate(body)))
+    try:
+        _, got = receive_world(srv.url, {"/blob": 60})
+        assert len(got["/blob"]) == 60
+        t0 = time.monotonic()
+        srv.stop()
+        assert time.monotonic() - t0 < 10
+    finally:
+        stalled.close()
+        srv.stop()
