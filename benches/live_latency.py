@@ -12,9 +12,9 @@ ws://… --serve 0` follows it and serves its world; two clients written against
 subscribe to everything the follower serves (`--stalled` adds a third that subscribes and
 then never reads). For each keyframe the follower
 reports (`/slam2world/state`, `last_keyframe`), the latency is the time from the publisher's
-`log()` of that keyframe to the first `/world/cloud` message after that state at a reading
-client (the cloud follows the state in one refresh). Prints p50, p99 and max per client in
-milliseconds and the follower's peak resident memory (`VmHWM`).
+`log()` of that keyframe to the `/world/cloud` message of the same refresh at a reading client
+(a refresh sends the file in its order: the cloud, then the state). Prints p50, p99 and max
+per client in milliseconds and the follower's peak resident memory (`VmHWM`).
 """
 
 from __future__ import annotations
@@ -229,17 +229,18 @@ def main() -> int:
         "clients": [],
     }
     for g in got:
+        # A refresh sends the file in its order: the cloud, then the state naming its keyframe.
         lat = []
-        pending: int | None = None
+        last_cloud: float | None = None
         for now, topic, payload in g:
-            if topic == "/slam2world/state":
+            if topic == "/world/cloud":
+                last_cloud = now
+            elif topic == "/slam2world/state" and last_cloud is not None:
                 k = json.loads(payload)["last_keyframe"]
-                pending = k if k in published else None
-            elif topic == "/world/cloud" and pending is not None:
-                sent = [t for t in published[pending] if t <= now]
+                sent = [t for t in published.get(k, []) if t <= last_cloud]
                 if sent:
-                    lat.append(1e3 * (now - sent[-1]))
-                pending = None
+                    lat.append(1e3 * (last_cloud - sent[-1]))
+                last_cloud = None
         result["clients"].append(percentiles(lat) if lat else {"n": 0})
     if os.environ.get("S2W_DEBUG"):
         from collections import Counter

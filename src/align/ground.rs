@@ -494,32 +494,7 @@ pub fn fit_ground_plane(
             h(a).total_cmp(&h(b))
         })
     else {
-        let largest = candidates
-            .iter()
-            .map(|c| c.inliers.len())
-            .max()
-            .unwrap_or(0);
-        return Err(Error::Degenerate {
-            reason: format!(
-                "no plane of {} points at least{} under the cameras among the cloud's {}{}: the \
-                 ground is not in the cloud, or too little of it was seen",
-                opts.min_inliers,
-                if cone.is_some() {
-                    " within the cameras' tilt"
-                } else {
-                    ""
-                },
-                pts.len(),
-                if largest > 0 {
-                    format!(
-                        " (the planes found, of up to {largest} points, are not under the cameras)"
-                    )
-                } else {
-                    String::new()
-                }
-            ),
-            value: largest as f64,
-        });
+        return Err(no_ground(&candidates, pts.len(), cone.is_some(), opts));
     };
     let (above, tau) = (best.above, best.tau);
     // The plane itself from its core (within one robust sigma): what stands
@@ -541,11 +516,7 @@ pub fn fit_ground_plane(
         .copied()
         .filter(|&i| (n.dot(&pts[i]) + d).abs() < tau)
         .collect();
-    let band_points: Vec<Vector3<f64>> = inliers.iter().map(|&i| pts[i]).collect();
-    let band_plane = least_squares_plane(&band_points)
-        .map(|(m, e)| if m.dot(&n) < 0.0 { (-m, -e) } else { (m, e) })
-        .unwrap_or((n, d));
-    let uncertainty = plane_uncertainty(&core, &n, d, band_plane);
+    let uncertainty = plane_uncertainty(&core, &n, d, band_plane(&pts, &inliers, &n, d));
     let inliers = &inliers;
     // The largest other surface at another height (more than the search band
     // away; a candidate within it is a piece of the same noisy floor).
@@ -589,6 +560,49 @@ pub fn fit_ground_plane(
         runner_up,
         uncertainty,
     })
+}
+
+/// The refusal when no candidate is the ground: how many points a plane
+/// needed, among how many, and how large the planes found (not under the
+/// cameras) were.
+fn no_ground(candidates: &[Candidate], n_points: usize, cone: bool, opts: &GroundOptions) -> Error {
+    let largest = candidates
+        .iter()
+        .map(|c| c.inliers.len())
+        .max()
+        .unwrap_or(0);
+    Error::Degenerate {
+        reason: format!(
+            "no plane of {} points at least{} under the cameras among the cloud's {n_points}{}: \
+             the ground is not in the cloud, or too little of it was seen",
+            opts.min_inliers,
+            if cone {
+                " within the cameras' tilt"
+            } else {
+                ""
+            },
+            if largest > 0 {
+                format!(" (the planes found, of up to {largest} points, are not under the cameras)")
+            } else {
+                String::new()
+            }
+        ),
+        value: largest as f64,
+    }
+}
+
+/// The least-squares plane of all the `inliers` of `pts` (the three-sigma
+/// band), oriented as `(n, d)`; `(n, d)` itself when they span no plane.
+fn band_plane(
+    pts: &[Vector3<f64>],
+    inliers: &[usize],
+    n: &Vector3<f64>,
+    d: f64,
+) -> (Vector3<f64>, f64) {
+    let band: Vec<Vector3<f64>> = inliers.iter().map(|&i| pts[i]).collect();
+    least_squares_plane(&band)
+        .map(|(m, e)| if m.dot(n) < 0.0 { (-m, -e) } else { (m, e) })
+        .unwrap_or((*n, d))
 }
 
 /// The cameras' known height above the ground, metres.

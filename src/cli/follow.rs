@@ -271,19 +271,26 @@ impl Follower<'_> {
             self.keyframes += 1;
             self.report
                 .update(&self.feed.session, id, decode_s, &timing, latency);
-            write_outputs(
-                self.args,
-                &self.feed.session,
-                &self.report,
-                self.grid.as_ref(),
-                &mut self.cloud,
-            )?;
-            if let Some(s) = &self.server {
-                s.refresh();
-            }
+            self.publish()?;
             if !self.args.quiet {
                 status_line(&self.feed.session, id, latency)?;
             }
+        }
+        Ok(())
+    }
+
+    /// Writes the outputs of the session as it stands, and hands them to
+    /// the clients with `--serve`.
+    fn publish(&mut self) -> Result<()> {
+        write_outputs(
+            self.args,
+            &self.feed.session,
+            &self.report,
+            self.grid.as_ref(),
+            &mut self.cloud,
+        )?;
+        if let Some(s) = &self.server {
+            s.refresh();
         }
         Ok(())
     }
@@ -450,21 +457,13 @@ impl Follower<'_> {
     /// final world served until Ctrl-C with `--serve`.
     fn finish(mut self, end: String) -> Result<()> {
         let args = self.args;
-        let session = &mut self.feed.session;
-        let timing = session.finish()?;
-        self.report.update(session, -1, 0.0, &timing, 0.0);
+        let timing = self.feed.session.finish()?;
+        self.report
+            .update(&self.feed.session, -1, 0.0, &timing, 0.0);
         self.report.finished = true;
         self.report.end = end;
-        write_outputs(
-            args,
-            session,
-            &self.report,
-            self.grid.as_ref(),
-            &mut self.cloud,
-        )?;
-        if let Some(s) = &self.server {
-            s.refresh();
-        }
+        self.publish()?;
+        let session = &self.feed.session;
         if !args.quiet {
             let s = session.state();
             print(&format!(
@@ -523,6 +522,8 @@ fn write_outputs(
     cloud: &mut LiveCloud,
 ) -> Result<()> {
     let mut set = OutputSet::folder(&args.output, NAMES)?.with_inputs([&args.log]);
+    // report.json, and the same bytes as the state message of world.mcap.
+    let report_json = to_json_bytes(report)?;
     if let (Some(map), Ok(t)) = (session.map(), session.transform()) {
         set.write_bytes(&set.path(MAP_BT), &map.to_bt_bytes())?;
         let g = match grid {
@@ -543,13 +544,12 @@ fn write_outputs(
             None => Vec::new(),
         };
         let mut extra: Vec<ExtraChannel<'_>> = channels.iter().map(GridChannel::as_extra).collect();
-        let state =
-            serde_json::to_vec(report).map_err(|e| Error::invalid("report", e.to_string()))?;
+        let state = &report_json;
         extra.push(ExtraChannel {
             topic: crate::io::mcap::write::topics::STATE,
             schema: ("slam2world.FollowReport", "jsonschema", state_schema()),
             message_encoding: "json",
-            data: &state,
+            data: state,
         });
         let (points, colors) = cloud.update(session.keyframes(), &t.transform)?;
         let slam = keyframe_path(session)?.transformed(&t.transform);
@@ -574,7 +574,7 @@ fn write_outputs(
             write_nav2_into(&mut set, g, &files, *threshold)?;
         }
     }
-    set.write_bytes(&set.path(REPORT_JSON), &to_json_bytes(report)?)?;
+    set.write_bytes(&set.path(REPORT_JSON), &report_json)?;
     set.commit().map(|_| ())
 }
 

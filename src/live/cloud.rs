@@ -101,7 +101,8 @@ impl LiveCloud {
                 },
             );
         }
-        self.cache.retain(|id, _| order.contains(id));
+        let present: std::collections::HashSet<i32> = order.iter().copied().collect();
+        self.cache.retain(|id, _| present.contains(id));
         let total: usize = self.cache.values().map(|e| e.points.len() / 3).sum();
         let stride = total.div_ceil(self.max_points).max(1);
         let with_colors = self.cache.values().all(|e| e.colors.is_some());

@@ -153,28 +153,45 @@ impl Served {
         Ok(())
     }
 
-    /// Sends `topic`'s messages of the file as last read to `sink` (`None`:
-    /// every subscriber).
-    fn send(&self, topic: &str, sink: Option<SinkId>) {
-        let (Some(file), Some((Some(id), out))) = (&self.file, self.channels.get(topic)) else {
+    /// Sends the messages of the file as last read, on the topics `want`
+    /// accepts that have subscribers, to `sink` (`None`: every subscriber):
+    /// one pass over the file, in its order.
+    fn send(&self, want: impl Fn(&str) -> bool, sink: Option<SinkId>) {
+        let Some(file) = &self.file else {
             return;
         };
-        if !out.has_sinks() {
+        let out: HashMap<u16, &Arc<RawChannel>> = self
+            .channels
+            .iter()
+            .filter(|(topic, (_, c))| want(topic) && c.has_sinks())
+            .filter_map(|(_, (id, c))| id.map(|i| (i, c)))
+            .collect();
+        if out.is_empty() {
             return;
         }
         // A file that changed since it was read sends nothing more: its
         // next version comes with a refresh.
-        let Ok(scan) = file.scan(|c| c.id == *id) else {
+        let Ok(scan) = file.scan(|c| out.contains_key(&c.id)) else {
             return;
         };
         for m in scan.iter() {
-            out.log_with_meta_to_sink(
-                m.data,
-                PartialMetadata {
-                    log_time: Some(m.log_time),
-                },
-                sink,
-            );
+            if let Some(c) = out.get(&m.channel_id) {
+                c.log_with_meta_to_sink(
+                    m.data,
+                    PartialMetadata {
+                        log_time: Some(m.log_time),
+                    },
+                    sink,
+                );
+            }
+        }
+    }
+
+    /// Sends channel `channel` (the SDK's id) to the client `sink` that
+    /// subscribed to it.
+    fn send_subscribed(&self, sink: SinkId, channel: ChannelId) {
+        if let Some(topic) = self.topics_by_id.get(&channel) {
+            self.send(|t| t == topic, Some(sink));
         }
     }
 }
@@ -187,8 +204,8 @@ impl Served {
 /// running conversion writes again and again (`follow --serve`):
 /// [`WorldServer::refresh`] reads its new version and sends it to every
 /// subscriber, the topics it gained advertised. The file is read again per
-/// subscription, one channel's chunks at a time, so that the server holds
-/// no more of a large world than one channel. Stops on
+/// subscription (that channel's chunks only) and once per refresh (the
+/// subscribed channels in one pass), never held whole. Stops on
 /// [`WorldServer::stop`] or when dropped.
 pub struct WorldServer {
     path: PathBuf,
@@ -386,11 +403,7 @@ fn work(mut served: Served, rx: &mpsc::Receiver<Request>) {
     while let Ok(req) = rx.recv() {
         match req {
             Request::Stop => return,
-            Request::Send { sink, channel } => {
-                if let Some(topic) = served.topics_by_id.get(&channel) {
-                    served.send(topic, Some(sink));
-                }
-            }
+            Request::Send { sink, channel } => served.send_subscribed(sink, channel),
             Request::Refresh => {
                 // Refreshes queued behind this one are this one; the
                 // subscriptions among them come after it.
@@ -400,23 +413,15 @@ fn work(mut served: Served, rx: &mpsc::Receiver<Request>) {
                     match r {
                         Request::Refresh => {}
                         Request::Stop => stop = true,
-                        send => later.push(send),
+                        Request::Send { sink, channel } => later.push((sink, channel)),
                     }
                 }
                 // A version that cannot be read keeps the last one.
                 if served.load().is_ok() {
-                    let mut topics: Vec<String> = served.channels.keys().cloned().collect();
-                    topics.sort();
-                    for t in &topics {
-                        served.send(t, None);
-                    }
+                    served.send(|_| true, None);
                 }
-                for r in later {
-                    if let Request::Send { sink, channel } = r {
-                        if let Some(topic) = served.topics_by_id.get(&channel) {
-                            served.send(topic, Some(sink));
-                        }
-                    }
+                for (sink, channel) in later {
+                    served.send_subscribed(sink, channel);
                 }
                 if stop {
                     return;
