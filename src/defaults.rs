@@ -125,6 +125,10 @@ pub const LIVE_KEYFRAME_POINTS: usize = 20_000;
 /// `follow`'s world cloud: most points in all (every k-th beyond; 8 MB of
 /// Foxglove points).
 pub const LIVE_MAX_POINTS: usize = 500_000;
+/// `follow`'s world (live in Foxglove): most poses of the keyframe path and
+/// of the reference path (evenly spread beyond: a 200 Hz motion capture is
+/// not re-sent whole at every keyframe).
+pub const LIVE_PATH_POSES: usize = 5_000;
 /// Voxel edge of the octree `slam2world demo` builds, metres.
 pub const DEMO_OCTREE_RESOLUTION: f64 = 0.1;
 

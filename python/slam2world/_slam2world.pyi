@@ -872,6 +872,14 @@ class Session:
     def transform_covariance(self) -> npt.NDArray[np.float64] | None: ...
     def map(self) -> OccupancyMap | None: ...
     def grid(self, z_min: float, z_max: float, resolution: float | None = None) -> Grid: ...
+    def serve(
+        self,
+        port: int = 8765,
+        *,
+        host: str = "127.0.0.1",
+        grid: tuple[float, float] | None = None,
+        ros2: bool = False,
+    ) -> WorldServer: ...
 
 def convert(
     log_or_path: Log | Reconstruction | str | os.PathLike[str],

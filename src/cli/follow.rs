@@ -7,9 +7,10 @@
 //! [`Session`] in log order. After every keyframe the outputs in `OUT/` are
 //! replaced as one set of atomic renames — `report.json` (stage, transform,
 //! timing), and once the transform is known `map.bt`, `world.mcap` (the
-//! transform, the world cloud bounded for a viewer ([`LiveCloud`]), the
-//! keyframe path, the occupied voxels, the 2-D grid and the session's state
-//! as JSON on `/slam2world/state`: a rolling file, the latest state) and with `--grid` nav2's `map.pgm` + `map.yaml` +
+//! transform, the world cloud bounded for a viewer, the keyframe path, the
+//! reference path, the occupied voxels, the 2-D grid and the session's state
+//! as JSON on `/slam2world/state`: [`SessionWorld`], a rolling file, the
+//! latest state) and with `--grid` nav2's `map.pgm` + `map.yaml` +
 //! `map_height.npy` — so that a reader never sees a half-written file. One
 //! status line per keyframe goes to stdout (stage, scale, rmse, points,
 //! latency). It stops at the end of the log (the MCAP footer), after
@@ -33,17 +34,16 @@ use crate::cloud::PointFilter;
 use crate::defaults;
 use crate::error::{Error, Result};
 use crate::io::atomic::OutputSet;
-use crate::io::mcap::grid_msgs::{grid_channels, GridChannel};
-use crate::io::mcap::write::{write_world_mcap_extra_into, ExtraChannel};
-use crate::io::mcap::{WorldFlavor, WorldScene};
+use crate::io::mcap::WorldFlavor;
 use crate::io::messages::decode::MessageKind;
 use crate::io::nav2::{write_nav2_into, Nav2Files};
-use crate::live::{LiveCloud, ServeOptions, WorldServer, WsSource};
-use crate::map::{GridParams, MapParams, VoxelState};
+use crate::live::{ServeOptions, WorldServer, WsSource};
+use crate::map::{GridParams, MapParams};
+use crate::pipeline::live_world::SessionWorld;
 use crate::pipeline::outputs::{
     MAP_BT, MAP_HEIGHT_NPY, MAP_PGM, MAP_YAML, REPORT_JSON, WORLD_MCAP,
 };
-use crate::pipeline::report::{to_json_bytes, FollowReport, TransformReport};
+use crate::pipeline::report::{to_json_bytes, FollowReport};
 use crate::pipeline::session::{LogFeed, Pushed, Session, SessionOptions};
 
 fn serve_at(s: &str) -> std::result::Result<ServeOptions, String> {
@@ -211,12 +211,15 @@ pub fn run(args: &FollowArgs) -> Result<()> {
         feed,
         report: FollowReport::new(&args.log),
         keyframes: 0,
-        grid,
         server,
-        cloud: LiveCloud::new(
+        world: SessionWorld::new(
             PointFilter::default(),
-            defaults::LIVE_KEYFRAME_POINTS,
-            defaults::LIVE_MAX_POINTS,
+            grid,
+            if args.ros2 {
+                WorldFlavor::Ros2
+            } else {
+                WorldFlavor::Foxglove
+            },
         ),
     };
     let end = match url {
@@ -238,9 +241,8 @@ struct Follower<'a> {
     feed: LogFeed,
     report: FollowReport,
     keyframes: usize,
-    grid: Option<GridParams>,
     server: Option<WorldServer>,
-    cloud: LiveCloud,
+    world: SessionWorld,
 }
 
 impl Follower<'_> {
@@ -282,13 +284,7 @@ impl Follower<'_> {
     /// Writes the outputs of the session as it stands, and hands them to
     /// the clients with `--serve`.
     fn publish(&mut self) -> Result<()> {
-        write_outputs(
-            self.args,
-            &self.feed.session,
-            &self.report,
-            self.grid.as_ref(),
-            &mut self.cloud,
-        )?;
+        write_outputs(self.args, &self.feed.session, &self.report, &mut self.world)?;
         if let Some(s) = &self.server {
             s.refresh();
         }
@@ -518,125 +514,24 @@ fn write_outputs(
     args: &FollowArgs,
     session: &Session,
     report: &FollowReport,
-    grid: Option<&GridParams>,
-    cloud: &mut LiveCloud,
+    world: &mut SessionWorld,
 ) -> Result<()> {
     let mut set = OutputSet::folder(&args.output, NAMES)?.with_inputs([&args.log]);
     // report.json, and the same bytes as the state message of world.mcap.
     let report_json = to_json_bytes(report)?;
-    if let (Some(map), Ok(t)) = (session.map(), session.transform()) {
+    let path = set.path(WORLD_MCAP);
+    let written = world.write_into(&mut set, &path, session, &report_json)?;
+    if let (true, Some(map)) = (written.world, session.map()) {
         set.write_bytes(&set.path(MAP_BT), &map.to_bt_bytes())?;
-        let g = match grid {
-            Some(p) => {
-                let g = map.grid_of(p)?;
-                (!g.is_empty()).then_some((g, p.occupied_threshold))
-            }
-            None => None,
+    }
+    if let Some((g, threshold)) = &written.grid {
+        let files = Nav2Files {
+            image: set.path(MAP_PGM),
+            yaml: set.path(MAP_YAML),
+            height: set.path(MAP_HEIGHT_NPY),
         };
-        let flavor = if args.ros2 {
-            WorldFlavor::Ros2
-        } else {
-            WorldFlavor::Foxglove
-        };
-        let stamp = session.state().time.max(0.0);
-        let channels = match &g {
-            Some((g, _)) => grid_channels(g, stamp, "world", flavor)?,
-            None => Vec::new(),
-        };
-        let mut extra: Vec<ExtraChannel<'_>> = channels.iter().map(GridChannel::as_extra).collect();
-        let state = &report_json;
-        extra.push(ExtraChannel {
-            topic: crate::io::mcap::write::topics::STATE,
-            schema: ("slam2world.FollowReport", "jsonschema", state_schema()),
-            message_encoding: "json",
-            data: state,
-        });
-        let (points, colors) = cloud.update(session.keyframes(), &t.transform)?;
-        let slam = keyframe_path(session)?.transformed(&t.transform);
-        let scene = WorldScene {
-            cloud: crate::io::spill::CloudRef::Memory(&points, colors.as_deref()),
-            t_world_slam: t.transform,
-            slam_trajectory: Some(&slam),
-            reference: None,
-            stamp,
-            world_frame: "world",
-            slam_frame: "slam",
-        };
-        let leaves = map.leaves(VoxelState::Occupied);
-        let world = set.path(WORLD_MCAP);
-        write_world_mcap_extra_into(&mut set, &world, &scene, Some(&leaves), &extra, flavor)?;
-        if let Some((g, threshold)) = &g {
-            let files = Nav2Files {
-                image: set.path(MAP_PGM),
-                yaml: set.path(MAP_YAML),
-                height: set.path(MAP_HEIGHT_NPY),
-            };
-            write_nav2_into(&mut set, g, &files, *threshold)?;
-        }
+        write_nav2_into(&mut set, g, &files, *threshold)?;
     }
     set.write_bytes(&set.path(REPORT_JSON), &report_json)?;
     set.commit().map(|_| ())
-}
-
-/// The JSON Schema of the state channel's messages (`report.json`'s).
-fn state_schema() -> &'static [u8] {
-    static SCHEMA: std::sync::OnceLock<Vec<u8>> = std::sync::OnceLock::new();
-    SCHEMA.get_or_init(|| {
-        serde_json::to_vec(&schemars::schema_for!(FollowReport)).unwrap_or_default()
-    })
-}
-
-/// The session's keyframe poses (SLAM frame), in time order.
-fn keyframe_path(session: &Session) -> Result<crate::trajectory::Trajectory> {
-    let mut kfs: Vec<&crate::keyframe::Keyframe> = session.keyframes().collect();
-    kfs.sort_by(|a, b| a.timestamp.total_cmp(&b.timestamp));
-    crate::trajectory::Trajectory::try_new(
-        kfs.iter().map(|k| k.timestamp).collect(),
-        kfs.iter().map(|k| k.pose.translation).collect(),
-        Some(kfs.iter().map(|k| k.pose.rotation).collect()),
-    )
-}
-
-impl FollowReport {
-    /// The report of `session` after keyframe `id` (-1: the end).
-    fn update(
-        &mut self,
-        session: &Session,
-        id: i32,
-        decode_s: f64,
-        t: &crate::pipeline::session::UpdateTiming,
-        latency: f64,
-    ) {
-        let s = session.state();
-        self.stage = s.stage.name().into();
-        self.reason = s.reason.clone();
-        self.time = s.time;
-        self.last_keyframe = id;
-        self.keyframes = s.keyframes;
-        self.frames = s.frames;
-        self.points = s.points;
-        self.rebuilds = s.rebuilds;
-        self.stable_time = s.stable_time;
-        self.stable_reported_at = s.stable_reported_at;
-        self.enu_origin = s.enu_origin.map(|g| [g.lat, g.lon, g.alt]);
-        self.fixes = s.fixes;
-        self.fixes_dropped = s.fixes_dropped;
-        match session.transform() {
-            Ok(tr) => {
-                self.t_world_slam = Some(TransformReport::from(&tr.transform));
-                self.fit_rmse = Some(tr.rmse);
-                self.pairs_fitted = tr.pairs;
-            }
-            Err(_) => {
-                self.t_world_slam = None;
-                self.fit_rmse = None;
-                self.pairs_fitted = 0;
-            }
-        }
-        self.decode_s = decode_s;
-        self.fit_s = t.fit_s;
-        self.backproject_s = t.backproject_s;
-        self.insert_s = t.insert_s;
-        self.latency_s = latency;
-    }
 }

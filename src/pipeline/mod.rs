@@ -16,7 +16,9 @@
 //! - [`outputs`]: `world.mcap`, `cloud.ply`, `trajectory.txt`, `map.bt`,
 //!   `report.json`, `report.html` and the input's own model (`model/`),
 //!   written as one set;
-//! - [`figures`] / [`html`]: what the report page draws, and the page.
+//! - [`figures`] / [`html`]: what the report page draws, and the page;
+//! - `live_world` (feature `live`): the world of a running [`session`] as
+//!   `follow` writes it and `Session.serve` sends it.
 //!
 //! The SLAM poses (keyframes, or frames without depth) are associated with
 //! the reference by time and `T_world_slam` is fitted; the keyframes are
@@ -32,6 +34,8 @@ pub mod figures;
 pub mod gnss;
 pub mod html;
 pub mod imu;
+#[cfg(feature = "live")]
+pub mod live_world;
 pub mod native;
 pub mod options;
 pub mod outputs;

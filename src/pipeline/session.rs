@@ -802,6 +802,17 @@ impl Session {
         }
     }
 
+    /// The reference so far in the world frame: the poses pushed, or the
+    /// fixes as ENU positions (no orientation); None before the first.
+    pub fn reference_path(&self) -> Result<Option<crate::trajectory::Trajectory>> {
+        if self.ref_times.is_empty() {
+            return Ok(None);
+        }
+        let rot: Option<Vec<UnitQuaternion<f64>>> = self.ref_rot.iter().copied().collect();
+        crate::trajectory::Trajectory::try_new(self.ref_times.clone(), self.ref_pos.clone(), rot)
+            .map(Some)
+    }
+
     /// The keyframes (latest version per id, ascending id), poses as last
     /// pushed.
     pub fn keyframes(&self) -> impl Iterator<Item = &Keyframe> {

@@ -35,15 +35,18 @@ impl PyWorldServer {
     fn path(&self) -> PathBuf {
         self.path.clone()
     }
-    /// The topics served, in the file's channel order.
+    /// The topics served, in the order they were first served.
     #[getter]
     fn topics(&self) -> Vec<String> {
-        self.topics.clone()
+        match &self.inner {
+            Some(s) => s.topics(),
+            None => self.topics.clone(),
+        }
     }
     /// True until `stop()`.
     #[getter]
     fn running(&self) -> bool {
-        self.inner.is_some()
+        self.is_running()
     }
     /// Clients connected now.
     fn client_count(&self) -> usize {
@@ -51,9 +54,7 @@ impl PyWorldServer {
     }
     /// Stops serving (the port is free when it returns); again: nothing.
     fn stop(&mut self, py: Python<'_>) {
-        if let Some(s) = self.inner.take() {
-            py.detach(|| s.stop());
-        }
+        self.shut(py);
     }
     fn __enter__(slf: PyRef<'_, Self>) -> PyRef<'_, Self> {
         slf
@@ -65,7 +66,7 @@ impl PyWorldServer {
         _exc: Option<&Bound<'_, PyAny>>,
         _tb: Option<&Bound<'_, PyAny>>,
     ) -> bool {
-        self.stop(py);
+        self.shut(py);
         false
     }
     fn __repr__(&self) -> String {
@@ -83,6 +84,39 @@ impl PyWorldServer {
     }
 }
 
+impl PyWorldServer {
+    /// A Python handle of `s`.
+    pub(crate) fn from_core(s: WorldServer) -> Self {
+        PyWorldServer {
+            url: s.url(),
+            port: s.port(),
+            path: s.path().to_path_buf(),
+            topics: s.topics(),
+            inner: Some(s),
+        }
+    }
+
+    /// Its file was written again (nothing once stopped).
+    pub(crate) fn refresh(&self) {
+        if let Some(s) = &self.inner {
+            s.refresh();
+        }
+    }
+
+    /// True until stopped.
+    pub(crate) fn is_running(&self) -> bool {
+        self.inner.is_some()
+    }
+
+    /// Stops serving (the port is free when it returns); again: nothing.
+    pub(crate) fn shut(&mut self, py: Python<'_>) {
+        if let Some(s) = self.inner.take() {
+            self.topics = s.topics();
+            py.detach(|| s.stop());
+        }
+    }
+}
+
 /// Serves `world` (a conversion's output folder, or its `world.mcap`) on a
 /// Foxglove WebSocket at `host:port` (this machine only by default; port 0
 /// takes a free one): every channel of the file advertised as it is, its
@@ -97,13 +131,7 @@ fn serve_py(py: Python<'_>, world: PathBuf, host: &str, port: u16) -> PyResult<P
         port,
     };
     let s = py.detach(|| WorldServer::start(&world, &opts))?;
-    Ok(PyWorldServer {
-        url: s.url(),
-        port: s.port(),
-        path: s.path().to_path_buf(),
-        topics: s.topics(),
-        inner: Some(s),
-    })
+    Ok(PyWorldServer::from_core(s))
 }
 
 /// Adds `serve` and `WorldServer` to the module.

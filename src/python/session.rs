@@ -7,11 +7,18 @@ use pyo3::types::PyDict;
 use super::cloud::{PyKeyframe, PyPointFilter};
 use super::geo::origin_arg;
 use super::geometry::PySim3;
+use super::live::PyWorldServer;
 use super::map::{PyGrid, PyOccupancyMap};
 use crate::align::trajectories::TrajectoryAlignOptions;
 use crate::geo::{FixStatus, GnssFix, Origin};
-use crate::map::MapParams;
+use crate::io::atomic::OutputSet;
+use crate::io::mcap::WorldFlavor;
+use crate::live::{ServeOptions, WorldServer};
+use crate::map::{GridParams, MapParams};
 use crate::pipeline::gnss::GnssOptions;
+use crate::pipeline::live_world::SessionWorld;
+use crate::pipeline::outputs::WORLD_MCAP;
+use crate::pipeline::report::{to_json_bytes, FollowReport};
 use crate::pipeline::session::{Session, SessionOptions, UpdateTiming};
 
 fn vec3(what: &str, v: [f64; 3]) -> PyResult<Vector3<f64>> {
@@ -48,6 +55,54 @@ fn timing_dict<'py>(py: Python<'py>, t: &UpdateTiming) -> PyResult<Bound<'py, Py
 #[pyclass(name = "Session", module = "slam2world._slam2world")]
 pub struct PySession {
     inner: Session,
+    live: Option<LiveServe>,
+}
+
+/// A session's world on a Foxglove WebSocket (`Session.serve`): written
+/// after every update into a private folder, which the server watches.
+struct LiveServe {
+    server: Py<PyWorldServer>,
+    world: SessionWorld,
+    report: FollowReport,
+    /// Holds `world.mcap`; removed with the session.
+    dir: tempfile::TempDir,
+}
+
+impl PySession {
+    /// After an update: the world as it stands to the clients of `serve`
+    /// (nothing without one, or once it is stopped; nothing before the
+    /// transform is known). `id`: the keyframe pushed (None: not one, a
+    /// graph update), `finished`: after `finish()`.
+    fn publish(
+        &mut self,
+        py: Python<'_>,
+        id: Option<i32>,
+        finished: bool,
+        t: &UpdateTiming,
+    ) -> PyResult<()> {
+        let Some(live) = self.live.as_mut() else {
+            return Ok(());
+        };
+        if !live.server.borrow(py).is_running() {
+            self.live = None;
+            return Ok(());
+        }
+        let id = id.unwrap_or(live.report.last_keyframe);
+        let latency = t.fit_s + t.backproject_s + t.insert_s;
+        live.report.update(&self.inner, id, 0.0, t, latency);
+        live.report.finished = finished;
+        let state = to_json_bytes(&live.report)?;
+        let path = live.dir.path().join(WORLD_MCAP);
+        let mut set = OutputSet::new();
+        let session = &self.inner;
+        let world = &mut live.world;
+        let written = py.detach(|| world.write_into(&mut set, &path, session, &state))?;
+        if written.world {
+            set.commit()?;
+            live.server.borrow(py).refresh();
+        }
+        Ok(())
+    }
 }
 
 #[pymethods]
@@ -112,6 +167,7 @@ impl PySession {
         };
         Ok(PySession {
             inner: Session::new(opts)?,
+            live: None,
         })
     }
 
@@ -143,7 +199,9 @@ impl PySession {
         keyframe: PyRef<'_, PyKeyframe>,
     ) -> PyResult<Bound<'py, PyDict>> {
         let kf = keyframe.inner.clone();
+        let id = kf.id;
         let t = self.inner.push_keyframe(kf)?;
+        self.publish(py, Some(id), false, &t)?;
         timing_dict(py, &t)
     }
 
@@ -156,6 +214,7 @@ impl PySession {
         let poses: Vec<(i32, crate::geometry::Sim3)> =
             poses.iter().map(|(id, p)| (*id, p.inner)).collect();
         let t = self.inner.push_graph_update(&poses)?;
+        self.publish(py, None, false, &t)?;
         timing_dict(py, &t)
     }
 
@@ -202,7 +261,63 @@ impl PySession {
     /// the map exact; returns the update's timing.
     fn finish<'py>(&mut self, py: Python<'py>) -> PyResult<Bound<'py, PyDict>> {
         let t = self.inner.finish()?;
+        self.publish(py, Some(-1), true, &t)?;
         timing_dict(py, &t)
+    }
+
+    /// Serves the session's metric world on a Foxglove WebSocket at
+    /// `host:port` (this machine only by default; port 0 takes a free one)
+    /// as `follow --serve` does: after every keyframe, graph update and
+    /// `finish()`, once the transform is known, the world cloud (bounded for
+    /// a viewer), the keyframe and reference paths, `world → slam`, the
+    /// occupied voxels, the 2-D grid between `grid=(z_min, z_max)` when
+    /// given, and the state (`follow`'s report) as JSON, in Foxglove schemas
+    /// or ROS 2 messages (`ros2=True`). Returns the `WorldServer`; its
+    /// `stop()` ends the serving (the session goes on). A session serves
+    /// once at a time: a second call stops the first server. Each update
+    /// then also writes the world (tens of milliseconds for a large map).
+    #[pyo3(signature = (port=8765, *, host="127.0.0.1", grid=None, ros2=false))]
+    fn serve(
+        &mut self,
+        py: Python<'_>,
+        port: u16,
+        host: &str,
+        grid: Option<(f64, f64)>,
+        ros2: bool,
+    ) -> PyResult<Py<PyWorldServer>> {
+        let grid = grid.map(|(lo, hi)| GridParams::new(lo, hi));
+        if let Some(g) = &grid {
+            g.check()?;
+        }
+        if let Some(old) = self.live.take() {
+            old.server.borrow_mut(py).shut(py);
+        }
+        let dir = tempfile::Builder::new()
+            .prefix("slam2world-serve-")
+            .tempdir()
+            .map_err(|e| crate::Error::io(std::env::temp_dir(), e))?;
+        let opts = ServeOptions {
+            host: host.to_string(),
+            port,
+        };
+        let path = dir.path().join(WORLD_MCAP);
+        let server = py.detach(|| WorldServer::watch(&path, &opts))?;
+        let server = Py::new(py, PyWorldServer::from_core(server))?;
+        let flavor = if ros2 {
+            WorldFlavor::Ros2
+        } else {
+            WorldFlavor::Foxglove
+        };
+        self.live = Some(LiveServe {
+            server: server.clone_ref(py),
+            world: SessionWorld::new(self.inner.options().filter, grid, flavor),
+            report: FollowReport::new(std::path::Path::new("Session")),
+            dir,
+        });
+        // What the session holds already goes out at once.
+        let t = self.inner.last_update();
+        self.publish(py, None, false, &t)?;
+        Ok(server)
     }
 
     /// The stage (`waiting`, `start`, `converging`, `stable`), why, and what

@@ -94,6 +94,49 @@ def receive_world(url: str, want: dict[str, int], timeout: float = 30.0) -> tupl
     return advertised, dict(got)
 
 
+def collect(
+    url: str,
+    received: dict[str, list[tuple[int, bytes]]],
+    stop: threading.Event,
+    errors: list[BaseException],
+) -> None:
+    """Subscribes to every channel of `url` as it is advertised and keeps what arrives in
+    `received` (by topic) until `stop`; an error goes to `errors`."""
+    try:
+        with connect(url, subprotocols=[SUBPROTOCOL], max_size=None) as ws:
+            topics: dict[int, str] = {}
+            while not stop.is_set():
+                try:
+                    frame = ws.recv(timeout=0.2)
+                except TimeoutError:
+                    continue
+                if isinstance(frame, str):
+                    msg = json.loads(frame)
+                    if msg["op"] == "advertise":
+                        subs = []
+                        for ch in msg["channels"]:
+                            topics[ch["id"]] = ch["topic"]
+                            subs.append({"id": ch["id"], "channelId": ch["id"]})
+                        ws.send(json.dumps({"op": "subscribe", "subscriptions": subs}))
+                    continue
+                sub, log_time = struct.unpack_from("<IQ", frame, 1)
+                received[topics[sub]].append((log_time, bytes(frame[13:])))
+    except BaseException as e:  # noqa: BLE001 - reported by the test that collects
+        errors.append(e)
+
+
+def wait_for_file(received: dict[str, list[tuple[int, bytes]]], path: Path) -> dict:
+    """Waits (30 s at most) until the last messages received of each topic are those `path`
+    holds; returns the file's messages by topic."""
+    _, messages = file_messages(path)
+    deadline = time.monotonic() + 30
+    while time.monotonic() < deadline and any(
+        received[t][-len(m) :] != m for t, m in messages.items()
+    ):
+        time.sleep(0.1)
+    return messages
+
+
 def schema_bytes(ch: dict) -> bytes:
     """An advertised channel's schema as bytes: base64 for binary encodings (protobuf)."""
     if ch.get("schemaEncoding") == "protobuf":
@@ -173,51 +216,21 @@ def test_follow_serves_the_world_as_it_is_written_and_the_final_one_until_ctrl_c
     received: dict[str, list[tuple[int, bytes]]] = defaultdict(list)
     errors: list[BaseException] = []
     stop = threading.Event()
-
-    def collect(url: str) -> None:
-        """Subscribes to every channel as it is advertised and keeps what arrives."""
-        try:
-            with connect(url, subprotocols=[SUBPROTOCOL], max_size=None) as ws:
-                topics: dict[int, str] = {}
-                while not stop.is_set():
-                    try:
-                        frame = ws.recv(timeout=0.2)
-                    except TimeoutError:
-                        continue
-                    if isinstance(frame, str):
-                        msg = json.loads(frame)
-                        if msg["op"] == "advertise":
-                            subs = []
-                            for ch in msg["channels"]:
-                                topics[ch["id"]] = ch["topic"]
-                                subs.append({"id": ch["id"], "channelId": ch["id"]})
-                            ws.send(json.dumps({"op": "subscribe", "subscriptions": subs}))
-                        continue
-                    sub, log_time = struct.unpack_from("<IQ", frame, 1)
-                    received[topics[sub]].append((log_time, bytes(frame[13:])))
-        except BaseException as e:  # noqa: BLE001 - reported by the test below
-            errors.append(e)
-
     with subprocess.Popen(argv, stdout=subprocess.PIPE, text=True) as proc:
         try:
             assert proc.stdout is not None
             line = proc.stdout.readline()
             assert line.startswith(f"serving {out / 'world.mcap'} on ws://127.0.0.1:"), line
             url = line.split(" on ", 1)[1].split(" ", 1)[0]
-            client = threading.Thread(target=collect, args=(url,))
+            client = threading.Thread(target=collect, args=(url, received, stop, errors))
             client.start()
             # Serving the final world: the file no longer changes.
             line = proc.stdout.readline()
             assert line.startswith("follow: serving the final world on "), line
-            _, messages = file_messages(out / "world.mcap")
+            messages = wait_for_file(received, out / "world.mcap")
             assert {"/tf", "/slam2world/octomap", "/slam2world/grid", "/slam2world/state"} <= set(
                 messages
             )
-            deadline = time.monotonic() + 30
-            while time.monotonic() < deadline and any(
-                received[t][-len(m) :] != m for t, m in messages.items()
-            ):
-                time.sleep(0.1)
             stop.set()
             client.join(timeout=10)
             assert errors == []
@@ -234,6 +247,70 @@ def test_follow_serves_the_world_as_it_is_written_and_the_final_one_until_ctrl_c
             stop.set()
             if proc.poll() is None:
                 proc.kill()
+
+
+@pytest.mark.slow
+def test_a_session_serves_its_world_as_it_grows() -> None:
+    """`Session.serve`: the session pushed from Python publishes each world on a Foxglove
+    WebSocket, with the reference path and the state; a client gets what the served file
+    holds at the end; the serving stops and starts again without the session noticing."""
+    sim = sw.simulate(seed=3, reduced=4)
+    s = sw.Session(stable_hold=1.0)
+    with pytest.raises(sw.InvalidInputError, match="z_min"):
+        s.serve(0, grid=(1.0, 0.0))
+    srv = s.serve(0, grid=(0.25, 0.75))
+    assert srv.running and srv.url == f"ws://127.0.0.1:{srv.port}"
+    assert srv.topics == []  # nothing before the transform
+    with pytest.raises(sw.InvalidInputError, match="cannot listen"):
+        sw.Session().serve(srv.port)
+    received: dict[str, list[tuple[int, bytes]]] = defaultdict(list)
+    errors: list[BaseException] = []
+    stop = threading.Event()
+    client = threading.Thread(target=collect, args=(srv.url, received, stop, errors))
+    client.start()
+    try:
+        time.sleep(0.3)
+        rt, rp, rq = sim.reference_timestamps, sim.reference_positions, sim.reference_orientations
+        assert rq is not None
+        ft, fp, fq = sim.slam_timestamps, sim.slam_positions, sim.slam_orientations
+        assert fq is not None
+        events = [(float(t), 0, i) for i, t in enumerate(rt)]
+        events += [(float(t), 1, i) for i, t in enumerate(ft)]
+        events += [(float(t), 2, i) for i, t in enumerate(sim.keyframe_timestamps)]
+        keyframes = sim.keyframes
+        first_world = None
+        for _, kind, i in sorted(events):
+            if kind == 0:
+                s.push_reference(float(rt[i]), rp[i].tolist(), rq[i].tolist())
+            elif kind == 1:
+                s.push_frame(float(ft[i]), sw.Sim3.from_quaternion(fq[i], fp[i], 1.0))
+            else:
+                s.push_keyframe(keyframes[i])
+                if first_world is None and s.transform() is not None:
+                    first_world = i
+        s.finish()
+        assert first_world is not None and first_world < len(keyframes) - 1
+        messages = wait_for_file(received, srv.path)
+        stop.set()
+        client.join(timeout=10)
+        assert errors == []
+        assert {"/world/cloud", "/world/reference", "/tf", "/slam2world/grid"} <= set(messages)
+        for topic, m in messages.items():
+            assert received[topic][-len(m) :] == m, topic
+        # A world per keyframe from the first with a transform, and the end's.
+        states = [json.loads(d) for _, d in received["/slam2world/state"]]
+        assert len(states) >= 2 and states[-1]["finished"] and not states[0]["finished"]
+        t = s.transform()
+        assert t is not None and states[-1]["t_world_slam"]["scale"] == pytest.approx(t.scale)
+        assert sorted(srv.topics) == sorted(messages)
+    finally:
+        stop.set()
+        srv.stop()
+    assert not srv.running
+    # Served again: the world the session holds goes out at once.
+    with s.serve(0) as again:
+        _, got = receive_world(again.url, {"/world/cloud": 1, "/slam2world/state": 1})
+        assert json.loads(got["/slam2world/state"][-1][1])["stage"] == "stable"
 
 
 class _Subscriptions(foxglove.ServerListener):

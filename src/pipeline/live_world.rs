@@ -1,0 +1,218 @@
+//! [`SessionWorld`]: the metric world of a running [`Session`] as
+//! `world.mcap` holds it — what `follow` writes after every keyframe and
+//! what `Session.serve` puts on a Foxglove WebSocket — and the
+//! [`FollowReport`] of a session, its state channel.
+
+use std::path::Path;
+
+use crate::cloud::PointFilter;
+use crate::error::Result;
+use crate::io::atomic::OutputSet;
+use crate::io::mcap::grid_msgs::{grid_channels, GridChannel};
+use crate::io::mcap::write::{topics, write_world_mcap_extra_into, ExtraChannel};
+use crate::io::mcap::{WorldFlavor, WorldScene};
+use crate::io::spill::{CloudRef, TrajectoryRef};
+use crate::live::LiveCloud;
+use crate::map::{Grid2d, GridParams, VoxelState};
+use crate::pipeline::report::{FollowReport, TransformReport};
+use crate::pipeline::session::{Session, UpdateTiming};
+use crate::trajectory::Trajectory;
+
+/// The world of a session, written again after each of its updates: the
+/// world cloud bounded for a viewer ([`LiveCloud`]: each keyframe
+/// backprojected once, again only when the graph moves it), the keyframe
+/// path and the reference path in the world frame (each at most
+/// [`crate::defaults::LIVE_PATH_POSES`] poses), `world → slam`, the
+/// occupied voxels, the 2-D grid when asked for, and the session's state as
+/// JSON on `/slam2world/state` (a [`FollowReport`]).
+pub struct SessionWorld {
+    cloud: LiveCloud,
+    grid: Option<GridParams>,
+    flavor: WorldFlavor,
+}
+
+/// What one [`SessionWorld::write_into`] wrote.
+pub struct WorldWritten {
+    /// `world.mcap` was written (false before the transform: there is no
+    /// world yet).
+    pub world: bool,
+    /// The 2-D grid and its occupied threshold, when one was asked for and
+    /// the map has voxels in its band (nav2's files are made from it).
+    pub grid: Option<(Grid2d, f64)>,
+}
+
+impl SessionWorld {
+    /// The world of a session whose points pass `filter` (the session's
+    /// own), with the 2-D grid `grid` when given, in the schemas of `flavor`.
+    pub fn new(filter: PointFilter, grid: Option<GridParams>, flavor: WorldFlavor) -> Self {
+        SessionWorld {
+            cloud: LiveCloud::new(
+                filter,
+                crate::defaults::LIVE_KEYFRAME_POINTS,
+                crate::defaults::LIVE_MAX_POINTS,
+            ),
+            grid,
+            flavor,
+        }
+    }
+
+    /// Writes the world of `session` as it stands to `path`, one output of
+    /// `set` (published when the set is committed), with `state` (the
+    /// report's JSON bytes) on the state channel. Nothing before the
+    /// transform is known.
+    pub fn write_into(
+        &mut self,
+        set: &mut OutputSet,
+        path: &Path,
+        session: &Session,
+        state: &[u8],
+    ) -> Result<WorldWritten> {
+        let (Some(map), Ok(t)) = (session.map(), session.transform()) else {
+            return Ok(WorldWritten {
+                world: false,
+                grid: None,
+            });
+        };
+        let grid = match &self.grid {
+            Some(p) => {
+                let g = map.grid_of(p)?;
+                (!g.is_empty()).then_some((g, p.occupied_threshold))
+            }
+            None => None,
+        };
+        let stamp = session.state().time.max(0.0);
+        let channels = match &grid {
+            Some((g, _)) => grid_channels(g, stamp, "world", self.flavor)?,
+            None => Vec::new(),
+        };
+        let mut extra: Vec<ExtraChannel<'_>> = channels.iter().map(GridChannel::as_extra).collect();
+        extra.push(ExtraChannel {
+            topic: topics::STATE,
+            schema: ("slam2world.FollowReport", "jsonschema", state_schema()),
+            message_encoding: "json",
+            data: state,
+        });
+        let (points, colors) = self.cloud.update(session.keyframes(), &t.transform)?;
+        let slam = thin(keyframe_path(session)?)?.transformed(&t.transform);
+        let reference = session.reference_path()?.map(thin).transpose()?;
+        let scene = WorldScene {
+            cloud: CloudRef::Memory(&points, colors.as_deref()),
+            t_world_slam: t.transform,
+            slam_trajectory: Some(&slam),
+            reference: reference.as_ref().map(TrajectoryRef::Memory),
+            stamp,
+            world_frame: "world",
+            slam_frame: "slam",
+        };
+        let leaves = map.leaves(VoxelState::Occupied);
+        write_world_mcap_extra_into(set, path, &scene, Some(&leaves), &extra, self.flavor)?;
+        Ok(WorldWritten { world: true, grid })
+    }
+}
+
+impl FollowReport {
+    /// Brings the report up to `session` after keyframe `id` (-1: the end).
+    pub fn update(
+        &mut self,
+        session: &Session,
+        id: i32,
+        decode_s: f64,
+        t: &UpdateTiming,
+        latency: f64,
+    ) {
+        let s = session.state();
+        self.stage = s.stage.name().into();
+        self.reason = s.reason.clone();
+        self.time = s.time;
+        self.last_keyframe = id;
+        self.keyframes = s.keyframes;
+        self.frames = s.frames;
+        self.points = s.points;
+        self.rebuilds = s.rebuilds;
+        self.stable_time = s.stable_time;
+        self.stable_reported_at = s.stable_reported_at;
+        self.enu_origin = s.enu_origin.map(|g| [g.lat, g.lon, g.alt]);
+        self.fixes = s.fixes;
+        self.fixes_dropped = s.fixes_dropped;
+        match session.transform() {
+            Ok(tr) => {
+                self.t_world_slam = Some(TransformReport::from(&tr.transform));
+                self.fit_rmse = Some(tr.rmse);
+                self.pairs_fitted = tr.pairs;
+            }
+            Err(_) => {
+                self.t_world_slam = None;
+                self.fit_rmse = None;
+                self.pairs_fitted = 0;
+            }
+        }
+        self.decode_s = decode_s;
+        self.fit_s = t.fit_s;
+        self.backproject_s = t.backproject_s;
+        self.insert_s = t.insert_s;
+        self.latency_s = latency;
+    }
+}
+
+/// The JSON Schema of the state channel's messages (`report.json`'s).
+fn state_schema() -> &'static [u8] {
+    static SCHEMA: std::sync::OnceLock<Vec<u8>> = std::sync::OnceLock::new();
+    SCHEMA.get_or_init(|| {
+        serde_json::to_vec(&schemars::schema_for!(FollowReport)).unwrap_or_default()
+    })
+}
+
+/// The session's keyframe poses (SLAM frame), in time order.
+fn keyframe_path(session: &Session) -> Result<Trajectory> {
+    let mut kfs: Vec<&crate::keyframe::Keyframe> = session.keyframes().collect();
+    kfs.sort_by(|a, b| a.timestamp.total_cmp(&b.timestamp));
+    Trajectory::try_new(
+        kfs.iter().map(|k| k.timestamp).collect(),
+        kfs.iter().map(|k| k.pose.translation).collect(),
+        Some(kfs.iter().map(|k| k.pose.rotation).collect()),
+    )
+}
+
+/// `t` with at most [`crate::defaults::LIVE_PATH_POSES`] poses, evenly
+/// spread (the first and the last kept): a path drawn in a viewer needs no
+/// more, and a 200 Hz motion capture would otherwise be re-sent whole at
+/// every keyframe.
+fn thin(t: Trajectory) -> Result<Trajectory> {
+    let n = t.len();
+    let most = crate::defaults::LIVE_PATH_POSES.max(2);
+    if n <= most {
+        return Ok(t);
+    }
+    let idx: Vec<usize> = (0..most).map(|i| i * (n - 1) / (most - 1)).collect();
+    Trajectory::try_new(
+        idx.iter().map(|&i| t.timestamps[i]).collect(),
+        idx.iter().map(|&i| t.positions[i]).collect(),
+        t.orientations
+            .as_ref()
+            .map(|o| idx.iter().map(|&i| o[i]).collect()),
+    )
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use nalgebra::Vector3;
+
+    #[test]
+    fn thin_keeps_the_ends_and_the_bound() {
+        let n = 3 * crate::defaults::LIVE_PATH_POSES + 7;
+        let t = Trajectory::try_new(
+            (0..n).map(|i| i as f64).collect(),
+            (0..n).map(|i| Vector3::new(i as f64, 0.0, 0.0)).collect(),
+            None,
+        )
+        .unwrap();
+        let s = thin(t).unwrap();
+        assert_eq!(s.len(), crate::defaults::LIVE_PATH_POSES);
+        assert_eq!(s.timestamps[0], 0.0);
+        assert_eq!(*s.timestamps.last().unwrap(), (n - 1) as f64);
+        assert!(s.timestamps.windows(2).all(|w| w[1] > w[0]));
+        let short = Trajectory::try_new(vec![0.0, 1.0], vec![Vector3::zeros(); 2], None).unwrap();
+        assert_eq!(thin(short).unwrap().len(), 2);
+    }
+}
