@@ -129,13 +129,13 @@ lint-python: install ruff
 
 # ruff from the test extras: after `install` or `develop` (the prerequisites order it so).
 ruff:
-	$(PY) -m ruff check python tests benches
-	$(PY) -m ruff format --check python tests benches
+	$(PY) -m ruff check python tests benches src/live/layout.py
+	$(PY) -m ruff format --check python tests benches src/live/layout.py
 
 fmt: $(PY)
 	cargo fmt
-	$(PY) -m ruff format python tests benches
-	$(PY) -m ruff check --fix python tests benches
+	$(PY) -m ruff format python tests benches src/live/layout.py
+	$(PY) -m ruff check --fix python tests benches src/live/layout.py
 
 bench:
 	cargo bench

@@ -54,6 +54,8 @@ enum Command {
     TransformCloud(Box<transform_cloud::TransformCloudArgs>),
     /// Serve a conversion's metric world (OUT/world.mcap) on a Foxglove WebSocket until Ctrl-C.
     Serve(serve::ServeArgs),
+    /// Print (or write with -o) the Foxglove layout of the metric world: the 3-D scene, the session's state, its fit and latency.
+    Layout(serve::LayoutArgs),
     /// Print the JSON Schema of a document the commands write (report.json, align --json, …).
     Schema(schema::SchemaArgs),
     /// Convert many logs on Ray (one task per log): the `slam2world` console script of the Python package runs it.
@@ -86,6 +88,7 @@ fn run(cli: Cli) -> Result<()> {
         Command::TransformCloud(args) => transform_cloud::run(*args),
         Command::Schema(args) => schema::run(&args),
         Command::Serve(args) => serve::run(&args),
+        Command::Layout(args) => serve::run_layout(&args),
         Command::Batch(_) => Err(crate::Error::invalid(
             "batch",
             "batch runs on Ray from the Python package: pip install 'slam2world[ray]', then run \

@@ -1,5 +1,6 @@
 //! `slam2world serve OUT/`: a finished conversion's metric world on a
-//! Foxglove WebSocket ([`crate::live::WorldServer`]) until Ctrl-C.
+//! Foxglove WebSocket ([`crate::live::WorldServer`]) until Ctrl-C; and
+//! `slam2world layout`: the Foxglove layout that shows it.
 
 use std::path::PathBuf;
 use std::time::Duration;
@@ -48,4 +49,27 @@ pub fn run(args: &ServeArgs) -> Result<()> {
     }
     server.stop();
     Ok(())
+}
+
+/// Arguments of `layout`.
+#[derive(Args, Debug)]
+pub struct LayoutArgs {
+    /// Write the layout to this file instead of printing it.
+    #[arg(short, long, value_name = "FILE")]
+    output: Option<PathBuf>,
+}
+
+/// Prints or writes [`crate::live::FOXGLOVE_LAYOUT`].
+pub fn run_layout(args: &LayoutArgs) -> Result<()> {
+    let layout = crate::live::FOXGLOVE_LAYOUT;
+    match &args.output {
+        Some(path) => {
+            crate::io::atomic::write_bytes_atomic(path, layout.as_bytes())?;
+            print(&format!(
+                "wrote {}; in Foxglove: Layouts, Import from file\n",
+                path.display()
+            ))
+        }
+        None => print(layout),
+    }
 }

@@ -17,6 +17,13 @@
 //! dropped for a client that lags), so that a slow client never holds up
 //! the others.
 
+/// The Foxglove layout of the world (`layout.json`, made by `layout.py`
+/// with the Foxglove SDK's layout API): a 3-D panel in the `world` frame with
+/// the cloud, the paths, the voxels and the grid, the session's state and a
+/// plot of its fit and latency. It fits `world.mcap` and every server alike
+/// (`slam2world layout` writes it; Foxglove: Layouts, Import from file).
+pub const FOXGLOVE_LAYOUT: &str = include_str!("layout.json");
+
 mod cloud;
 mod world_server;
 mod ws_source;

@@ -134,9 +134,20 @@ fn serve_py(py: Python<'_>, world: PathBuf, host: &str, port: u16) -> PyResult<P
     Ok(PyWorldServer::from_core(s))
 }
 
-/// Adds `serve` and `WorldServer` to the module.
+/// The Foxglove layout of the metric world (JSON): a 3-D panel in the
+/// `world` frame with the cloud, the paths, the voxels and the grid, the
+/// session's state and a plot of its fit and latency; it fits `world.mcap`,
+/// `serve`, `follow --serve` and `Session.serve` alike (Foxglove: Layouts,
+/// Import from file).
+#[pyfunction]
+fn foxglove_layout() -> &'static str {
+    crate::live::FOXGLOVE_LAYOUT
+}
+
+/// Adds `serve`, `WorldServer` and `foxglove_layout` to the module.
 pub fn register(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_class::<PyWorldServer>()?;
+    m.add_function(wrap_pyfunction!(foxglove_layout, m)?)?;
     m.add_function(wrap_pyfunction!(serve_py, m)?)?;
     Ok(())
 }

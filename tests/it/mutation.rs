@@ -1,6 +1,8 @@
 //! Seeded mutation tests of every reader: MCAP, ROS 1 bag, rosbag2 `.db3`,
 //! PLY, `.bt`, TUM, EuRoC, IMU CSV, `x y z` text, COLMAP (binary and text),
-//! `.npy`.
+//! `.npy`, and the Foxglove WebSocket client of `follow ws://` (`ws`: a case
+//! is a stream of frames that a hostile server sends it — malformed JSON and
+//! binary frames, huge advertised schemas, a flood of messages).
 //!
 //! For each reader, a few valid seed files are mutated with a seeded random
 //! generator (bit flips, bytes overwritten, truncations, insertions, copied
@@ -42,7 +44,7 @@ const ADDRESS_SPACE: u64 = 2 << 30;
 /// thread pool, a chunk buffer per thread.
 const FIXED_BYTES: u64 = 160 << 20;
 
-const READERS: [&str; 12] = [
+const READERS: [&str; 13] = [
     "mcap",
     "ros1",
     "db3",
@@ -55,6 +57,7 @@ const READERS: [&str; 12] = [
     "colmap_bin",
     "colmap_txt",
     "npy",
+    "ws",
 ];
 
 fn cases_per_reader() -> usize {
@@ -279,8 +282,170 @@ fn seeds(reader: &str, dir: &Path) -> Vec<PathBuf> {
             std::fs::write(&f, b).unwrap();
             vec![f]
         }
+        "ws" => {
+            let advertise = r#"{"op":"advertise","channels":[{"id":7,"topic":"/gt","encoding":"ros1","schemaName":"geometry_msgs/PoseStamped","schema":"..."},{"id":8,"topic":"/kf","encoding":"ros1","schemaName":"lsd_slam_viewer/keyframeMsg","schema":"..."}]}"#;
+            let pose = ws_message(1, 42, &[0u8; 60]);
+            // Channels, a few messages, a withdrawal and a second advertise.
+            let mut a = Vec::new();
+            ws_frame(&mut a, b'T', advertise.as_bytes());
+            for i in 0..4 {
+                ws_frame(
+                    &mut a,
+                    b'B',
+                    &ws_message(1 + i % 2, 42 + i as u64, &[i as u8; 60]),
+                );
+            }
+            ws_frame(&mut a, b'T', br#"{"op":"unadvertise","channelIds":[8]}"#);
+            ws_frame(&mut a, b'T', advertise.as_bytes());
+            ws_frame(&mut a, b'B', &pose);
+            // A huge advertised schema (1 MiB).
+            let mut b = Vec::new();
+            let huge = format!(
+                r#"{{"op":"advertise","channels":[{{"id":1,"topic":"/gt","encoding":"ros1","schemaName":"geometry_msgs/PoseStamped","schema":"{}"}}]}}"#,
+                "x".repeat(1 << 20)
+            );
+            ws_frame(&mut b, b'T', huge.as_bytes());
+            ws_frame(&mut b, b'B', &pose);
+            // A flood: 5000 messages.
+            let mut c = Vec::new();
+            ws_frame(&mut c, b'T', advertise.as_bytes());
+            for i in 0..5000u64 {
+                ws_frame(&mut c, b'B', &ws_message(1, i, &[0u8; 8]));
+            }
+            let names = ["frames.ws", "huge_schema.ws", "flood.ws"];
+            names
+                .iter()
+                .zip([a, b, c])
+                .map(|(n, bytes)| {
+                    std::fs::write(p(n), bytes).unwrap();
+                    p(n)
+                })
+                .collect()
+        }
         other => panic!("unknown reader {other}"),
     }
+}
+
+/// A `ws` case's frame: kind (`T` text, `B` binary), length (`u32` LE), bytes.
+fn ws_frame(out: &mut Vec<u8>, kind: u8, payload: &[u8]) {
+    out.push(kind);
+    out.extend_from_slice(&(payload.len() as u32).to_le_bytes());
+    out.extend_from_slice(payload);
+}
+
+/// A message frame of the protocol: opcode 1, subscription, log time, payload.
+fn ws_message(sub: u32, t: u64, payload: &[u8]) -> Vec<u8> {
+    let mut b = vec![1u8];
+    b.extend_from_slice(&sub.to_le_bytes());
+    b.extend_from_slice(&t.to_le_bytes());
+    b.extend_from_slice(payload);
+    b
+}
+
+/// The frames of a (mutated) `ws` case, read leniently: a length past the
+/// end takes what is left, a kind other than `T` is a binary frame.
+#[cfg(feature = "live")]
+fn ws_frames(b: &[u8]) -> Vec<tungstenite::Message> {
+    let mut out = Vec::new();
+    let mut rest = b;
+    while rest.len() >= 5 {
+        let kind = rest[0];
+        let n = u32::from_le_bytes([rest[1], rest[2], rest[3], rest[4]]) as usize;
+        let body = &rest[5..];
+        let n = n.min(body.len());
+        out.push(if kind == b'T' {
+            tungstenite::Message::text(String::from_utf8_lossy(&body[..n]).into_owned())
+        } else {
+            tungstenite::Message::binary(body[..n].to_vec())
+        });
+        rest = &body[n..];
+    }
+    out
+}
+
+/// `follow ws://`'s client against a server that sends the case's frames
+/// and then goes: the messages it received, and the error it ended on (none:
+/// the server went quiet for 5 s).
+#[cfg(feature = "live")]
+fn ws_exchange(path: &Path) -> (usize, Option<slam2world::Error>) {
+    use slam2world::live::WsSource;
+    let frames = ws_frames(&std::fs::read(path).unwrap());
+    let listener = std::net::TcpListener::bind("127.0.0.1:0").unwrap();
+    let url = format!("ws://{}", listener.local_addr().unwrap());
+    let server = std::thread::spawn(move || {
+        let Ok((stream, _)) = listener.accept() else {
+            return;
+        };
+        let _ = stream.set_read_timeout(Some(Duration::from_secs(5)));
+        let agree = |_: &tungstenite::handshake::server::Request,
+                     mut r: tungstenite::handshake::server::Response| {
+            r.headers_mut()
+                .insert("Sec-WebSocket-Protocol", "foxglove.sdk.v1".parse().unwrap());
+            Ok(r)
+        };
+        let Ok(mut ws) = tungstenite::accept_hdr(stream, agree) else {
+            return;
+        };
+        for f in frames {
+            if ws.send(f).is_err() {
+                return;
+            }
+        }
+        // A closing handshake (what the client sent read meanwhile), so
+        // that no frame is lost to a reset.
+        let _ = ws.close(None);
+        while ws.read().is_ok() {}
+    });
+    let mut got = 0;
+    let r = (|| {
+        let mut src = WsSource::connect(&url, Duration::from_secs(5))?;
+        src.set_wait(Duration::from_millis(50))?;
+        let mut quiet = 0;
+        while quiet < 100 {
+            quiet = match src.recv()? {
+                Some(_) => {
+                    got += 1;
+                    0
+                }
+                None => quiet + 1,
+            };
+        }
+        Ok::<(), slam2world::Error>(())
+    })();
+    let _ = server.join();
+    (got, r.err())
+}
+
+#[cfg(feature = "live")]
+fn read_ws_case(path: &Path) -> slam2world::Result<()> {
+    match ws_exchange(path) {
+        (_, Some(e)) => Err(e),
+        _ => Ok(()),
+    }
+}
+
+/// The `ws` seeds reach the client whole: what the mutations start from.
+#[cfg(feature = "live")]
+#[test]
+fn ws_seeds_are_received_whole() {
+    let dir = tempfile::tempdir().unwrap();
+    let seeds = seeds("ws", dir.path());
+    let got: Vec<(usize, String)> = seeds
+        .iter()
+        .map(|p| {
+            let (n, e) = ws_exchange(p);
+            (n, e.map(|e| e.to_string()).unwrap_or_default())
+        })
+        .collect();
+    // 4 + 1 messages of subscribed channels (the one after the withdrawal
+    // re-subscribed), the huge schema's 1, the flood's 5000; each ended by
+    // the server's going.
+    assert_eq!(
+        got.iter().map(|g| g.0).collect::<Vec<_>>(),
+        [5, 1, 5000],
+        "{got:?}"
+    );
+    assert!(got.iter().all(|g| g.1.contains("connection")), "{got:?}");
 }
 
 fn map_params() -> MapParams {
@@ -416,6 +581,10 @@ fn read_case(reader: &str, path: &Path) -> Result<(), String> {
         "xyz" => slam2world::io::ply::read_xyz_text(path).map(|_| ()),
         "colmap_bin" | "colmap_txt" => slam2world::io::colmap::read_colmap(path, None).map(|_| ()),
         "npy" => slam2world::io::npy::read_npy(path).map(|_| ()),
+        #[cfg(feature = "live")]
+        "ws" => read_ws_case(path),
+        #[cfg(not(feature = "live"))]
+        "ws" => Ok(()),
         other => return Err(format!("unknown reader {other}")),
     };
     // A typed error is an answer; its message must stay one reasonable line.

@@ -27,6 +27,7 @@ import numpy as np
 import pytest
 from mcap.reader import make_reader
 from mcap_protobuf.decoder import DecoderFactory as ProtobufDecoderFactory
+from websockets.exceptions import ConnectionClosed
 from websockets.sync.client import connect
 
 import slam2world as sw
@@ -166,6 +167,45 @@ def test_a_client_of_the_protocol_gets_every_channel_of_world_mcap(world: Path) 
     # Nothing listens there any more.
     with pytest.raises(ConnectionRefusedError), socket.socket() as s:
         s.connect(("127.0.0.1", srv.port))
+
+
+def test_the_layout_is_the_sdk_s_and_names_the_topics_the_world_has(
+    world: Path, tmp_path: Path
+) -> None:
+    """The Foxglove layout shipped (`slam2world layout`, `foxglove_layout()`) is what
+    `src/live/layout.py` builds with the Foxglove SDK's layout API today, and its 3-D panel
+    has a setting for every topic of the world but the transforms."""
+    import importlib.util
+
+    script = Path(__file__).parents[2] / "src" / "live" / "layout.py"
+    spec = importlib.util.spec_from_file_location("s2w_layout", script)
+    assert spec is not None and spec.loader is not None
+    module = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(module)
+    assert sw.foxglove_layout() == module.layout_json()
+    assert run_cli(["slam2world", "layout", "-o", str(tmp_path / "layout.json")]) == 0
+    assert (tmp_path / "layout.json").read_text() == sw.foxglove_layout()
+
+    named: set[str] = set()
+    scene: set[str] = set()
+
+    def walk(node: Any) -> None:
+        if isinstance(node, dict):
+            if node.get("panelType") == "ThreeDee":
+                scene.update(node["config"]["topics"])
+            for key in ("topicPath", "value"):
+                if isinstance(node.get(key), str) and node[key].startswith("/"):
+                    named.add(node[key].split(".", 1)[0])
+            for v in node.values():
+                walk(v)
+        elif isinstance(node, list):
+            for v in node:
+                walk(v)
+
+    walk(json.loads(sw.foxglove_layout()))
+    channels, _ = file_messages(world / "world.mcap")
+    assert scene == set(channels) - {"/tf"}
+    assert named == {"/slam2world/state"}
 
 
 def test_bad_worlds_and_taken_ports_are_refused_with_the_reason(
@@ -389,6 +429,124 @@ def test_follow_a_foxglove_sdk_server_ends_where_convert_of_the_log_does(tmp_pat
     sample = rec["p"][:: max(1, len(rec) // 200)].astype(np.float64)
     nearest = [np.sqrt(((full - p) ** 2).sum(axis=1).min()) for p in sample]
     assert max(nearest) < 1e-3
+
+
+class _SdkServer:
+    """The Foxglove SDK's server on `port` with a channel for each of the log's, in a context
+    of its own (a server started again advertises its own channels only; the SDK holds the
+    context weakly, so it is kept here)."""
+
+    def __init__(self, msgs: list, port: int = 0) -> None:
+        self.listener = _Subscriptions()
+        self.context = foxglove.Context()
+        self.server = foxglove.start_server(
+            port=port, server_listener=self.listener, context=self.context
+        )
+        self.channels: dict[int, foxglove.Channel] = {}
+        for sch, c, _ in msgs:
+            if c.id not in self.channels:
+                schema = foxglove.Schema(name=sch.name, encoding=sch.encoding, data=sch.data)
+                self.channels[c.id] = foxglove.Channel(
+                    c.topic,
+                    message_encoding=c.message_encoding,
+                    schema=schema,
+                    context=self.context,
+                )
+
+
+def _publish(msgs: list, channels: dict[int, foxglove.Channel]) -> None:
+    """Logs `msgs` on `channels` at the pace of their log times."""
+    t0, wall0 = msgs[0][2].log_time, time.monotonic()
+    for _, c, m in msgs:
+        wait = (m.log_time - t0) * 1e-9 - (time.monotonic() - wall0)
+        if wait > 0:
+            time.sleep(wait)
+        channels[c.id].log(m.data, log_time=m.log_time)
+
+
+def _wait_subscribed(listener: _Subscriptions) -> None:
+    deadline = time.monotonic() + 30
+    while not listener.topics and time.monotonic() < deadline:
+        time.sleep(0.05)
+    time.sleep(0.5)
+    assert {"/lsd_slam/keyframes", "/ground_truth/pose"} <= set(listener.topics)
+
+
+@pytest.mark.slow
+def test_follow_ws_goes_on_after_the_server_goes_away_and_comes_back(tmp_path: Path) -> None:
+    """The server stops halfway through the run and a new one starts on the same port:
+    `follow ws://` reconnects, subscribes again and, having missed nothing (the publisher
+    waited), ends on `convert`'s transform and octree; the report counts both losses."""
+    log, out = tmp_path / "run.mcap", tmp_path / "out"
+    assert run_cli(["slam2world", "simulate", "-o", str(log), "--reduced", "8", "--seed", "4"]) == 0
+    with log.open("rb") as f:
+        msgs = list(make_reader(f).iter_messages(log_time_order=True))
+    sdk = _SdkServer(msgs)
+    port = sdk.server.port
+    url = f"ws://127.0.0.1:{port}"
+    follow = [sys.executable, "-m", "slam2world.cli", "follow", url, "-o", str(out)]
+    follow += ["--stable-hold", "0.3", "--idle-timeout", "4", "-q"]
+    half = len(msgs) // 2
+    with subprocess.Popen(follow, stderr=subprocess.PIPE, text=True) as proc:
+        try:
+            _wait_subscribed(sdk.listener)
+            _publish(msgs[:half], sdk.channels)
+            time.sleep(0.5)
+            sdk.server.stop()
+            time.sleep(1.0)
+            sdk = _SdkServer(msgs, port)
+            _wait_subscribed(sdk.listener)
+            _publish(msgs[half:], sdk.channels)
+            time.sleep(1.0)
+            sdk.server.stop()
+            assert proc.wait(timeout=60) == 0
+            assert proc.stderr is not None
+            assert proc.stderr.read().count("connection lost") == 2
+        finally:
+            sdk.server.stop()
+            if proc.poll() is None:
+                proc.kill()
+    report = json.loads((out / "report.json").read_text())
+    assert report["finished"] and report["disconnections"] == 2
+    assert report["end"] == "server gone (2 connections lost)"
+    conv = sw.convert(log, skip_init="auto", octree_resolution=0.1, octree_max_range=10.0)
+    t = conv.report["t_world_slam"]
+    assert report["keyframes"] == conv.report["keyframes"]
+    assert report["t_world_slam"]["scale"] == pytest.approx(t["scale"], rel=1e-9)
+    assert conv.octree is not None
+    conv.octree.write_bt(tmp_path / "batch.bt")
+    assert (out / "map.bt").read_bytes() == (tmp_path / "batch.bt").read_bytes()
+
+
+@pytest.mark.slow
+def test_a_hostile_client_does_not_stop_the_server_serving_others(world: Path) -> None:
+    """Malformed frames, a subscription to channels that do not exist, a flood of
+    subscribes and a huge frame from one client: the server goes on, another client gets
+    the world whole."""
+    channels, messages = file_messages(world / "world.mcap")
+    want = {t: len(m) for t, m in messages.items()}
+    with sw.serve(world, port=0) as srv:
+        with connect(srv.url, subprotocols=[SUBPROTOCOL], max_size=None) as bad:
+            json.loads(bad.recv(timeout=10))
+            subs = [{"id": i, "channelId": 10_000 + i} for i in range(10_000)]
+            frames: list[str | bytes] = ["{not json", '{"op":"subscribe"}', '{"op":42}', "[]"]
+            frames += [b"\x00\x01\x02", json.dumps({"op": "subscribe", "subscriptions": subs})]
+            frames += [
+                json.dumps({"op": "subscribe", "subscriptions": [{"id": i, "channelId": 1}]})
+                for i in range(2000)
+            ]
+            frames.append(b"\x07" * (16 << 20))
+            try:
+                for f in frames:
+                    bad.send(f)
+            except ConnectionClosed:
+                pass  # the server may close a client that breaks the protocol
+            _, got = receive_world(srv.url, want)
+            for topic, m in messages.items():
+                assert got[topic] == m, topic
+        assert srv.running
+        _, got = receive_world(srv.url, want)
+        assert got == messages
 
 
 def test_a_client_that_reads_nothing_neither_holds_the_others_nor_the_stop(tmp_path: Path) -> None:
