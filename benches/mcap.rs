@@ -179,6 +179,7 @@ fn bench(c: &mut Criterion) {
         stamp: 10.0,
         world_frame: "world",
         slam_frame: "slam",
+        frames: &[],
     };
     let world = dir.path().join("world.mcap");
     let peer = dir.path().join("peer.mcap");

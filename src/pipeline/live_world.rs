@@ -7,6 +7,7 @@ use std::path::Path;
 
 use crate::cloud::PointFilter;
 use crate::error::Result;
+use crate::geometry::Sim3;
 use crate::io::atomic::OutputSet;
 use crate::io::mcap::grid_msgs::{grid_channels, GridChannel};
 use crate::io::mcap::write::{topics, write_world_mcap_extra_into, ExtraChannel};
@@ -22,7 +23,9 @@ use crate::trajectory::Trajectory;
 /// world cloud bounded for a viewer ([`LiveCloud`]: each keyframe
 /// backprojected once, again only when the graph moves it), the keyframe
 /// path and the reference path in the world frame (each at most
-/// [`crate::defaults::LIVE_PATH_POSES`] poses), `world → slam`, the
+/// [`crate::defaults::LIVE_PATH_POSES`] poses), `world → slam`,
+/// `world → camera` (the latest keyframe), `world → body` (the latest
+/// reference pose), the
 /// occupied voxels, the 2-D grid when asked for, and the session's state as
 /// JSON on `/slam2world/state` (a [`FollowReport`]).
 pub struct SessionWorld {
@@ -93,8 +96,11 @@ impl SessionWorld {
             data: state,
         });
         let (points, colors) = self.cloud.update(session.keyframes(), &t.transform)?;
-        let slam = thin(keyframe_path(session)?)?.transformed(&t.transform);
-        let reference = session.reference_path()?.map(thin).transpose()?;
+        let keyframes = keyframe_path(session)?;
+        let reference = session.reference_path()?;
+        let frames = latest_frames(&t.transform, session, reference.as_ref());
+        let slam = thin(keyframes)?.transformed(&t.transform);
+        let reference = reference.map(thin).transpose()?;
         let scene = WorldScene {
             cloud: CloudRef::Memory(&points, colors.as_deref()),
             t_world_slam: t.transform,
@@ -103,6 +109,7 @@ impl SessionWorld {
             stamp,
             world_frame: "world",
             slam_frame: "slam",
+            frames: &frames,
         };
         let leaves = map.leaves(VoxelState::Occupied);
         write_world_mcap_extra_into(set, path, &scene, Some(&leaves), &extra, self.flavor)?;
@@ -152,6 +159,39 @@ impl FollowReport {
         self.insert_s = t.insert_s;
         self.latency_s = latency;
     }
+}
+
+/// The frames under the world besides `slam`: `camera`, the latest keyframe
+/// (`T_world_slam · T_slam_cam`), and `body`, the latest reference pose
+/// when it has an orientation (a 3-D panel can follow either).
+fn latest_frames(
+    t_world_slam: &Sim3,
+    session: &Session,
+    reference: Option<&Trajectory>,
+) -> Vec<(&'static str, Sim3)> {
+    let mut frames = Vec::new();
+    if let Some(kf) = session
+        .keyframes()
+        .max_by(|a, b| a.timestamp.total_cmp(&b.timestamp))
+    {
+        frames.push(("camera", *t_world_slam * kf.pose));
+    }
+    if let Some(r) = reference {
+        if let (Some(p), Some(q)) = (
+            r.positions.last(),
+            r.orientations.as_ref().and_then(|o| o.last()),
+        ) {
+            frames.push((
+                "body",
+                Sim3 {
+                    rotation: *q,
+                    translation: *p,
+                    scale: 1.0,
+                },
+            ));
+        }
+    }
+    frames
 }
 
 /// The JSON Schema of the state channel's messages (`report.json`'s).

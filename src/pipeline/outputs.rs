@@ -164,6 +164,7 @@ impl Conversion {
             stamp: self.world_stamp()?,
             world_frame: "world",
             slam_frame: "slam",
+            frames: &[],
         };
         let leaves = octree.map(|m| m.leaves(VoxelState::Occupied));
         let channels = match &self.grid {

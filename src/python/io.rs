@@ -258,6 +258,7 @@ fn write_world_mcap_py(
             stamp,
             world_frame: "world",
             slam_frame: "slam",
+            frames: &[],
         };
         io_mcap::write_world_mcap(&path, &scene, flavor)
     })?;

@@ -685,6 +685,7 @@ fn world_mcap_reads_back() {
             stamp: 12.5,
             world_frame: "world",
             slam_frame: "slam",
+            frames: &[],
         };
         write_world_mcap(&path, &scene, flavor).unwrap();
         let file = McapFile::open(&path).unwrap();

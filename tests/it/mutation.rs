@@ -142,6 +142,7 @@ fn seeds(reader: &str, dir: &Path) -> Vec<PathBuf> {
                 stamp: 5.0,
                 world_frame: "world",
                 slam_frame: "slam",
+                frames: &[],
             };
             slam2world::io::mcap::write_world_mcap(
                 &world,

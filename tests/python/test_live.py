@@ -343,6 +343,19 @@ def test_a_session_serves_its_world_as_it_grows() -> None:
         t = s.transform()
         assert t is not None and states[-1]["t_world_slam"]["scale"] == pytest.approx(t.scale)
         assert sorted(srv.topics) == sorted(messages)
+        # The frames under the world: slam, the latest keyframe's camera, the latest
+        # reference pose's body.
+        with srv.path.open("rb") as f:
+            reader = make_reader(f, decoder_factories=[ProtobufDecoderFactory()])
+            tf = {m.child_frame_id: m for _, _, _, m in reader.iter_decoded_messages(["/tf"])}
+        assert set(tf) == {"slam", "camera", "body"}
+        assert all(m.parent_frame_id == "world" for m in tf.values())
+        b = tf["body"].translation
+        assert [b.x, b.y, b.z] == pytest.approx(rp[-1].tolist(), abs=1e-12)
+        c = tf["camera"].translation
+        last = max(keyframes, key=lambda k: k.timestamp)
+        want = (t @ last.pose).translation
+        assert [c.x, c.y, c.z] == pytest.approx(want.tolist(), abs=1e-9)
     finally:
         stop.set()
         srv.stop()

@@ -50,6 +50,10 @@ pub struct WorldScene<'a> {
     pub world_frame: &'a str,
     /// Frame name of the SLAM map (`slam`).
     pub slam_frame: &'a str,
+    /// More frames under the world, each one more `/tf` message after
+    /// `world → slam` (`follow`'s `camera`, the latest keyframe, and `body`,
+    /// the latest reference pose); their scale is not written.
+    pub frames: &'a [(&'a str, Sim3)],
 }
 
 /// The most points one cloud message of `world.mcap` holds (64 MiB of
@@ -731,6 +735,10 @@ fn write_world_impl(
                     &scene.t_world_slam,
                 );
                 put(&mut w, &mut tf, &msg)?;
+                for (child, pose) in scene.frames {
+                    let msg = foxglove_frame_transform(scene.stamp, scene.world_frame, child, pose);
+                    put(&mut w, &mut tf, &msg)?;
+                }
                 clouds(&mut w, &mut cloud, false)?;
                 for (topic, traj) in [
                     (
@@ -764,6 +772,10 @@ fn write_world_impl(
                     &scene.t_world_slam,
                 );
                 put(&mut w, &mut tf, &msg)?;
+                for (child, pose) in scene.frames {
+                    let msg = ros2_tf(scene.stamp, scene.world_frame, child, pose);
+                    put(&mut w, &mut tf, &msg)?;
+                }
                 clouds(&mut w, &mut cloud, true)?;
                 if let Some(leaves) = octomap {
                     let mut ch =
