@@ -879,6 +879,7 @@ class Session:
         host: str = "127.0.0.1",
         grid: tuple[float, float] | None = None,
         ros2: bool = False,
+        points: int = 500000,
     ) -> WorldServer: ...
 
 def convert(

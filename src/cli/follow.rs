@@ -95,6 +95,10 @@ pub struct FollowArgs {
     /// Write ROS 2 messages into world.mcap instead of Foxglove schemas.
     #[arg(long)]
     pub ros2: bool,
+    /// Most points of world.mcap's cloud, sent whole at every keyframe with
+    /// --serve (16 bytes a point: lower it for a slow link).
+    #[arg(long, value_name = "N", default_value_t = defaults::LIVE_MAX_POINTS, value_parser = clap::builder::RangedU64ValueParser::<usize>::new().range(1..))]
+    pub live_points: usize,
     /// Serve the world on a Foxglove WebSocket as it grows (`PORT` on this
     /// machine, or `HOST:PORT`; 0: a free port, printed), and the final one
     /// once the log ends, until Ctrl-C.
@@ -214,6 +218,7 @@ pub fn run(args: &FollowArgs) -> Result<()> {
         server,
         world: SessionWorld::new(
             PointFilter::default(),
+            args.live_points,
             grid,
             if args.ros2 {
                 WorldFlavor::Ros2

@@ -46,13 +46,21 @@ pub struct WorldWritten {
 
 impl SessionWorld {
     /// The world of a session whose points pass `filter` (the session's
-    /// own), with the 2-D grid `grid` when given, in the schemas of `flavor`.
-    pub fn new(filter: PointFilter, grid: Option<GridParams>, flavor: WorldFlavor) -> Self {
+    /// own), with at most `max_points` cloud points
+    /// ([`crate::defaults::LIVE_MAX_POINTS`] by default; at most
+    /// [`crate::defaults::LIVE_KEYFRAME_POINTS`] of one keyframe), the 2-D
+    /// grid `grid` when given, in the schemas of `flavor`.
+    pub fn new(
+        filter: PointFilter,
+        max_points: usize,
+        grid: Option<GridParams>,
+        flavor: WorldFlavor,
+    ) -> Self {
         SessionWorld {
             cloud: LiveCloud::new(
                 filter,
-                crate::defaults::LIVE_KEYFRAME_POINTS,
-                crate::defaults::LIVE_MAX_POINTS,
+                crate::defaults::LIVE_KEYFRAME_POINTS.min(max_points),
+                max_points,
             ),
             grid,
             flavor,

@@ -272,11 +272,13 @@ impl PySession {
     /// a viewer), the keyframe and reference paths, `world → slam`, the
     /// occupied voxels, the 2-D grid between `grid=(z_min, z_max)` when
     /// given, and the state (`follow`'s report) as JSON, in Foxglove schemas
-    /// or ROS 2 messages (`ros2=True`). Returns the `WorldServer`; its
+    /// or ROS 2 messages (`ros2=True`). The cloud is sent whole at each
+    /// update, at most `points` points (16 bytes each: lower it for a slow
+    /// link). Returns the `WorldServer`; its
     /// `stop()` ends the serving (the session goes on). A session serves
     /// once at a time: a second call stops the first server. Each update
     /// then also writes the world (tens of milliseconds for a large map).
-    #[pyo3(signature = (port=8765, *, host="127.0.0.1", grid=None, ros2=false))]
+    #[pyo3(signature = (port=8765, *, host="127.0.0.1", grid=None, ros2=false, points=crate::defaults::LIVE_MAX_POINTS))]
     fn serve(
         &mut self,
         py: Python<'_>,
@@ -284,7 +286,11 @@ impl PySession {
         host: &str,
         grid: Option<(f64, f64)>,
         ros2: bool,
+        points: usize,
     ) -> PyResult<Py<PyWorldServer>> {
+        if points == 0 {
+            return Err(crate::Error::invalid("points", "must be at least 1").into());
+        }
         let grid = grid.map(|(lo, hi)| GridParams::new(lo, hi));
         if let Some(g) = &grid {
             g.check()?;
@@ -310,7 +316,7 @@ impl PySession {
         };
         self.live = Some(LiveServe {
             server: server.clone_ref(py),
-            world: SessionWorld::new(self.inner.options().filter, grid, flavor),
+            world: SessionWorld::new(self.inner.options().filter, points, grid, flavor),
             report: FollowReport::new(std::path::Path::new("Session")),
             dir,
         });

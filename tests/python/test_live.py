@@ -253,6 +253,7 @@ def test_follow_serves_the_world_as_it_is_written_and_the_final_one_until_ctrl_c
     assert run_cli(["slam2world", "simulate", "-o", str(log), "--reduced", "4"]) == 0
     argv = [sys.executable, "-m", "slam2world.cli", "follow", str(log), "-o", str(out)]
     argv += ["--serve", "0", "--grid", "0.1", "1.0", "--stable-hold", "0.3", "-q"]
+    argv += ["--live-points", "5000"]
     received: dict[str, list[tuple[int, bytes]]] = defaultdict(list)
     errors: list[BaseException] = []
     stop = threading.Event()
@@ -281,6 +282,11 @@ def test_follow_serves_the_world_as_it_is_written_and_the_final_one_until_ctrl_c
             assert state == json.loads((out / "report.json").read_text())
             assert state["finished"] and state["stage"] == "stable"
             assert {"/world/cloud", "/world/slam_trajectory"} <= set(messages)
+            # The cloud within --live-points (16 bytes a point).
+            with (out / "world.mcap").open("rb") as f:
+                reader = make_reader(f, decoder_factories=[ProtobufDecoderFactory()])
+                (pc,) = [m for _, _, _, m in reader.iter_decoded_messages(["/world/cloud"])]
+            assert pc.point_stride == 16 and 1000 < len(pc.data) // 16 <= 5000
             proc.send_signal(signal.SIGINT)
             assert proc.wait(timeout=20) == 0
         finally:
@@ -298,6 +304,8 @@ def test_a_session_serves_its_world_as_it_grows() -> None:
     s = sw.Session(stable_hold=1.0)
     with pytest.raises(sw.InvalidInputError, match="z_min"):
         s.serve(0, grid=(1.0, 0.0))
+    with pytest.raises(sw.InvalidInputError, match="points"):
+        s.serve(0, points=0)
     srv = s.serve(0, grid=(0.25, 0.75))
     assert srv.running and srv.url == f"ws://127.0.0.1:{srv.port}"
     assert srv.topics == []  # nothing before the transform
