@@ -3,14 +3,16 @@ Foxglove client, and the follower's memory, with a stalled client or without.
 
 Usage::
 
-    python benches/live_latency.py [--reduced K] [--seed S] [--stalled] [--json PATH]
+    python benches/live_latency.py [--reduced K] [--seed S] [--stalled] [--live-points N]
+                                   [--json PATH]
 
 A simulated ground vehicle with no second sensor (`simulate --reduced K --no-reference
 --no-imu`, the camera 1.2 m up; the follower scales from `--camera-height`) is published in
 real time by the Foxglove SDK's own Python server (`foxglove-sdk`); `slam2world follow
 ws://… --serve 0` follows it and serves its world; two clients written against the protocol
 subscribe to everything the follower serves (`--stalled` adds a third that subscribes and
-then never reads). For each keyframe the follower
+then never reads; `--live-points` is follow's bound on the cloud sent at every update). For
+each keyframe the follower
 reports (`/slam2world/state`, `last_keyframe`), the latency is the time from the publisher's
 `log()` of that keyframe to the `/world/cloud` message of the same refresh at a reading client
 (a refresh sends the file in its order: the cloud, then the state). Prints p50, p99 and max
@@ -145,6 +147,7 @@ def main() -> int:
     ap.add_argument("--reduced", type=int, default=2)
     ap.add_argument("--seed", type=int, default=2)
     ap.add_argument("--stalled", action="store_true")
+    ap.add_argument("--live-points", type=int, default=None)
     ap.add_argument("--json", type=Path)
     args = ap.parse_args()
     tmp = Path(tempfile.mkdtemp(prefix="s2w-live-"))
@@ -186,6 +189,8 @@ def main() -> int:
         "0.75",
         "-q",
     ]
+    if args.live_points is not None:
+        follow += ["--live-points", str(args.live_points)]
     proc = subprocess.Popen(follow, stdout=subprocess.PIPE, text=True)
     assert proc.stdout is not None
     serve_url = proc.stdout.readline().split(" on ", 1)[1].split(" ", 1)[0]
@@ -223,6 +228,7 @@ def main() -> int:
     result: dict[str, Any] = {
         "reduced": args.reduced,
         "stalled": args.stalled,
+        "live_points": args.live_points,
         "keyframes": len(published),
         "follower_peak_rss_mib": hwm_kib / 1024,
         "end": final.strip(),
@@ -240,6 +246,16 @@ def main() -> int:
                 sent = [t for t in published.get(k, []) if t <= last_cloud]
                 if sent:
                     lat.append(1e3 * (last_cloud - sent[-1]))
+                    if os.environ.get("S2W_DEBUG") and g is got[0]:
+                        st = json.loads(payload)
+                        print(
+                            f"kf {k} e2e {lat[-1]:.1f} ms; follower: "
+                            + " ".join(
+                                f"{n} {1e3 * st[n]:.1f}"
+                                for n in ("decode_s", "fit_s", "backproject_s", "insert_s")
+                            )
+                            + f" rebuilds {st['rebuilds']}"
+                        )
                 last_cloud = None
         result["clients"].append(percentiles(lat) if lat else {"n": 0})
     if os.environ.get("S2W_DEBUG"):

@@ -525,7 +525,9 @@ fn write_outputs(
     // report.json, and the same bytes as the state message of world.mcap.
     let report_json = to_json_bytes(report)?;
     let path = set.path(WORLD_MCAP);
-    let written = world.write_into(&mut set, &path, session, &report_json)?;
+    // Stored uncompressed while it changes at every keyframe; the last one
+    // compressed.
+    let written = world.write_into(&mut set, &path, session, &report_json, report.finished)?;
     if let (true, Some(map)) = (written.world, session.map()) {
         set.write_bytes(&set.path(MAP_BT), &map.to_bt_bytes())?;
     }

@@ -106,23 +106,47 @@ impl LiveCloud {
         let total: usize = self.cache.values().map(|e| e.points.len() / 3).sum();
         let stride = total.div_ceil(self.max_points).max(1);
         let with_colors = self.cache.values().all(|e| e.colors.is_some());
-        let mut points = Vec::with_capacity(3 * total.div_ceil(stride));
-        let mut colors = Vec::new();
+        // Every stride-th point of the keyframes in order: the points whose
+        // index over the whole run is a multiple of the stride, each
+        // keyframe's first one found from the points before it.
+        let kept = total.div_ceil(stride);
+        let mut points = Vec::with_capacity(3 * kept);
+        let mut colors = Vec::with_capacity(if with_colors { 3 * kept } else { 0 });
         let mut k = 0usize;
         for id in &order {
             let e = &self.cache[id];
-            for (j, p) in e.points.chunks_exact(3).enumerate() {
-                if k % stride == 0 {
-                    points.extend_from_slice(p);
-                    if let (true, Some(c)) = (with_colors, &e.colors) {
-                        colors.extend_from_slice(&c[3 * j..3 * j + 3]);
-                    }
-                }
-                k += 1;
+            let n = e.points.len() / 3;
+            let first = (stride - k % stride) % stride;
+            k += n;
+            if first >= n {
+                continue;
+            }
+            let m = (n - first).div_ceil(stride);
+            take_every(&mut points, &e.points, first, stride, m);
+            if let (true, Some(c)) = (with_colors, &e.colors) {
+                take_every(&mut colors, c, first, stride, m);
             }
         }
         t_world_slam.transform_points_in_place(&mut points)?;
         Ok((points, with_colors.then_some(colors)))
+    }
+}
+
+/// Appends to `out` the `m` triples of `src` at `first`, `first + stride`, …
+fn take_every<T: Copy + Default>(
+    out: &mut Vec<T>,
+    src: &[T],
+    first: usize,
+    stride: usize,
+    m: usize,
+) {
+    let start = out.len();
+    out.resize(start + 3 * m, T::default());
+    for (dst, j) in out[start..]
+        .chunks_exact_mut(3)
+        .zip((first..).step_by(stride))
+    {
+        dst.copy_from_slice(&src[3 * j..3 * j + 3]);
     }
 }
 

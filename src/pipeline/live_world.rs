@@ -69,14 +69,17 @@ impl SessionWorld {
 
     /// Writes the world of `session` as it stands to `path`, one output of
     /// `set` (published when the set is committed), with `state` (the
-    /// report's JSON bytes) on the state channel. Nothing before the
-    /// transform is known.
+    /// report's JSON bytes) on the state channel; its chunks zstd-compressed
+    /// with `compress`, else stored (what a world written again at every
+    /// update wants: compressing 8 MB of points took 30 ms of each keyframe's
+    /// 70). Nothing before the transform is known.
     pub fn write_into(
         &mut self,
         set: &mut OutputSet,
         path: &Path,
         session: &Session,
         state: &[u8],
+        compress: bool,
     ) -> Result<WorldWritten> {
         let (Some(map), Ok(t)) = (session.map(), session.transform()) else {
             return Ok(WorldWritten {
@@ -120,7 +123,15 @@ impl SessionWorld {
             frames: &frames,
         };
         let leaves = map.leaves(VoxelState::Occupied);
-        write_world_mcap_extra_into(set, path, &scene, Some(&leaves), &extra, self.flavor)?;
+        write_world_mcap_extra_into(
+            set,
+            path,
+            &scene,
+            Some(&leaves),
+            &extra,
+            self.flavor,
+            compress,
+        )?;
         Ok(WorldWritten { world: true, grid })
     }
 }

@@ -172,7 +172,7 @@ impl Conversion {
             None => Vec::new(),
         };
         let extra: Vec<ExtraChannel<'_>> = channels.iter().map(GridChannel::as_extra).collect();
-        write_world_mcap_extra_into(set, path, &scene, leaves.as_deref(), &extra, flavor)
+        write_world_mcap_extra_into(set, path, &scene, leaves.as_deref(), &extra, flavor, true)
     }
 
     /// Writes `world.mcap` with the conversion's own octree.

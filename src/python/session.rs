@@ -96,7 +96,7 @@ impl PySession {
         let mut set = OutputSet::new();
         let session = &self.inner;
         let world = &mut live.world;
-        let written = py.detach(|| world.write_into(&mut set, &path, session, &state))?;
+        let written = py.detach(|| world.write_into(&mut set, &path, session, &state, false))?;
         if written.world {
             set.commit()?;
             live.server.borrow(py).refresh();

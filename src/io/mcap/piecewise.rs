@@ -30,10 +30,12 @@ const CHUNK_TARGET: u64 = 4 << 20;
 /// zstd's default level, as the `mcap` crate writes.
 const ZSTD_LEVEL: i32 = 3;
 
-/// Bytes of a chunk record before its compressed records: opcode, record
+/// Bytes of a chunk record before its (compressed) records: opcode, record
 /// length, start and end time, uncompressed size and CRC, the compression
-/// string `zstd`, the records' length.
-const CHUNK_HEAD: u64 = 1 + 8 + 8 + 8 + 8 + 4 + (4 + 4) + 8;
+/// string (`zstd`, or empty), the records' length.
+fn chunk_head(compression: &[u8]) -> u64 {
+    1 + 8 + 8 + 8 + 8 + 4 + (4 + compression.len() as u64) + 8
+}
 
 /// Little-endian record fields into a buffer.
 #[derive(Default)]
@@ -89,8 +91,20 @@ struct OpenChunk {
     times: Option<(u64, u64)>,
     /// Per channel: (log time, offset in the uncompressed records).
     index: BTreeMap<u16, Vec<(u64, u64)>>,
-    /// The encoder, its output drained after every write.
-    encoder: zstd::stream::write::Encoder<'static, Vec<u8>>,
+    /// The encoder, its output drained after every write (none: the
+    /// records stored as they are).
+    encoder: Option<zstd::stream::write::Encoder<'static, Vec<u8>>>,
+}
+
+impl OpenChunk {
+    /// The chunk's compression string.
+    fn compression(&self) -> &'static [u8] {
+        if self.encoder.is_some() {
+            b"zstd"
+        } else {
+            b""
+        }
+    }
 }
 
 /// The open chunk as a writer of uncompressed records: counted,
@@ -104,10 +118,23 @@ struct Compress<'a, W> {
 
 impl<W: Write> Write for Compress<'_, W> {
     fn write(&mut self, buf: &[u8]) -> io::Result<usize> {
-        let n = self.chunk.encoder.write(buf)?;
+        let Some(encoder) = self.chunk.encoder.as_mut() else {
+            self.chunk.crc.update(buf);
+            self.chunk.uncompressed += buf.len() as u64;
+            match &mut self.chunk.memory {
+                Some(m) => m.extend_from_slice(buf),
+                None => {
+                    self.w.write_all(buf)?;
+                    *self.pos += buf.len() as u64;
+                }
+            }
+            self.chunk.compressed += buf.len() as u64;
+            return Ok(buf.len());
+        };
+        let n = encoder.write(buf)?;
         self.chunk.crc.update(&buf[..n]);
         self.chunk.uncompressed += n as u64;
-        let out = self.chunk.encoder.get_mut();
+        let out = encoder.get_mut();
         if !out.is_empty() {
             match &mut self.chunk.memory {
                 Some(m) => m.extend_from_slice(out),
@@ -151,9 +178,19 @@ pub struct PiecewiseWriter<W: Write + Seek> {
     chunk_indexes: Vec<Vec<u8>>,
     counts: BTreeMap<u16, u64>,
     times: Option<(u64, u64)>,
+    /// Chunks zstd-compressed (the default), or stored as they are.
+    compress: bool,
 }
 
 impl<W: Write + Seek> PiecewiseWriter<W> {
+    /// Chunks stored uncompressed from here on (a file written again and
+    /// again for a live viewer: compressing it would cost more than
+    /// writing it, and its reader would pay again to decompress).
+    pub fn uncompressed(mut self) -> Self {
+        self.compress = false;
+        self
+    }
+
     /// Starts an MCAP on `w` (at its start; `path` names it in errors):
     /// magic and header.
     pub fn new(mut w: W, path: &Path, profile: &str, library: &str) -> Result<Self> {
@@ -176,6 +213,7 @@ impl<W: Write + Seek> PiecewiseWriter<W> {
             chunk_indexes: Vec::new(),
             counts: BTreeMap::new(),
             times: None,
+            compress: true,
         })
     }
 
@@ -302,15 +340,21 @@ impl<W: Write + Seek> PiecewiseWriter<W> {
             pos,
             seekable,
             chunk,
+            compress,
             ..
         } = self;
         let chunk = match chunk {
             Some(c) => c,
             None => {
                 let start = *pos;
+                let encoder = match compress {
+                    true => Some(zstd::stream::write::Encoder::new(Vec::new(), ZSTD_LEVEL)?),
+                    false => None,
+                };
+                let head = chunk_head(if encoder.is_some() { b"zstd" } else { b"" });
                 let memory = if *seekable {
-                    w.write_all(&[0; CHUNK_HEAD as usize])?;
-                    *pos += CHUNK_HEAD;
+                    w.write_all(&vec![0; head as usize])?;
+                    *pos += head;
                     None
                 } else {
                     Some(Vec::new())
@@ -323,7 +367,7 @@ impl<W: Write + Seek> PiecewiseWriter<W> {
                     compressed: 0,
                     times: None,
                     index: BTreeMap::new(),
-                    encoder: zstd::stream::write::Encoder::new(Vec::new(), ZSTD_LEVEL)?,
+                    encoder,
                 })
             }
         };
@@ -337,18 +381,22 @@ impl<W: Write + Seek> PiecewiseWriter<W> {
         let Some(chunk) = self.chunk.take() else {
             return Ok(());
         };
+        let compression = chunk.compression();
         // The encoder's last bytes.
-        let tail = chunk.encoder.finish()?;
+        let tail = match chunk.encoder {
+            Some(e) => e.finish()?,
+            None => Vec::new(),
+        };
         let (start_time, end_time) = chunk.times.unwrap_or((0, 0));
         let mut head = Fields::default();
         let compressed = chunk.compressed + tail.len() as u64;
         head.u8(op::CHUNK)
-            .u64(CHUNK_HEAD - 9 + compressed)
+            .u64(chunk_head(compression) - 9 + compressed)
             .u64(start_time)
             .u64(end_time)
             .u64(chunk.uncompressed)
             .u32(chunk.crc.clone().finalize())
-            .bytes(b"zstd")
+            .bytes(compression)
             .u64(compressed);
         match chunk.memory {
             None => {
@@ -389,7 +437,7 @@ impl<W: Write + Seek> PiecewiseWriter<W> {
             .u64(chunk_length)
             .prefixed(&offsets.0)
             .u64(self.pos - index_start)
-            .bytes(b"zstd")
+            .bytes(compression)
             .u64(compressed)
             .u64(chunk.uncompressed);
         self.chunk_indexes.push(index.record(op::CHUNK_INDEX));
@@ -498,8 +546,14 @@ mod tests {
     /// Three channels (two sharing a schema), small messages and one of
     /// 10 MiB written in 1000-byte pieces: more than one chunk.
     fn write<W: Write + Seek>(w: W) -> W {
+        write_with(w, true)
+    }
+
+    /// [`write`], the chunks compressed or stored.
+    fn write_with<W: Write + Seek>(w: W, compress: bool) -> W {
         let path = Path::new("test.mcap");
-        let mut m = PiecewiseWriter::new(w, path, "ros2", "slam2world test").unwrap();
+        let m = PiecewiseWriter::new(w, path, "ros2", "slam2world test").unwrap();
+        let mut m = if compress { m } else { m.uncompressed() };
         let mut a = m
             .add_channel("/a", ("A", "protobuf", b"schema a"), "protobuf")
             .unwrap();
@@ -535,7 +589,13 @@ mod tests {
 
     #[test]
     fn the_mcap_crate_reads_every_message_index_and_summary_record() {
-        let file = write(Cursor::new(Vec::new())).into_inner();
+        for compress in [true, false] {
+            crate_reads(compress);
+        }
+    }
+
+    fn crate_reads(compress: bool) {
+        let file = write_with(Cursor::new(Vec::new()), compress).into_inner();
         // Linear read, chunk CRCs checked.
         let messages: Vec<_> = mcap::MessageStream::new(&file)
             .unwrap()
@@ -634,13 +694,22 @@ mod tests {
         // The footer's summary CRC is checked by the crate.
         let footer = mcap::read::footer(&file).unwrap();
         assert_ne!(footer.summary_crc, 0);
+        let want = if compress { "zstd" } else { "" };
+        assert!(summary.chunk_indexes.iter().all(|c| c.compression == want));
+        // Stored: the 10 MiB message is in the file as it is.
+        assert_eq!(file.len() > 10 << 20, !compress);
     }
 
     #[test]
     fn a_pipe_gets_the_same_bytes_and_the_same_calls_give_the_same_file() {
-        let seeking = write(Cursor::new(Vec::new())).into_inner();
-        assert_eq!(write(Pipe(Vec::new())).0, seeking);
-        assert_eq!(write(Cursor::new(Vec::new())).into_inner(), seeking);
+        for compress in [true, false] {
+            let seeking = write_with(Cursor::new(Vec::new()), compress).into_inner();
+            assert_eq!(write_with(Pipe(Vec::new()), compress).0, seeking);
+            assert_eq!(
+                write_with(Cursor::new(Vec::new()), compress).into_inner(),
+                seeking
+            );
+        }
     }
 
     #[test]

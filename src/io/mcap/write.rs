@@ -599,7 +599,7 @@ pub fn write_world_mcap_into(
     octomap: Option<&[([f64; 3], f64)]>,
     flavor: WorldFlavor,
 ) -> Result<()> {
-    write_world_mcap_extra_into(set, path, scene, octomap, &[], flavor)
+    write_world_mcap_extra_into(set, path, scene, octomap, &[], flavor, true)
 }
 
 /// One more channel of `world.mcap` with its one message, stamped with the
@@ -616,7 +616,10 @@ pub struct ExtraChannel<'a> {
     pub data: &'a [u8],
 }
 
-/// [`write_world_mcap_into`] with `extra` channels after the scene's own.
+/// [`write_world_mcap_into`] with `extra` channels after the scene's own;
+/// `compress: false` stores the chunks uncompressed (a live world written
+/// again at every update: zstd would cost more than the write, and the
+/// server reading it again would pay to decompress).
 pub fn write_world_mcap_extra_into(
     set: &mut OutputSet,
     path: &Path,
@@ -624,6 +627,7 @@ pub fn write_world_mcap_extra_into(
     octomap: Option<&[([f64; 3], f64)]>,
     extra: &[ExtraChannel<'_>],
     flavor: WorldFlavor,
+    compress: bool,
 ) -> Result<()> {
     if let Some(leaves) = octomap {
         if let Some(i) = leaves
@@ -636,7 +640,7 @@ pub fn write_world_mcap_extra_into(
             ));
         }
     }
-    write_world_impl(set, path, scene, octomap, extra, flavor)
+    write_world_impl(set, path, scene, octomap, extra, flavor, compress)
 }
 
 /// Writes the world output: the cloud, the trajectories and `world → slam`.
@@ -646,7 +650,7 @@ pub fn write_world_mcap(
     flavor: WorldFlavor,
 ) -> Result<()> {
     let mut set = OutputSet::new();
-    write_world_impl(&mut set, path.as_ref(), scene, None, &[], flavor)?;
+    write_world_impl(&mut set, path.as_ref(), scene, None, &[], flavor, true)?;
     set.commit().map(|_| ())
 }
 
@@ -689,6 +693,7 @@ fn write_world_impl(
     octomap: Option<&[([f64; 3], f64)]>,
     extra: &[ExtraChannel<'_>],
     flavor: WorldFlavor,
+    compress: bool,
 ) -> Result<()> {
     if let CloudRef::Memory(points, colors) = scene.cloud {
         crate::io::ply::check_shapes(points, colors)?;
@@ -701,12 +706,13 @@ fn write_world_impl(
     set.write(path, |file| {
         // The cloud's messages go a piece at a time from the cloud into the
         // file (PiecewiseWriter): none is ever whole in memory.
-        let mut w = PiecewiseWriter::new(
+        let w = PiecewiseWriter::new(
             BufWriter::new(file),
             path,
             profile,
             concat!("slam2world ", env!("CARGO_PKG_VERSION")),
         )?;
+        let mut w = if compress { w } else { w.uncompressed() };
         let put = |w: &mut PiecewiseWriter<_>, ch: &mut Channel, data: &[u8]| {
             crate::interrupt::check()?;
             w.message(ch, t, data)
