@@ -228,6 +228,39 @@ def test_a_known_distance_scales_v101_by_index_or_stamp_and_its_flight_is_no_pla
 
 
 @pytest.mark.slow
+def test_a_long_run_refits_the_ground_on_a_sample_until_the_end() -> None:
+    """Before the end a ground refit weighs every k-th point (at most 100 000, so that a refit
+    does not hold up a keyframe for long); at the end all of them. A run at half size has about
+    150 000: the last refit before the end is within a per mille of the end's."""
+    import re
+
+    sim = sw.simulate(
+        reduced=2,
+        seed=5,
+        camera_height=1.2,
+        height_loop=0.0,
+        height_slow=0.0,
+        look_height=0.6,
+    )
+    session = sw.Session(camera_height=1.2)
+    for kf in sim.keyframes:
+        session.push_keyframe(kf)
+    counted = re.compile(r"of (\d+) points")
+    before = session.transform()
+    found = counted.search(session.state()["reason"])
+    assert found is not None
+    sampled = int(found.group(1))
+    session.finish()
+    after = session.transform()
+    found = counted.search(session.state()["reason"])
+    assert found is not None
+    every = int(found.group(1))
+    assert before is not None and after is not None
+    assert every > 100_000 >= sampled
+    assert before.scale == pytest.approx(after.scale, rel=1e-3)
+
+
+@pytest.mark.slow
 def test_the_session_scales_as_soon_as_the_ground_is_seen_and_ends_on_the_batch(
     no_sensor_log: Path, tmp_path: Path, capfd: pytest.CaptureFixture[str]
 ) -> None:
