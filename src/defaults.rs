@@ -181,6 +181,7 @@ pub const TABLE: &[(&str, Value)] = &[
     ("scaled_depth_var", Value::Float(SCALED_DEPTH_VAR)),
     ("abs_depth_var", Value::Float(ABS_DEPTH_VAR)),
     ("min_near_support", Value::Int(MIN_NEAR_SUPPORT as i64)),
+    ("serve.points", Value::Int(LIVE_MAX_POINTS as i64)),
     ("sparsify", Value::Int(SPARSIFY as i64)),
     (
         "cut_first_keyframes",

@@ -278,7 +278,7 @@ impl PySession {
     /// `stop()` ends the serving (the session goes on). A session serves
     /// once at a time: a second call stops the first server. Each update
     /// then also writes the world (tens of milliseconds for a large map).
-    #[pyo3(signature = (port=8765, *, host="127.0.0.1", grid=None, ros2=false, points=crate::defaults::LIVE_MAX_POINTS))]
+    #[pyo3(signature = (port=8765, *, host="127.0.0.1", grid=None, ros2=false, points=500_000))]
     fn serve(
         &mut self,
         py: Python<'_>,
