@@ -64,6 +64,10 @@ impl std::str::FromStr for ServeOptions {
     }
 }
 
+/// Messages queued for one client of a watched world ([`WorldServer::watch`])
+/// before the oldest are dropped: about six worlds of ten messages.
+const LIVE_BACKLOG: usize = 64;
+
 /// How long [`WorldServer::stop`] waits for its clients' sends to end.
 const STOP_WAIT: std::time::Duration = std::time::Duration::from_secs(2);
 
@@ -290,7 +294,16 @@ impl WorldServer {
         let listener = Arc::new(Listener {
             tx: Mutex::new(tx.clone()),
         });
-        let handle = WebSocketServer::new()
+        let server = WebSocketServer::new();
+        // A world written again and again: a client's queue of a few worlds
+        // (the SDK drops the oldest beyond it), not the SDK's 1024 messages
+        // of up to 8 MB each for a client that reads nothing. A file is
+        // served once, whole: the SDK's queue.
+        let server = match read {
+            true => server,
+            false => server.message_backlog_size(LIVE_BACKLOG),
+        };
+        let handle = server
             .name("slam2world")
             .bind(opts.host.clone(), opts.port)
             .context(&context)

@@ -25,9 +25,8 @@ use crate::trajectory::Trajectory;
 /// path and the reference path in the world frame (each at most
 /// [`crate::defaults::LIVE_PATH_POSES`] poses), `world → slam`,
 /// `world → camera` (the latest keyframe), `world → body` (the latest
-/// reference pose), the
-/// occupied voxels, the 2-D grid when asked for, and the session's state as
-/// JSON on `/slam2world/state` (a [`FollowReport`]).
+/// reference pose), the occupied voxels, the 2-D grid when asked for, and
+/// the session's state as JSON on `/slam2world/state` (a [`FollowReport`]).
 pub struct SessionWorld {
     cloud: LiveCloud,
     grid: Option<GridParams>,
@@ -71,8 +70,8 @@ impl SessionWorld {
     /// `set` (published when the set is committed), with `state` (the
     /// report's JSON bytes) on the state channel; its chunks zstd-compressed
     /// with `compress`, else stored (what a world written again at every
-    /// update wants: compressing 8 MB of points took 30 ms of each keyframe's
-    /// 70). Nothing before the transform is known.
+    /// update wants: zstd took a third of a full-size `follow`). Nothing
+    /// before the transform is known.
     pub fn write_into(
         &mut self,
         set: &mut OutputSet,
