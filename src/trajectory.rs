@@ -8,6 +8,16 @@ use nalgebra::{UnitQuaternion, Vector3};
 use crate::error::{Error, Result};
 use crate::geometry::Sim3;
 
+/// At most `most` (at least 2) indices of `0..n`, evenly spread, the first
+/// and the last kept: every index when `n ≤ most`.
+pub fn even_indices(n: usize, most: usize) -> Vec<usize> {
+    let most = most.max(2);
+    if n <= most {
+        return (0..n).collect();
+    }
+    (0..most).map(|i| i * (n - 1) / (most - 1)).collect()
+}
+
 /// Timestamped positions with optional orientations.
 #[derive(Clone, Debug, Default)]
 pub struct Trajectory {

@@ -107,10 +107,9 @@ impl SessionWorld {
         });
         let (points, colors) = self.cloud.update(session.keyframes(), &t.transform)?;
         let keyframes = keyframe_path(session)?;
-        let reference = session.reference_path()?;
+        let reference = session.reference_path(crate::defaults::LIVE_PATH_POSES)?;
         let frames = latest_frames(&t.transform, session, reference.as_ref());
         let slam = thin(keyframes)?.transformed(&t.transform);
-        let reference = reference.map(thin).transpose()?;
         let scene = WorldScene {
             cloud: CloudRef::Memory(&points, colors.as_deref()),
             t_world_slam: t.transform,
@@ -233,15 +232,12 @@ fn keyframe_path(session: &Session) -> Result<Trajectory> {
 
 /// `t` with at most [`crate::defaults::LIVE_PATH_POSES`] poses, evenly
 /// spread (the first and the last kept): a path drawn in a viewer needs no
-/// more, and a 200 Hz motion capture would otherwise be re-sent whole at
-/// every keyframe.
+/// more.
 fn thin(t: Trajectory) -> Result<Trajectory> {
-    let n = t.len();
-    let most = crate::defaults::LIVE_PATH_POSES.max(2);
-    if n <= most {
+    let idx = crate::trajectory::even_indices(t.len(), crate::defaults::LIVE_PATH_POSES);
+    if idx.len() == t.len() {
         return Ok(t);
     }
-    let idx: Vec<usize> = (0..most).map(|i| i * (n - 1) / (most - 1)).collect();
     Trajectory::try_new(
         idx.iter().map(|&i| t.timestamps[i]).collect(),
         idx.iter().map(|&i| t.positions[i]).collect(),

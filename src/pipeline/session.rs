@@ -809,14 +809,21 @@ impl Session {
     }
 
     /// The reference so far in the world frame: the poses pushed, or the
-    /// fixes as ENU positions (no orientation); None before the first.
-    pub fn reference_path(&self) -> Result<Option<crate::trajectory::Trajectory>> {
+    /// fixes as ENU positions (no orientation), at most `most` of them
+    /// evenly spread ([`crate::trajectory::even_indices`]); None before the
+    /// first.
+    pub fn reference_path(&self, most: usize) -> Result<Option<crate::trajectory::Trajectory>> {
         if self.ref_times.is_empty() {
             return Ok(None);
         }
-        let rot: Option<Vec<UnitQuaternion<f64>>> = self.ref_rot.iter().copied().collect();
-        crate::trajectory::Trajectory::try_new(self.ref_times.clone(), self.ref_pos.clone(), rot)
-            .map(Some)
+        let idx = crate::trajectory::even_indices(self.ref_times.len(), most);
+        let rot: Option<Vec<UnitQuaternion<f64>>> = idx.iter().map(|&i| self.ref_rot[i]).collect();
+        crate::trajectory::Trajectory::try_new(
+            idx.iter().map(|&i| self.ref_times[i]).collect(),
+            idx.iter().map(|&i| self.ref_pos[i]).collect(),
+            rot,
+        )
+        .map(Some)
     }
 
     /// The keyframes (latest version per id, ascending id), poses as last

@@ -384,74 +384,6 @@ class _Subscriptions(foxglove.ServerListener):
         self.topics.append(channel.topic)
 
 
-@pytest.mark.slow
-def test_follow_a_foxglove_sdk_server_ends_where_convert_of_the_log_does(tmp_path: Path) -> None:
-    """The Foxglove SDK's own Python server (not this project's code) publishes a simulated run's
-    messages in real time; `follow ws://` subscribes, follows, sees the server go, and ends on
-    the transform and the octree that `convert` of the same log gives."""
-    log, out = tmp_path / "run.mcap", tmp_path / "out"
-    argv = ["slam2world", "simulate", "-o", str(log), "--reduced", "8", "--seed", "2"]
-    assert run_cli(argv) == 0
-    with log.open("rb") as f:
-        msgs = list(make_reader(f).iter_messages(log_time_order=True))
-    listener = _Subscriptions()
-    server = foxglove.start_server(port=0, server_listener=listener)
-    channels: dict[int, foxglove.Channel] = {}
-    for s, c, _ in msgs:
-        if c.id not in channels:
-            schema = foxglove.Schema(name=s.name, encoding=s.encoding, data=s.data)
-            channels[c.id] = foxglove.Channel(
-                c.topic, message_encoding=c.message_encoding, schema=schema
-            )
-    url = f"ws://127.0.0.1:{server.port}"
-    follow = [sys.executable, "-m", "slam2world.cli", "follow", url, "-o", str(out)]
-    follow += ["--stable-hold", "0.3", "--idle-timeout", "3", "--grid", "0.25", "0.75", "-q"]
-    with subprocess.Popen(follow, stderr=subprocess.PIPE, text=True) as proc:
-        try:
-            # Published once the client has subscribed (one subscribe for all it reads).
-            deadline = time.monotonic() + 30
-            while not listener.topics and time.monotonic() < deadline:
-                time.sleep(0.05)
-            time.sleep(0.5)
-            assert {"/lsd_slam/keyframes", "/ground_truth/pose"} <= set(listener.topics)
-            t0, wall0 = msgs[0][2].log_time, time.monotonic()
-            for _, c, m in msgs:
-                wait = (m.log_time - t0) * 1e-9 - (time.monotonic() - wall0)
-                if wait > 0:
-                    time.sleep(wait)
-                channels[c.id].log(m.data, log_time=m.log_time)
-            time.sleep(1.0)
-            server.stop()
-            assert proc.wait(timeout=60) == 0
-            assert proc.stderr is not None
-            assert "connection lost" in proc.stderr.read()
-        finally:
-            server.stop()
-            if proc.poll() is None:
-                proc.kill()
-    report = json.loads((out / "report.json").read_text())
-    assert report["finished"] and report["end"].startswith("server gone")
-    assert report["disconnections"] == 1
-    conv = sw.convert(log, skip_init="auto", octree_resolution=0.1, octree_max_range=10.0)
-    t = conv.report["t_world_slam"]
-    assert report["t_world_slam"]["scale"] == pytest.approx(t["scale"], rel=1e-9)
-    assert report["t_world_slam"]["translation"] == pytest.approx(t["translation"], abs=1e-9)
-    assert conv.octree is not None
-    conv.octree.write_bt(tmp_path / "batch.bt")
-    assert (out / "map.bt").read_bytes() == (tmp_path / "batch.bt").read_bytes()
-    # follow's world cloud: convert's points, every k-th of them (bounded for a viewer).
-    with (out / "world.mcap").open("rb") as f:
-        reader = make_reader(f, decoder_factories=[ProtobufDecoderFactory()])
-        clouds = [m for _, _, _, m in reader.iter_decoded_messages(topics=["/world/cloud"])]
-    assert len(clouds) == 1
-    rec = np.frombuffer(clouds[0].data, dtype=[("p", "<f4", (3,)), ("c", "u1", (4,))])
-    full = conv.cloud.points
-    assert 0 < len(rec) <= len(full)
-    sample = rec["p"][:: max(1, len(rec) // 200)].astype(np.float64)
-    nearest = [np.sqrt(((full - p) ** 2).sum(axis=1).min()) for p in sample]
-    assert max(nearest) < 1e-3
-
-
 class _SdkServer:
     """The Foxglove SDK's server on `port` with a channel for each of the log's, in a context
     of its own (a server started again advertises its own channels only; the SDK holds the
@@ -493,6 +425,66 @@ def _wait_subscribed(listener: _Subscriptions) -> None:
     assert {"/lsd_slam/keyframes", "/ground_truth/pose"} <= set(listener.topics)
 
 
+def _ends_as_convert(log: Path, out: Path, tmp_path: Path) -> Any:
+    """Asserts that `follow`'s report and `map.bt` in `out` end on `convert`'s transform scale
+    and octree of `log`; returns the conversion."""
+    report = json.loads((out / "report.json").read_text())
+    conv = sw.convert(log, skip_init="auto", octree_resolution=0.1, octree_max_range=10.0)
+    t = conv.report["t_world_slam"]
+    assert report["t_world_slam"]["scale"] == pytest.approx(t["scale"], rel=1e-9)
+    assert conv.octree is not None
+    conv.octree.write_bt(tmp_path / "batch.bt")
+    assert (out / "map.bt").read_bytes() == (tmp_path / "batch.bt").read_bytes()
+    return conv
+
+
+@pytest.mark.slow
+def test_follow_a_foxglove_sdk_server_ends_where_convert_of_the_log_does(tmp_path: Path) -> None:
+    """The Foxglove SDK's own Python server (not this project's code) publishes a simulated run's
+    messages in real time; `follow ws://` subscribes, follows, sees the server go, and ends on
+    the transform and the octree that `convert` of the same log gives."""
+    log, out = tmp_path / "run.mcap", tmp_path / "out"
+    argv = ["slam2world", "simulate", "-o", str(log), "--reduced", "8", "--seed", "2"]
+    assert run_cli(argv) == 0
+    with log.open("rb") as f:
+        msgs = list(make_reader(f).iter_messages(log_time_order=True))
+    sdk = _SdkServer(msgs)
+    url = f"ws://127.0.0.1:{sdk.server.port}"
+    follow = [sys.executable, "-m", "slam2world.cli", "follow", url, "-o", str(out)]
+    follow += ["--stable-hold", "0.3", "--idle-timeout", "3", "--grid", "0.25", "0.75", "-q"]
+    with subprocess.Popen(follow, stderr=subprocess.PIPE, text=True) as proc:
+        try:
+            # Published once the client has subscribed (one subscribe for all it reads).
+            _wait_subscribed(sdk.listener)
+            _publish(msgs, sdk.channels)
+            time.sleep(1.0)
+            sdk.server.stop()
+            assert proc.wait(timeout=60) == 0
+            assert proc.stderr is not None
+            assert "connection lost" in proc.stderr.read()
+        finally:
+            sdk.server.stop()
+            if proc.poll() is None:
+                proc.kill()
+    report = json.loads((out / "report.json").read_text())
+    assert report["finished"] and report["end"].startswith("server gone")
+    assert report["disconnections"] == 1
+    conv = _ends_as_convert(log, out, tmp_path)
+    t = conv.report["t_world_slam"]
+    assert report["t_world_slam"]["translation"] == pytest.approx(t["translation"], abs=1e-9)
+    # follow's world cloud: convert's points, every k-th of them (bounded for a viewer).
+    with (out / "world.mcap").open("rb") as f:
+        reader = make_reader(f, decoder_factories=[ProtobufDecoderFactory()])
+        clouds = [m for _, _, _, m in reader.iter_decoded_messages(topics=["/world/cloud"])]
+    assert len(clouds) == 1
+    rec = np.frombuffer(clouds[0].data, dtype=[("p", "<f4", (3,)), ("c", "u1", (4,))])
+    full = conv.cloud.points
+    assert 0 < len(rec) <= len(full)
+    sample = rec["p"][:: max(1, len(rec) // 200)].astype(np.float64)
+    nearest = [np.sqrt(((full - p) ** 2).sum(axis=1).min()) for p in sample]
+    assert max(nearest) < 1e-3
+
+
 @pytest.mark.slow
 def test_follow_ws_goes_on_after_the_server_goes_away_and_comes_back(tmp_path: Path) -> None:
     """The server stops halfway through the run and a new one starts on the same port:
@@ -530,13 +522,8 @@ def test_follow_ws_goes_on_after_the_server_goes_away_and_comes_back(tmp_path: P
     report = json.loads((out / "report.json").read_text())
     assert report["finished"] and report["disconnections"] == 2
     assert report["end"] == "server gone (2 connections lost)"
-    conv = sw.convert(log, skip_init="auto", octree_resolution=0.1, octree_max_range=10.0)
-    t = conv.report["t_world_slam"]
+    conv = _ends_as_convert(log, out, tmp_path)
     assert report["keyframes"] == conv.report["keyframes"]
-    assert report["t_world_slam"]["scale"] == pytest.approx(t["scale"], rel=1e-9)
-    assert conv.octree is not None
-    conv.octree.write_bt(tmp_path / "batch.bt")
-    assert (out / "map.bt").read_bytes() == (tmp_path / "batch.bt").read_bytes()
 
 
 @pytest.mark.slow
