@@ -9,14 +9,15 @@ Usage::
 A simulated ground vehicle with no second sensor (`simulate --reduced K --no-reference
 --no-imu`, the camera 1.2 m up; the follower scales from `--camera-height`) is published in
 real time by the Foxglove SDK's own Python server (`foxglove-sdk`); `slam2world follow
-ws://… --serve 0` follows it and serves its world; two clients written against the protocol
-subscribe to everything the follower serves (`--stalled` adds a third that subscribes and
-then never reads; `--live-points` is follow's bound on the cloud sent at every update). For
-each keyframe the follower
-reports (`/slam2world/state`, `last_keyframe`), the latency is the time from the publisher's
-`log()` of that keyframe to the `/world/cloud` message of the same refresh at a reading client
-(a refresh sends the file in its order: the cloud, then the state). Prints p50, p99 and max
-per client in milliseconds and the follower's peak resident memory (`VmHWM`).
+ws://… --serve 0` follows it and serves its world; two clients, each a process of its own
+written against the protocol on a plain socket, subscribe to everything the follower serves
+(`--stalled` adds a third that subscribes and then never reads; `--live-points` is follow's
+bound on the cloud sent at every update). For each keyframe the follower reports
+(`/slam2world/state`, `last_keyframe`), the latency is the time from the publisher's `log()`
+of that keyframe to the whole `/world/cloud` message of the first update naming it at a
+reading client (an update sends the world in its order: the cloud, then the state). Prints
+p50, p99 and max per client in milliseconds and the follower's peak resident memory
+(`VmHWM`).
 """
 
 from __future__ import annotations
@@ -24,6 +25,7 @@ from __future__ import annotations
 import argparse
 import base64
 import json
+import multiprocessing
 import os
 import signal
 import socket
@@ -39,12 +41,11 @@ from typing import Any
 import foxglove
 import numpy as np
 from mcap.reader import make_reader
-from websockets.exceptions import ConnectionClosed
-from websockets.sync.client import connect
 
 from slam2world._slam2world import run_cli
 
 SUBPROTOCOL = "foxglove.sdk.v1"
+STATE = "/slam2world/state"
 
 
 class Subscribed(foxglove.ServerListener):
@@ -57,79 +58,143 @@ class Subscribed(foxglove.ServerListener):
         self.count += 1
 
 
-def reader_client(url: str, stop: threading.Event, out: list[tuple[float, str, bytes]]) -> None:
-    """Subscribes to every channel as advertised; keeps (receive time, topic, payload of the
-    state messages)."""
-    with connect(url, subprotocols=[SUBPROTOCOL], max_size=None) as ws:
-        topics: dict[int, str] = {}
+class Peer:
+    """A client of the protocol on a plain socket: the handshake and frames by hand (RFC 6455),
+    each frame's payload received straight into one buffer (`recv_into`), so that what the bench
+    measures is the server's delivery, not a Python websocket library's own cost (about 14 ms
+    for each 8 MB frame with `websockets`)."""
+
+    def __init__(self, url: str) -> None:
+        host, port = url.removeprefix("ws://").rsplit(":", 1)
+        self.buf = bytearray(1 << 16)
+        self.sock = socket.create_connection((host, int(port)))
+        key = base64.b64encode(os.urandom(16)).decode()
+        self.sock.sendall(
+            (
+                f"GET / HTTP/1.1\r\nHost: {host}:{port}\r\nUpgrade: websocket\r\n"
+                f"Connection: Upgrade\r\nSec-WebSocket-Key: {key}\r\n"
+                f"Sec-WebSocket-Version: 13\r\nSec-WebSocket-Protocol: {SUBPROTOCOL}\r\n\r\n"
+            ).encode()
+        )
+        head = b""
+        while b"\r\n\r\n" not in head:
+            chunk = self.sock.recv(1)
+            if not chunk:
+                raise ConnectionError("closed during the handshake")
+            head += chunk
+        if b" 101 " not in head.split(b"\r\n", 1)[0]:
+            raise ConnectionError(head.decode(errors="replace"))
+
+    def _exact(self, n: int, idle: bool = False) -> memoryview:
+        """The next `n` bytes, in a buffer that the next read reuses (a native client's
+        receive buffer: fresh megabytes per frame would cost a page fault per page). The
+        socket's timeout is raised only with `idle` and before the first byte (between
+        frames), never inside a frame."""
+        if len(self.buf) < n:
+            self.buf = bytearray(n)
+        buf = memoryview(self.buf)[:n]
+        got = 0
+        while got < n:
+            try:
+                k = self.sock.recv_into(buf[got:], n - got)
+            except TimeoutError:
+                if idle and got == 0:
+                    raise
+                continue
+            if k == 0:
+                raise ConnectionError("closed")
+            got += k
+        return buf
+
+    def frame(self) -> tuple[int, memoryview]:
+        """The next whole message: (opcode, payload); answers pings."""
+        while True:
+            b0, b1 = bytes(self._exact(2, idle=True))
+            n = b1 & 0x7F
+            if n == 126:
+                (n,) = struct.unpack(">H", bytes(self._exact(2)))
+            elif n == 127:
+                (n,) = struct.unpack(">Q", bytes(self._exact(8)))
+            payload = self._exact(n)
+            opcode = b0 & 0x0F
+            if opcode == 0x9:
+                self.send(bytes(payload), opcode=0xA)
+                continue
+            if opcode == 0x8:
+                raise ConnectionError("closed by the server")
+            if not b0 & 0x80:
+                raise ConnectionError("fragmented message (the SDK sends none)")
+            return opcode, payload
+
+    def send(self, body: bytes, opcode: int = 0x1) -> None:
+        mask = os.urandom(4)
+        n = len(body)
+        if n < 126:
+            header = bytes([0x80 | opcode, 0x80 | n])
+        elif n < 1 << 16:
+            header = bytes([0x80 | opcode, 0x80 | 126]) + struct.pack(">H", n)
+        else:
+            header = bytes([0x80 | opcode, 0x80 | 127]) + struct.pack(">Q", n)
+        masked = np.frombuffer(body, np.uint8) ^ np.resize(np.frombuffer(mask, np.uint8), n)
+        self.sock.sendall(header + mask + masked.tobytes())
+
+    def subscribe_advertised(self, payload: memoryview, topics: dict[int, str]) -> None:
+        msg = json.loads(bytes(payload))
+        if msg.get("op") == "advertise":
+            topics.update({c["id"]: c["topic"] for c in msg["channels"]})
+            subs = [{"id": c["id"], "channelId": c["id"]} for c in msg["channels"]]
+            self.send(json.dumps({"op": "subscribe", "subscriptions": subs}).encode())
+
+
+def reader_client(url: str, stop: Any, out: Any) -> None:
+    """A process of its own (no interpreter lock shared with the publisher or the other
+    client): subscribes to every channel as advertised; sends back (time the message was
+    whole, topic, payload of the state messages)."""
+    peer = Peer(url)
+    peer.sock.settimeout(0.2)
+    topics: dict[int, str] = {}
+    got: list[tuple[float, str, bytes]] = []
+    try:
         while not stop.is_set():
             try:
-                frame = ws.recv(timeout=0.2)
+                opcode, payload = peer.frame()
             except TimeoutError:
                 continue
-            except ConnectionClosed:
-                return
             now = time.monotonic()
-            if isinstance(frame, str):
-                msg = json.loads(frame)
-                if msg["op"] == "advertise":
-                    subs = [{"id": c["id"], "channelId": c["id"]} for c in msg["channels"]]
-                    topics.update({c["id"]: c["topic"] for c in msg["channels"]})
-                    ws.send(json.dumps({"op": "subscribe", "subscriptions": subs}))
-                continue
-            (sub,) = struct.unpack_from("<I", frame, 1)
-            topic = topics[sub]
-            out.append((now, topic, bytes(frame[13:]) if topic == "/slam2world/state" else b""))
+            if opcode == 0x1:
+                peer.subscribe_advertised(payload, topics)
+            elif opcode == 0x2 and payload[0] == 1:
+                (sub,) = struct.unpack_from("<I", payload, 1)
+                topic = topics[sub]
+                got.append((now, topic, bytes(payload[13:]) if topic == STATE else b""))
+    except (ConnectionError, OSError):
+        pass
+    out.send(got)
 
 
 def stalled_client(url: str, stop: threading.Event) -> None:
-    """Handshakes by hand, subscribes to every channel once the world's are advertised, then
-    never reads again (its socket buffers fill, the server's queue for it with them)."""
-    host, port = url.removeprefix("ws://").rsplit(":", 1)
-    s = socket.create_connection((host, int(port)))
-    key = base64.b64encode(os.urandom(16)).decode()
-    s.sendall(
-        (
-            f"GET / HTTP/1.1\r\nHost: {host}:{port}\r\nUpgrade: websocket\r\n"
-            f"Connection: Upgrade\r\nSec-WebSocket-Key: {key}\r\n"
-            f"Sec-WebSocket-Version: 13\r\nSec-WebSocket-Protocol: {SUBPROTOCOL}\r\n\r\n"
-        ).encode()
-    )
-    # Read until the world's channels are advertised (once the follower has a transform).
-    s.settimeout(0.5)
-    seen = b""
+    """Subscribes to every channel once the world's are advertised, then never reads again
+    (its socket buffers fill, the server's queue for it with them)."""
+    peer = Peer(url)
+    peer.sock.settimeout(0.5)
+    topics: dict[int, str] = {}
+    # The world's channels are advertised one by one as the first world is served: every one
+    # advertised until a second passes without a new one.
     deadline = time.monotonic() + 60.0
-    while time.monotonic() < deadline and b'"topic"' not in seen and not stop.is_set():
+    quiet: float | None = None
+    while time.monotonic() < (quiet or deadline) and not stop.is_set():
         try:
-            seen += s.recv(65536)
+            opcode, payload = peer.frame()
         except TimeoutError:
             continue
-    time.sleep(0.2)
-    try:
-        seen += s.recv(1 << 20)
-    except TimeoutError:
-        pass
-    ids = [int(x) for x in _ids(seen)]
-    print(f"stalled client: subscribed to {len(ids)} channels, then reads nothing", flush=True)
-    body = json.dumps(
-        {"op": "subscribe", "subscriptions": [{"id": i, "channelId": i} for i in ids]}
-    ).encode()
-    mask = os.urandom(4)
-    header = bytes([0x81, 0x80 | 126]) + struct.pack(">H", len(body)) + mask
-    s.sendall(header + bytes(b ^ mask[i % 4] for i, b in enumerate(body)))
+        if opcode == 0x1:
+            before = len(topics)
+            peer.subscribe_advertised(payload, topics)
+            if len(topics) > before:
+                quiet = time.monotonic() + 1.0
+    print(f"stalled client: subscribed to {len(topics)} channels, then reads nothing", flush=True)
     stop.wait()
-    s.close()
-
-
-def _ids(data: bytes) -> list[str]:
-    """Channel ids in the advertise messages among `data` (text frames, unmasked)."""
-    out = []
-    for part in data.split(b'"channels":')[1:]:
-        for seg in part.split(b'"id":')[1:]:
-            digits = seg[: next((i for i, c in enumerate(seg) if not chr(c).isdigit()), len(seg))]
-            if digits:
-                out.append(digits.decode())
-    return out
+    peer.sock.close()
 
 
 def percentiles(ms: list[float]) -> dict[str, float]:
@@ -195,8 +260,16 @@ def main() -> int:
     assert proc.stdout is not None
     serve_url = proc.stdout.readline().split(" on ", 1)[1].split(" ", 1)[0]
     stop = threading.Event()
-    got: list[list[tuple[float, str, bytes]]] = [[], []]
-    threads = [threading.Thread(target=reader_client, args=(serve_url, stop, g)) for g in got]
+    # The reading clients in processes of their own, the stalled one a thread here.
+    spawn = multiprocessing.get_context("spawn")
+    stop_readers = spawn.Event()
+    pipes = [spawn.Pipe(duplex=False) for _ in range(2)]
+    readers = [
+        spawn.Process(target=reader_client, args=(serve_url, stop_readers, w)) for _, w in pipes
+    ]
+    for r in readers:
+        r.start()
+    threads = []
     if args.stalled:
         threads.append(threading.Thread(target=stalled_client, args=(serve_url, stop)))
     for t in threads:
@@ -222,6 +295,10 @@ def main() -> int:
     hwm_kib = int(next(ln.split()[1] for ln in status.splitlines() if ln.startswith("VmHWM")))
     proc.send_signal(signal.SIGINT)
     proc.wait(timeout=30)
+    stop_readers.set()
+    got: list[list[tuple[float, str, bytes]]] = [r.recv() for r, _ in pipes]
+    for r in readers:
+        r.join(timeout=10)
     stop.set()
     for t in threads:
         t.join(timeout=10)
@@ -235,26 +312,30 @@ def main() -> int:
         "clients": [],
     }
     for g in got:
-        # A refresh sends the file in its order: the cloud, then the state naming its keyframe.
+        # An update sends the world in its order: the cloud, then the state naming its keyframe.
+        # A keyframe's points have reached the client with the first update that names it (one
+        # may follow with the ground refitted).
         lat = []
         last_cloud: float | None = None
+        seen: set[int] = set()
         for now, topic, payload in g:
             if topic == "/world/cloud":
                 last_cloud = now
-            elif topic == "/slam2world/state" and last_cloud is not None:
-                k = json.loads(payload)["last_keyframe"]
+            elif topic == STATE and last_cloud is not None:
+                st = json.loads(payload)
+                k = st["last_keyframe"]
                 sent = [t for t in published.get(k, []) if t <= last_cloud]
-                if sent:
+                if sent and k not in seen:
+                    seen.add(k)
                     lat.append(1e3 * (last_cloud - sent[-1]))
                     if os.environ.get("S2W_DEBUG") and g is got[0]:
-                        st = json.loads(payload)
                         print(
                             f"kf {k} e2e {lat[-1]:.1f} ms; follower: "
                             + " ".join(
                                 f"{n} {1e3 * st[n]:.1f}"
                                 for n in ("decode_s", "fit_s", "backproject_s", "insert_s")
                             )
-                            + f" rebuilds {st['rebuilds']}"
+                            + f" rebuilds {st['rebuilds']} pub {sent[-1]:.6f} got {last_cloud:.6f}"
                         )
                 last_cloud = None
         result["clients"].append(percentiles(lat) if lat else {"n": 0})

@@ -18,8 +18,8 @@
 //! complete outputs left as they were); at the end of the log the map is made
 //! exact ([`Session::finish`]) and written once more.
 //!
-//! With `--serve [HOST:]PORT` each `world.mcap` written also goes to the
-//! clients of a Foxglove WebSocket ([`WorldServer::watch`]), and the final
+//! With `--serve [HOST:]PORT` each world goes to the clients of a Foxglove
+//! WebSocket ([`WorldServer::live`]) before it is written, and the final
 //! one is served after the end until Ctrl-C (exit 0).
 
 use std::fs::File;
@@ -188,7 +188,7 @@ pub fn run(args: &FollowArgs) -> Result<()> {
     if let Some(g) = &grid {
         g.check()?;
     }
-    let feed = LogFeed::new(opts)?;
+    let mut feed = LogFeed::new(opts)?;
     let url = ws_url(&args.log);
     // Refuse a bad output folder (a file, the log's own folder entry) first.
     let set = OutputSet::folder(&args.output, NAMES)?;
@@ -199,7 +199,7 @@ pub fn run(args: &FollowArgs) -> Result<()> {
     .check_output(&args.output.join(REPORT_JSON))?;
     let server = match &args.serve {
         Some(at) => {
-            let s = WorldServer::watch(&args.output.join(WORLD_MCAP), at)?;
+            let s = WorldServer::live(&args.output.join(WORLD_MCAP), at)?;
             print(&format!(
                 "serving {} on {} as it is written; open it in Foxglove (Open connection, \
                  Foxglove WebSocket)\n",
@@ -210,6 +210,9 @@ pub fn run(args: &FollowArgs) -> Result<()> {
         }
         None => None,
     };
+    // Served: a keyframe's points go out before the ground refit it may
+    // call for.
+    feed.session.defer_refits(server.is_some());
     let mut run = Follower {
         args,
         feed,
@@ -283,17 +286,29 @@ impl Follower<'_> {
                 status_line(&self.feed.session, id, latency)?;
             }
         }
+        if self.feed.session.has_deferred() {
+            // The ground refit the keyframe called for, after its points
+            // went out (--serve), and the world again.
+            let timing = self.feed.session.catch_up()?;
+            let latency = timing.fit_s + timing.backproject_s + timing.insert_s;
+            let id = self.report.last_keyframe;
+            self.report
+                .update(&self.feed.session, id, 0.0, &timing, latency);
+            self.publish()?;
+        }
         Ok(())
     }
 
-    /// Writes the outputs of the session as it stands, and hands them to
-    /// the clients with `--serve`.
+    /// Hands the world of the session as it stands to the clients with
+    /// `--serve`, then writes the outputs.
     fn publish(&mut self) -> Result<()> {
-        write_outputs(self.args, &self.feed.session, &self.report, &mut self.world)?;
-        if let Some(s) = &self.server {
-            s.refresh();
-        }
-        Ok(())
+        write_outputs(
+            self.args,
+            &self.feed.session,
+            &self.report,
+            &mut self.world,
+            self.server.as_ref(),
+        )
     }
 
     /// Follows the growing MCAP file; returns why it ended.
@@ -514,24 +529,40 @@ fn status_line(session: &Session, id: i32, latency: f64) -> Result<()> {
     ))
 }
 
-/// Replaces the outputs as one set.
+/// Replaces the outputs as one set; with `server`, its clients get the
+/// world first (the files are not on the way from a keyframe to a viewer).
 fn write_outputs(
     args: &FollowArgs,
     session: &Session,
     report: &FollowReport,
     world: &mut SessionWorld,
+    server: Option<&WorldServer>,
 ) -> Result<()> {
-    let mut set = OutputSet::folder(&args.output, NAMES)?.with_inputs([&args.log]);
     // report.json, and the same bytes as the state message of world.mcap.
     let report_json = to_json_bytes(report)?;
+    let built = world.build(session, report_json.clone())?;
+    let sent = match (&built, server) {
+        (Some(w), Some(s)) => {
+            let bytes = w.bytes()?;
+            s.publish(bytes.clone());
+            Some(bytes)
+        }
+        _ => None,
+    };
+    let mut set = OutputSet::folder(&args.output, NAMES)?.with_inputs([&args.log]);
     let path = set.path(WORLD_MCAP);
-    // Stored uncompressed while it changes at every keyframe; the last one
-    // compressed.
-    let written = world.write_into(&mut set, &path, session, &report_json, report.finished)?;
-    if let (true, Some(map)) = (written.world, session.map()) {
-        set.write_bytes(&set.path(MAP_BT), &map.to_bt_bytes())?;
+    if let Some(w) = &built {
+        // Stored uncompressed while it changes at every keyframe (the bytes
+        // sent, when served); the last one compressed.
+        match &sent {
+            Some(bytes) if !report.finished => set.write_bytes(&path, bytes)?,
+            _ => w.write_into(&mut set, &path, report.finished)?,
+        }
+        if let Some(map) = session.map() {
+            set.write_bytes(&set.path(MAP_BT), &map.to_bt_bytes())?;
+        }
     }
-    if let Some((g, threshold)) = &written.grid {
+    if let Some((g, threshold)) = built.as_ref().and_then(|w| w.grid()) {
         let files = Nav2Files {
             image: set.path(MAP_PGM),
             yaml: set.path(MAP_YAML),

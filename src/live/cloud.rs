@@ -25,12 +25,16 @@ struct Entry {
 /// world cloud is then all of them under `T_world_slam`, at most
 /// `max_points` (every k-th beyond). An update costs the new or moved
 /// keyframes' backprojection and one transform of at most `max_points`
-/// points, not the whole run's pixels again.
+/// points, not the whole run's pixels again; the world cloud is gathered
+/// into the same memory at every update (fresh megabytes would cost a page
+/// fault per 4 KiB page each time).
 pub struct LiveCloud {
     filter: PointFilter,
     per_keyframe: usize,
     max_points: usize,
     cache: HashMap<i32, Entry>,
+    points: Vec<f32>,
+    colors: Vec<u8>,
 }
 
 impl LiveCloud {
@@ -41,6 +45,8 @@ impl LiveCloud {
             per_keyframe: per_keyframe.max(1),
             max_points: max_points.max(1),
             cache: HashMap::new(),
+            points: Vec::new(),
+            colors: Vec::new(),
         }
     }
 
@@ -63,7 +69,7 @@ impl LiveCloud {
         &mut self,
         keyframes: impl Iterator<Item = &'a Keyframe>,
         t_world_slam: &Sim3,
-    ) -> Result<(Vec<f32>, Option<Vec<u8>>)> {
+    ) -> Result<(&[f32], Option<&[u8]>)> {
         let mut order = Vec::new();
         for (i, kf) in keyframes.enumerate() {
             order.push(kf.id);
@@ -109,9 +115,9 @@ impl LiveCloud {
         // Every stride-th point of the keyframes in order: the points whose
         // index over the whole run is a multiple of the stride, each
         // keyframe's first one found from the points before it.
-        let kept = total.div_ceil(stride);
-        let mut points = Vec::with_capacity(3 * kept);
-        let mut colors = Vec::with_capacity(if with_colors { 3 * kept } else { 0 });
+        let (points, colors) = (&mut self.points, &mut self.colors);
+        points.clear();
+        colors.clear();
         let mut k = 0usize;
         for id in &order {
             let e = &self.cache[id];
@@ -122,31 +128,26 @@ impl LiveCloud {
                 continue;
             }
             let m = (n - first).div_ceil(stride);
-            take_every(&mut points, &e.points, first, stride, m);
+            take_every(points, &e.points, first, stride, m);
             if let (true, Some(c)) = (with_colors, &e.colors) {
-                take_every(&mut colors, c, first, stride, m);
+                take_every(colors, c, first, stride, m);
             }
         }
-        t_world_slam.transform_points_in_place(&mut points)?;
-        Ok((points, with_colors.then_some(colors)))
+        t_world_slam.transform_points_in_place(points)?;
+        Ok((points, with_colors.then_some(colors.as_slice())))
     }
 }
 
 /// Appends to `out` the `m` triples of `src` at `first`, `first + stride`, …
-fn take_every<T: Copy + Default>(
-    out: &mut Vec<T>,
-    src: &[T],
-    first: usize,
-    stride: usize,
-    m: usize,
-) {
-    let start = out.len();
-    out.resize(start + 3 * m, T::default());
-    for (dst, j) in out[start..]
-        .chunks_exact_mut(3)
-        .zip((first..).step_by(stride))
-    {
-        dst.copy_from_slice(&src[3 * j..3 * j + 3]);
+fn take_every<T: Copy>(out: &mut Vec<T>, src: &[T], first: usize, stride: usize, m: usize) {
+    if stride == 1 {
+        // Under the budget: the keyframe's points whole, one copy.
+        out.extend_from_slice(&src[3 * first..3 * (first + m)]);
+        return;
+    }
+    out.reserve(3 * m);
+    for s in src[3 * first..].chunks(3 * stride).take(m) {
+        out.extend_from_slice(&s[..3]);
     }
 }
 
@@ -172,12 +173,12 @@ mod tests {
         // Half the keyframes, then all: the first half is not backprojected again.
         all.update(kfs[..kfs.len() / 2].iter(), &t).unwrap();
         let (p, c) = all.update(kfs.iter(), &t).unwrap();
-        assert_eq!(all.len(), kfs.len());
         assert_eq!(p.len(), batch.points.len());
         for (a, b) in p.iter().zip(&batch.points) {
             assert!((a - b).abs() < 1e-4, "{a} {b}");
         }
-        assert_eq!(c.as_deref(), batch.colors.as_deref());
+        assert_eq!(c, batch.colors.as_deref());
+        assert_eq!(all.len(), kfs.len());
         // A keyframe moved by the graph is backprojected again.
         let mut moved = kfs.clone();
         moved[3].pose.translation.x += 0.5;
@@ -188,6 +189,28 @@ mod tests {
             .iter()
             .zip(&again.points)
             .all(|(a, b)| (a - b).abs() < 1e-4));
+        // Bounded over the run: every k-th point of the whole cloud.
+        let n = batch.points.len() / 3;
+        let mut run = LiveCloud::new(filter, usize::MAX, n / 3);
+        let (r, rc) = run.update(kfs.iter(), &t).unwrap();
+        let stride = n.div_ceil(n / 3);
+        let every: Vec<f32> = batch
+            .points
+            .chunks_exact(3)
+            .step_by(stride)
+            .flatten()
+            .copied()
+            .collect();
+        assert!(stride > 1 && r.len() == every.len());
+        assert!(r.iter().zip(&every).all(|(a, b)| (a - b).abs() < 1e-4));
+        let colors = batch.colors.as_deref().unwrap();
+        let every_color: Vec<u8> = colors
+            .chunks_exact(3)
+            .step_by(stride)
+            .flatten()
+            .copied()
+            .collect();
+        assert_eq!(rc, Some(every_color.as_slice()));
         // Bounded: at most the budget, each point one of the batch's.
         let mut small = LiveCloud::new(filter, 50, 400);
         let (s, _) = small.update(kfs.iter(), &t).unwrap();

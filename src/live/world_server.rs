@@ -64,9 +64,12 @@ impl std::str::FromStr for ServeOptions {
     }
 }
 
-/// Messages queued for one client of a watched world ([`WorldServer::watch`])
-/// before the oldest are dropped: about six worlds of ten messages.
-const LIVE_BACKLOG: usize = 64;
+/// Messages queued for one client of a live world ([`WorldServer::live`])
+/// before the oldest are dropped: a world of about ten messages and half
+/// another. The bound is in messages: a client that subscribed to the cloud
+/// alone and reads nothing holds up to this many clouds (8 MB each at the
+/// default bound).
+const LIVE_BACKLOG: usize = 16;
 
 /// How long [`WorldServer::stop`] waits for its clients' sends to end.
 const STOP_WAIT: std::time::Duration = std::time::Duration::from_secs(2);
@@ -75,8 +78,9 @@ const STOP_WAIT: std::time::Duration = std::time::Duration::from_secs(2);
 enum Request {
     /// Send channel `channel`'s messages to client `sink`.
     Send { sink: SinkId, channel: ChannelId },
-    /// The file was written again: read it, and send it to every subscriber.
-    Refresh,
+    /// The world as it now stands (an MCAP in memory): send it to every
+    /// subscriber.
+    Publish(Arc<Vec<u8>>),
     /// The server stops.
     Stop,
 }
@@ -115,10 +119,16 @@ struct Served {
 }
 
 impl Served {
-    /// Reads the file (again), advertising the topics it did not have
-    /// before. The channels keep their topic's first encoding and schema.
+    /// Reads the file, advertising its topics.
     fn load(&mut self) -> Result<()> {
         let file = McapFile::open(&self.path)?;
+        self.adopt(file)
+    }
+
+    /// Serves `file` from now on, advertising the topics it has that were
+    /// not served before. The channels keep their topic's first encoding
+    /// and schema.
+    fn adopt(&mut self, file: McapFile) -> Result<()> {
         let infos = file.channels()?;
         for c in self.channels.values_mut() {
             c.0 = None;
@@ -173,8 +183,7 @@ impl Served {
         if out.is_empty() {
             return;
         }
-        // A file that changed since it was read sends nothing more: its
-        // next version comes with a refresh.
+        // A file that shrank since it was read sends nothing more.
         let Ok(scan) = file.scan(|c| out.contains_key(&c.id)) else {
             return;
         };
@@ -204,13 +213,13 @@ impl Served {
 /// of the file advertised as it is (topic, message encoding, schema,
 /// metadata), and its messages sent, in the file's order and with their log
 /// times, to each client that subscribes (when it subscribes: the world is
-/// latched for late clients). [`WorldServer::watch`] serves a file that a
-/// running conversion writes again and again (`follow --serve`):
-/// [`WorldServer::refresh`] reads its new version and sends it to every
-/// subscriber, the topics it gained advertised. The file is read again per
-/// subscription (that channel's chunks only) and once per refresh (the
-/// subscribed channels in one pass), never held whole. Stops on
-/// [`WorldServer::stop`] or when dropped.
+/// latched for late clients). The file is read again per subscription (that
+/// channel's chunks only), never held whole. [`WorldServer::live`] serves
+/// the world of a running conversion (`follow --serve`, `Session.serve`):
+/// each version handed to [`WorldServer::publish`] in memory goes to every
+/// subscriber at once, the topics it gained advertised, and is kept for
+/// the clients that subscribe later. Stops on [`WorldServer::stop`] or when
+/// dropped.
 pub struct WorldServer {
     path: PathBuf,
     host: String,
@@ -268,11 +277,12 @@ impl WorldServer {
         Ok(server)
     }
 
-    /// Serves the file at `path`, which a running conversion writes (again
-    /// and again, each time whole: renamed into place): nothing until the
-    /// first [`WorldServer::refresh`] (a file there now is an earlier run's),
-    /// then each version written. Errors: an address that cannot be bound.
-    pub fn watch(path: &Path, opts: &ServeOptions) -> Result<Self> {
+    /// Serves the world of a running conversion, each version handed to
+    /// [`WorldServer::publish`] (nothing before the first); `path` names
+    /// the file the conversion writes each version to, after publishing it
+    /// ([`WorldServer::path`], and the name in errors). Errors: an address
+    /// that cannot be bound.
+    pub fn live(path: &Path, opts: &ServeOptions) -> Result<Self> {
         Self::launch(path.to_path_buf(), opts, false)
     }
 
@@ -332,11 +342,11 @@ impl WorldServer {
         })
     }
 
-    /// The file was written again: its new version goes to every
-    /// subscriber (refreshes that pile up while one is sent are one).
-    /// Returns at once.
-    pub fn refresh(&self) {
-        let _ = self.tx.send(Request::Refresh);
+    /// The world as it now stands, `world.mcap`'s bytes: it goes to every
+    /// subscriber (of the versions that pile up while one is sent, the
+    /// latest), and to each client that subscribes later. Returns at once.
+    pub fn publish(&self, world: Arc<Vec<u8>>) {
+        let _ = self.tx.send(Request::Publish(world));
     }
 
     /// The port it listens on.
@@ -409,28 +419,30 @@ impl Drop for WorldServer {
     }
 }
 
-/// The worker: each subscription's channel read from the file and sent to
-/// the client that asked, each refresh to every subscriber, until the
-/// server stops.
+/// The worker: each subscription's channel read from the world and sent to
+/// the client that asked, each version published to every subscriber,
+/// until the server stops.
 fn work(mut served: Served, rx: &mpsc::Receiver<Request>) {
     while let Ok(req) = rx.recv() {
         match req {
             Request::Stop => return,
             Request::Send { sink, channel } => served.send_subscribed(sink, channel),
-            Request::Refresh => {
-                // Refreshes queued behind this one are this one; the
+            Request::Publish(mut world) => {
+                // Versions queued behind this one replace it; the
                 // subscriptions among them come after it.
                 let mut later = Vec::new();
                 let mut stop = false;
                 while let Ok(r) = rx.try_recv() {
                     match r {
-                        Request::Refresh => {}
+                        Request::Publish(w) => world = w,
                         Request::Stop => stop = true,
                         Request::Send { sink, channel } => later.push((sink, channel)),
                     }
                 }
                 // A version that cannot be read keeps the last one.
-                if served.load().is_ok() {
+                let adopted =
+                    McapFile::from_bytes(&served.path, world).and_then(|f| served.adopt(f));
+                if adopted.is_ok() {
                     served.send(|_| true, None);
                 }
                 for (sink, channel) in later {

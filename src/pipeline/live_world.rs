@@ -4,17 +4,19 @@
 //! [`FollowReport`] of a session, its state channel.
 
 use std::path::Path;
+use std::sync::{Arc, Mutex};
 
 use crate::cloud::PointFilter;
 use crate::error::Result;
 use crate::geometry::Sim3;
 use crate::io::atomic::OutputSet;
 use crate::io::mcap::grid_msgs::{grid_channels, GridChannel};
-use crate::io::mcap::write::{topics, write_world_mcap_extra_into, ExtraChannel};
+use crate::io::mcap::write::{topics, world_mcap_bytes, write_world_mcap_extra_into, ExtraChannel};
 use crate::io::mcap::{WorldFlavor, WorldScene};
 use crate::io::spill::{CloudRef, TrajectoryRef};
 use crate::live::LiveCloud;
 use crate::map::{Grid2d, GridParams, VoxelState};
+use crate::pipeline::outputs::WORLD_MCAP;
 use crate::pipeline::report::{FollowReport, TransformReport};
 use crate::pipeline::session::{Session, UpdateTiming};
 use crate::trajectory::Trajectory;
@@ -31,16 +33,63 @@ pub struct SessionWorld {
     cloud: LiveCloud,
     grid: Option<GridParams>,
     flavor: WorldFlavor,
+    buffers: Buffers,
 }
 
-/// What one [`SessionWorld::write_into`] wrote.
-pub struct WorldWritten {
-    /// `world.mcap` was written (false before the transform: there is no
-    /// world yet).
-    pub world: bool,
-    /// The 2-D grid and its occupied threshold, when one was asked for and
-    /// the map has voxels in its band (nav2's files are made from it).
-    pub grid: Option<(Grid2d, f64)>,
+/// The memory of the worlds sent lately ([`LiveWorld::bytes`]), each
+/// reused once only this pool holds it (a server let go of it): a world of
+/// megabytes written into fresh memory at every update pays a page fault
+/// per 4 KiB page.
+#[derive(Clone, Default)]
+struct Buffers(Arc<Mutex<Vec<Arc<Vec<u8>>>>>);
+
+/// Worlds [`Buffers`] keeps: the one a server sends, the one it replaces,
+/// one more.
+const KEPT_WORLDS: usize = 3;
+
+impl Buffers {
+    /// An empty buffer, with the memory of a world nobody else holds when
+    /// there is one.
+    fn take(&self) -> Vec<u8> {
+        let mut held = self.0.lock().unwrap_or_else(|e| e.into_inner());
+        // Only this pool can hand out a world it holds: one it alone holds
+        // stays so.
+        if let Some(i) = held.iter().position(|b| Arc::strong_count(b) == 1) {
+            if let Ok(mut v) = Arc::try_unwrap(held.swap_remove(i)) {
+                v.clear();
+                return v;
+            }
+        }
+        Vec::new()
+    }
+
+    /// Keeps `world` for reuse; the oldest beyond [`KEPT_WORLDS`] is let go.
+    fn keep(&self, world: &Arc<Vec<u8>>) {
+        let mut held = self.0.lock().unwrap_or_else(|e| e.into_inner());
+        held.push(world.clone());
+        if held.len() > KEPT_WORLDS {
+            held.remove(0);
+        }
+    }
+}
+
+/// The world of a session as it stands ([`SessionWorld::build`]): what
+/// `world.mcap` holds, ready to be sent ([`LiveWorld::bytes`]) and written
+/// ([`LiveWorld::write_into`]).
+pub struct LiveWorld<'a> {
+    points: &'a [f32],
+    colors: Option<&'a [u8]>,
+    t_world_slam: Sim3,
+    slam: Trajectory,
+    reference: Option<Trajectory>,
+    frames: Vec<(&'static str, Sim3)>,
+    stamp: f64,
+    leaves: Vec<([f64; 3], f64)>,
+    grid: Option<(Grid2d, f64)>,
+    grid_channels: Vec<GridChannel>,
+    state: Vec<u8>,
+    flavor: WorldFlavor,
+    buffers: Buffers,
 }
 
 impl SessionWorld {
@@ -63,28 +112,16 @@ impl SessionWorld {
             ),
             grid,
             flavor,
+            buffers: Buffers::default(),
         }
     }
 
-    /// Writes the world of `session` as it stands to `path`, one output of
-    /// `set` (published when the set is committed), with `state` (the
-    /// report's JSON bytes) on the state channel; its chunks zstd-compressed
-    /// with `compress`, else stored (what a world written again at every
-    /// update wants: zstd took a third of a full-size `follow`). Nothing
-    /// before the transform is known.
-    pub fn write_into(
-        &mut self,
-        set: &mut OutputSet,
-        path: &Path,
-        session: &Session,
-        state: &[u8],
-        compress: bool,
-    ) -> Result<WorldWritten> {
+    /// The world of `session` as it stands, with `state` (the report's
+    /// JSON bytes) on the state channel; `None` before the transform (there
+    /// is no world yet).
+    pub fn build(&mut self, session: &Session, state: Vec<u8>) -> Result<Option<LiveWorld<'_>>> {
         let (Some(map), Ok(t)) = (session.map(), session.transform()) else {
-            return Ok(WorldWritten {
-                world: false,
-                grid: None,
-            });
+            return Ok(None);
         };
         let grid = match &self.grid {
             Some(p) => {
@@ -94,43 +131,97 @@ impl SessionWorld {
             None => None,
         };
         let stamp = session.state().time.max(0.0);
-        let channels = match &grid {
+        let grid_channels = match &grid {
             Some((g, _)) => grid_channels(g, stamp, "world", self.flavor)?,
             None => Vec::new(),
         };
-        let mut extra: Vec<ExtraChannel<'_>> = channels.iter().map(GridChannel::as_extra).collect();
+        let (points, colors) = self.cloud.update(session.keyframes(), &t.transform)?;
+        let reference = session.reference_path(crate::defaults::LIVE_PATH_POSES)?;
+        let frames = latest_frames(&t.transform, session, reference.as_ref());
+        let slam = thin(keyframe_path(session)?)?.transformed(&t.transform);
+        Ok(Some(LiveWorld {
+            points,
+            colors,
+            t_world_slam: t.transform,
+            slam,
+            reference,
+            frames,
+            stamp,
+            leaves: map.leaves(VoxelState::Occupied),
+            grid,
+            grid_channels,
+            state,
+            flavor: self.flavor,
+            buffers: self.buffers.clone(),
+        }))
+    }
+}
+
+impl LiveWorld<'_> {
+    fn scene(&self) -> WorldScene<'_> {
+        WorldScene {
+            cloud: CloudRef::Memory(self.points, self.colors),
+            t_world_slam: self.t_world_slam,
+            slam_trajectory: Some(&self.slam),
+            reference: self.reference.as_ref().map(TrajectoryRef::Memory),
+            stamp: self.stamp,
+            world_frame: "world",
+            slam_frame: "slam",
+            frames: &self.frames,
+        }
+    }
+
+    fn extra(&self) -> Vec<ExtraChannel<'_>> {
+        let mut extra: Vec<ExtraChannel<'_>> = self
+            .grid_channels
+            .iter()
+            .map(GridChannel::as_extra)
+            .collect();
         extra.push(ExtraChannel {
             topic: topics::STATE,
             schema: ("slam2world.FollowReport", "jsonschema", state_schema()),
             message_encoding: "json",
-            data: state,
+            data: &self.state,
         });
-        let (points, colors) = self.cloud.update(session.keyframes(), &t.transform)?;
-        let keyframes = keyframe_path(session)?;
-        let reference = session.reference_path(crate::defaults::LIVE_PATH_POSES)?;
-        let frames = latest_frames(&t.transform, session, reference.as_ref());
-        let slam = thin(keyframes)?.transformed(&t.transform);
-        let scene = WorldScene {
-            cloud: CloudRef::Memory(&points, colors.as_deref()),
-            t_world_slam: t.transform,
-            slam_trajectory: Some(&slam),
-            reference: reference.as_ref().map(TrajectoryRef::Memory),
-            stamp,
-            world_frame: "world",
-            slam_frame: "slam",
-            frames: &frames,
-        };
-        let leaves = map.leaves(VoxelState::Occupied);
+        extra
+    }
+
+    /// `world.mcap` in memory, its chunks stored (what goes to a live
+    /// server, and the file while the run goes on), in the memory of a
+    /// world sent before that nobody holds any more.
+    pub fn bytes(&self) -> Result<Arc<Vec<u8>>> {
+        let bytes = Arc::new(world_mcap_bytes(
+            Path::new(WORLD_MCAP),
+            &self.scene(),
+            Some(&self.leaves),
+            &self.extra(),
+            self.flavor,
+            self.buffers.take(),
+        )?);
+        self.buffers.keep(&bytes);
+        Ok(bytes)
+    }
+
+    /// Writes `world.mcap` to `path`, one output of `set` (published when
+    /// the set is committed), its chunks zstd-compressed with `compress`,
+    /// else stored (what a world written again at every update wants: zstd
+    /// took a third of a full-size `follow`).
+    pub fn write_into(&self, set: &mut OutputSet, path: &Path, compress: bool) -> Result<()> {
         write_world_mcap_extra_into(
             set,
             path,
-            &scene,
-            Some(&leaves),
-            &extra,
+            &self.scene(),
+            Some(&self.leaves),
+            &self.extra(),
             self.flavor,
             compress,
-        )?;
-        Ok(WorldWritten { world: true, grid })
+        )
+    }
+
+    /// The 2-D grid and its occupied threshold, when one was asked for and
+    /// the map has voxels in its band (nav2's files are made from it).
+    pub fn grid(&self) -> Option<&(Grid2d, f64)> {
+        self.grid.as_ref()
     }
 }
 

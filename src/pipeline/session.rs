@@ -420,6 +420,10 @@ pub struct Session {
     ground_dirty: bool,
     /// Keyframes at the last ground fit that gave the transform.
     ground_fitted_at: usize,
+    /// Ground refits are left to [`Session::catch_up`] ([`Session::defer_refits`]).
+    defer_refits: bool,
+    /// A ground refit is due and was left to [`Session::catch_up`].
+    refit_due: bool,
 }
 
 /// Most points of one keyframe the session's ground plane weighs.
@@ -483,6 +487,8 @@ impl Session {
             ground_points: BTreeMap::new(),
             ground_dirty: false,
             ground_fitted_at: 0,
+            defer_refits: false,
+            refit_due: false,
         })
     }
 
@@ -837,6 +843,37 @@ impl Session {
         self.last_update
     }
 
+    /// With `on`, a push whose update calls for a ground refit (a camera
+    /// height, no reference: the keyframes grew by a quarter since the
+    /// last fit) leaves it for [`Session::catch_up`]: the update carries the
+    /// new keyframe by the transform it has, so that a live viewer gets its
+    /// points without waiting for the refit (tens of milliseconds at a few
+    /// hundred keyframes), and the refit follows at once. The first fit and
+    /// the end's are never deferred. Off by default.
+    pub fn defer_refits(&mut self, on: bool) {
+        self.defer_refits = on;
+    }
+
+    /// Whether a deferred refit waits for [`Session::catch_up`].
+    pub fn has_deferred(&self) -> bool {
+        self.refit_due
+    }
+
+    /// Does the refit a push left for later ([`Session::defer_refits`]) and
+    /// the map update it calls for: the session is then where it would be
+    /// had nothing been deferred. Returns that update's timing (zeros when
+    /// nothing was due).
+    pub fn catch_up(&mut self) -> Result<UpdateTiming> {
+        if !self.refit_due {
+            return Ok(UpdateTiming::default());
+        }
+        let defer = std::mem::replace(&mut self.defer_refits, false);
+        let r = self.update();
+        self.defer_refits = defer;
+        r?;
+        Ok(self.last_update)
+    }
+
     /// IMU samples pushed.
     pub fn imu_samples(&self) -> usize {
         self.imu
@@ -1140,6 +1177,10 @@ impl Session {
         // moves every inserted keyframe, and the map is built again.
         let grown = 4 * self.kfs.len() >= 5 * self.ground_fitted_at;
         if !self.ground_dirty || !(self.finished || self.transform.is_none() || grown) {
+            return Ok(());
+        }
+        self.refit_due = self.defer_refits && !self.finished && self.transform.is_some();
+        if self.refit_due {
             return Ok(());
         }
         self.ground_dirty = false;

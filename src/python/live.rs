@@ -30,7 +30,8 @@ impl PyWorldServer {
     fn port(&self) -> u16 {
         self.port
     }
-    /// The file served.
+    /// The file served (a session's: the world last served, written after
+    /// it went out).
     #[getter]
     fn path(&self) -> PathBuf {
         self.path.clone()
@@ -96,10 +97,10 @@ impl PyWorldServer {
         }
     }
 
-    /// Its file was written again (nothing once stopped).
-    pub(crate) fn refresh(&self) {
+    /// The world as it now stands to every client (nothing once stopped).
+    pub(crate) fn publish(&self, world: std::sync::Arc<Vec<u8>>) {
         if let Some(s) = &self.inner {
-            s.refresh();
+            s.publish(world);
         }
     }
 

@@ -58,8 +58,9 @@ pub struct PySession {
     live: Option<LiveServe>,
 }
 
-/// A session's world on a Foxglove WebSocket (`Session.serve`): written
-/// after every update into a private folder, which the server watches.
+/// A session's world on a Foxglove WebSocket (`Session.serve`): handed to
+/// the server after every update, then written into a private folder (the
+/// server's `path`).
 struct LiveServe {
     server: Py<PyWorldServer>,
     world: SessionWorld,
@@ -69,6 +70,24 @@ struct LiveServe {
 }
 
 impl PySession {
+    /// After a push that was published: the ground refit it left for later
+    /// (only while serving: `Session::defer_refits`), published in turn;
+    /// returns the push's timing `t` with the refit's added.
+    fn catch_up(&mut self, py: Python<'_>, t: UpdateTiming) -> PyResult<UpdateTiming> {
+        if !self.inner.has_deferred() {
+            return Ok(t);
+        }
+        let c = self.inner.catch_up()?;
+        self.publish(py, None, false, &c)?;
+        Ok(UpdateTiming {
+            fit_s: t.fit_s + c.fit_s,
+            backproject_s: t.backproject_s + c.backproject_s,
+            insert_s: t.insert_s + c.insert_s,
+            inserted: t.inserted + c.inserted,
+            rebuilt: t.rebuilt || c.rebuilt,
+        })
+    }
+
     /// After an update: the world as it stands to the clients of `serve`
     /// (nothing without one, or once it is stopped; nothing before the
     /// transform is known). `id`: the keyframe pushed (None: not one, a
@@ -93,14 +112,24 @@ impl PySession {
         live.report.finished = finished;
         let state = to_json_bytes(&live.report)?;
         let path = live.dir.path().join(WORLD_MCAP);
-        let mut set = OutputSet::new();
         let session = &self.inner;
         let world = &mut live.world;
-        let written = py.detach(|| world.write_into(&mut set, &path, session, &state, false))?;
-        if written.world {
-            set.commit()?;
-            live.server.borrow(py).refresh();
-        }
+        let built = py.detach(|| -> crate::Result<Option<std::sync::Arc<Vec<u8>>>> {
+            Ok(match world.build(session, state)? {
+                Some(w) => Some(w.bytes()?),
+                None => None,
+            })
+        })?;
+        let Some(bytes) = built else {
+            return Ok(());
+        };
+        // The clients first; then the file the server names.
+        live.server.borrow(py).publish(bytes.clone());
+        py.detach(|| {
+            let mut set = OutputSet::new();
+            set.write_bytes(&path, &bytes)?;
+            set.commit().map(|_| ())
+        })?;
         Ok(())
     }
 }
@@ -202,6 +231,7 @@ impl PySession {
         let id = kf.id;
         let t = self.inner.push_keyframe(kf)?;
         self.publish(py, Some(id), false, &t)?;
+        let t = self.catch_up(py, t)?;
         timing_dict(py, &t)
     }
 
@@ -215,6 +245,7 @@ impl PySession {
             poses.iter().map(|(id, p)| (*id, p.inner)).collect();
         let t = self.inner.push_graph_update(&poses)?;
         self.publish(py, None, false, &t)?;
+        let t = self.catch_up(py, t)?;
         timing_dict(py, &t)
     }
 
@@ -277,7 +308,10 @@ impl PySession {
     /// link). Returns the `WorldServer`; its
     /// `stop()` ends the serving (the session goes on). A session serves
     /// once at a time: a second call stops the first server. Each update
-    /// then also writes the world (tens of milliseconds for a large map).
+    /// hands the world to the server, then writes it to the server's
+    /// `path`. With a camera height, a keyframe that calls for a ground
+    /// refit goes out carried by the transform the session had, and the
+    /// refitted world right after it, within the same push.
     #[pyo3(signature = (port=8765, *, host="127.0.0.1", grid=None, ros2=false, points=500_000))]
     fn serve(
         &mut self,
@@ -307,13 +341,15 @@ impl PySession {
             port,
         };
         let path = dir.path().join(WORLD_MCAP);
-        let server = py.detach(|| WorldServer::watch(&path, &opts))?;
+        let server = py.detach(|| WorldServer::live(&path, &opts))?;
         let server = Py::new(py, PyWorldServer::from_core(server))?;
         let flavor = if ros2 {
             WorldFlavor::Ros2
         } else {
             WorldFlavor::Foxglove
         };
+        // A keyframe's points go out before the ground refit it may call for.
+        self.inner.defer_refits(true);
         self.live = Some(LiveServe {
             server: server.clone_ref(py),
             world: SessionWorld::new(self.inner.options().filter, points, grid, flavor),

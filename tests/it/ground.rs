@@ -371,3 +371,64 @@ fn the_windowed_profile_follows_a_drifting_scale_where_the_floor_is_seen() {
         }
     }
 }
+
+/// A session that defers its ground refits (`Session::defer_refits`, what a
+/// served session does) carries the keyframe that calls for one by the
+/// transform it had, and after `catch_up` is where a session that refits at
+/// once is: the same transform, bit for bit, after every keyframe, and the
+/// same octree at the end.
+#[test]
+#[ignore = "slow: make test runs it"]
+fn a_deferred_refit_catches_up_to_the_session_that_refits_at_once() {
+    use slam2world::pipeline::prior::HeightSpec;
+    use slam2world::pipeline::session::{Session, SessionOptions};
+    let sim = simulate(&ground_vehicle(3)).unwrap();
+    let opts = SessionOptions {
+        camera_height: Some(HeightSpec::Constant(sim.config.camera_height)),
+        ..SessionOptions::default()
+    };
+    let mut now = Session::new(opts.clone()).unwrap();
+    let mut later = Session::new(opts).unwrap();
+    later.defer_refits(true);
+    let (mut deferred, mut first) = (0, None);
+    for (i, kf) in sim.keyframes.iter().enumerate() {
+        let before = now.transform().ok().map(|t| t.transform);
+        now.push_keyframe(kf.clone()).unwrap();
+        later.push_keyframe(kf.clone()).unwrap();
+        let after = now.transform().ok().map(|t| t.transform);
+        first = first.or(after.map(|_| i));
+        let pushed = later.transform().ok().map(|t| t.transform);
+        if later.has_deferred() {
+            // A refit is never deferred before there is a transform.
+            assert!(before.is_some(), "keyframe {i}");
+            assert_eq!(
+                pushed, before,
+                "keyframe {i}: carried by the transform it had"
+            );
+            deferred += 1;
+            let t = later.catch_up().unwrap();
+            assert!(t.fit_s > 0.0);
+            assert!(!later.has_deferred());
+        } else {
+            assert_eq!(later.catch_up().unwrap().fit_s, 0.0);
+        }
+        assert_eq!(
+            later.transform().ok().map(|t| t.transform),
+            after,
+            "keyframe {i}"
+        );
+    }
+    let first = first.expect("a transform before the end");
+    assert!(
+        deferred >= 3,
+        "{deferred} refits deferred after keyframe {first}"
+    );
+    now.finish().unwrap();
+    later.finish().unwrap();
+    assert_eq!(
+        later.transform().unwrap().transform,
+        now.transform().unwrap().transform
+    );
+    let bt = |s: &Session| s.map().unwrap().to_bt_bytes();
+    assert!(bt(&later) == bt(&now), "the end's octree");
+}

@@ -374,6 +374,62 @@ def test_a_session_serves_its_world_as_it_grows() -> None:
         assert json.loads(got["/slam2world/state"][-1][1])["stage"] == "stable"
 
 
+@pytest.mark.slow
+def test_a_served_session_sends_a_keyframe_before_the_refit_it_calls_for() -> None:
+    """With a camera height, a keyframe that calls for a ground refit goes to the clients
+    carried by the transform the session had, and the refitted world follows at once: two
+    states name that keyframe, the first with the scale the keyframe before ended on. After
+    every push the session is where one that is not served is, bit for bit."""
+    sim = sw.simulate(
+        reduced=4, seed=3, camera_height=1.2, height_loop=0.0, height_slow=0.0, look_height=0.6
+    )
+    served, plain = sw.Session(camera_height=1.2), sw.Session(camera_height=1.2)
+    srv = served.serve(0)
+    received: dict[str, list[tuple[int, bytes]]] = defaultdict(list)
+    errors: list[BaseException] = []
+    stop = threading.Event()
+    client = threading.Thread(target=collect, args=(srv.url, received, stop, errors))
+    client.start()
+
+    def states() -> list[dict]:
+        return [json.loads(d) for _, d in list(received["/slam2world/state"])]
+
+    try:
+        time.sleep(0.3)
+        order = []
+        for kf in sim.keyframes:
+            served.push_keyframe(kf)
+            plain.push_keyframe(kf)
+            a, b = served.transform(), plain.transform()
+            assert (a is None) == (b is None)
+            if a is None or b is None:
+                continue
+            assert (a.scale, a.translation.tolist()) == (b.scale, b.translation.tolist())
+            order.append(kf.id)
+            # Paced: the world of this push (the refitted one, when there is one) arrived.
+            deadline = time.monotonic() + 30
+            while time.monotonic() < deadline and not any(
+                s["last_keyframe"] == kf.id and s["t_world_slam"]["scale"] == a.scale
+                for s in states()
+            ):
+                time.sleep(0.01)
+        assert errors == []
+        last: dict[int, list[float]] = defaultdict(list)
+        for s in states():
+            last[s["last_keyframe"]].append(s["t_world_slam"]["scale"])
+        assert [k for k in last if k in order] == order
+        twice = [i for i, k in enumerate(order) if len(last[k]) == 2]
+        assert len(twice) >= 3, last
+        for i in twice:
+            first, refitted = last[order[i]]
+            assert i > 0 and first == last[order[i - 1]][-1] and refitted != first
+        assert all(len(last[k]) == 1 for i, k in enumerate(order) if i not in twice)
+    finally:
+        stop.set()
+        client.join(timeout=10)
+        srv.stop()
+
+
 class _Subscriptions(foxglove.ServerListener):
     """Counts the subscriptions a server gets, by topic."""
 

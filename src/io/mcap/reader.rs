@@ -102,7 +102,23 @@ impl Scan<'_> {
 /// while it is read is an error, not SIGBUS: [`crate::io::mapped`]).
 pub struct McapFile {
     path: PathBuf,
-    map: crate::io::mapped::Mapped,
+    map: Bytes,
+}
+
+/// The bytes an [`McapFile`] reads: a file's map, or a log in memory.
+enum Bytes {
+    Mapped(crate::io::mapped::Mapped),
+    Memory(std::sync::Arc<Vec<u8>>),
+}
+
+impl std::ops::Deref for Bytes {
+    type Target = [u8];
+    fn deref(&self) -> &[u8] {
+        match self {
+            Bytes::Mapped(m) => m,
+            Bytes::Memory(b) => b,
+        }
+    }
 }
 
 /// One item of the data section, before chunks are expanded.
@@ -135,6 +151,16 @@ impl McapFile {
         crate::io::mapped::require_file(&path, "an MCAP file")?;
         let file = std::fs::File::open(&path).map_err(|e| Error::io(&path, e))?;
         let map = crate::io::mapped::Mapped::map(file, &path)?;
+        Self::with(path, Bytes::Mapped(map))
+    }
+
+    /// An MCAP log held in memory, `name` standing for its path in errors.
+    /// Fails on bytes that do not start with the MCAP magic.
+    pub fn from_bytes(name: impl AsRef<Path>, bytes: std::sync::Arc<Vec<u8>>) -> Result<Self> {
+        Self::with(name.as_ref().to_path_buf(), Bytes::Memory(bytes))
+    }
+
+    fn with(path: PathBuf, map: Bytes) -> Result<Self> {
         if map.len() < MAGIC.len() || &map[..MAGIC.len()] != MAGIC {
             return Err(Error::Mcap {
                 path,
@@ -202,18 +228,23 @@ impl McapFile {
     /// Gives back the process's pages of `bytes`, a slice of the file's map
     /// that a reader is done with ([`crate::io::mapped::Mapped::release`]).
     pub(crate) fn release(&self, bytes: &[u8]) {
-        self.map.release(bytes);
+        if let Bytes::Mapped(m) = &self.map {
+            m.release(bytes);
+        }
     }
 
     /// Fails when the file shrank while it was read (see [`crate::io::mapped`]).
     pub fn check_unchanged(&self) -> Result<()> {
-        self.map.check()
+        match &self.map {
+            Bytes::Mapped(m) => m.check(),
+            Bytes::Memory(_) => Ok(()),
+        }
     }
 
     /// Reads every message whose channel `want` accepts, in file order.
     pub fn scan(&self, want: impl Fn(&ChannelInfo) -> bool + Sync) -> Result<Scan<'_>> {
         let r = self.scan_unchecked(want);
-        self.map.check()?;
+        self.check_unchanged()?;
         r
     }
 

@@ -4,7 +4,7 @@
 //! and renamed when complete.
 
 use std::collections::BTreeMap;
-use std::io::{BufWriter, Write};
+use std::io::{BufWriter, Seek, Write};
 use std::path::Path;
 
 use super::piecewise::{Channel, PiecewiseWriter};
@@ -212,29 +212,55 @@ const FOXGLOVE_FLOAT32: i64 = 7;
 /// Appends points and colours as `x, y, z: f32` + `r, g, b, a: u8` (16 bytes
 /// a point, white without colours).
 fn pack_foxglove(data: &mut Vec<u8>, points: &[f32], colors: Option<&[u8]>) {
-    for i in 0..points.len() / 3 {
-        for v in &points[3 * i..3 * i + 3] {
-            data.extend_from_slice(&v.to_le_bytes());
-        }
-        match colors {
-            Some(c) => data.extend_from_slice(&[c[3 * i], c[3 * i + 1], c[3 * i + 2], 255]),
-            None => data.extend_from_slice(&[255, 255, 255, 255]),
-        }
-    }
+    pack16(data, points, colors, |c| [c[0], c[1], c[2], 255], [255; 4]);
 }
 
 /// Appends points and colours as `x, y, z: f32` + PCL's packed float `rgb`
 /// (the bytes b, g, r, 0 of a little-endian u32; white without colours).
 fn pack_pcl(data: &mut Vec<u8>, points: &[f32], colors: Option<&[u8]>) {
-    for i in 0..points.len() / 3 {
-        for v in &points[3 * i..3 * i + 3] {
-            data.extend_from_slice(&v.to_le_bytes());
+    pack16(
+        data,
+        points,
+        colors,
+        |c| [c[2], c[1], c[0], 0],
+        [255, 255, 255, 0],
+    );
+}
+
+/// Appends 16 bytes a point: `x, y, z` as little-endian `f32`, then the
+/// four bytes `color` makes of its colour (`white` without colours).
+#[inline(always)]
+fn pack16(
+    data: &mut Vec<u8>,
+    points: &[f32],
+    colors: Option<&[u8]>,
+    color: impl Fn(&[u8]) -> [u8; 4],
+    white: [u8; 4],
+) {
+    let n = points.len() / 3;
+    let start = data.len();
+    data.resize(start + 16 * n, 0);
+    let out = data[start..]
+        .chunks_exact_mut(16)
+        .zip(points.chunks_exact(3));
+    let xyz = |o: &mut [u8], p: &[f32]| {
+        o[0..4].copy_from_slice(&p[0].to_le_bytes());
+        o[4..8].copy_from_slice(&p[1].to_le_bytes());
+        o[8..12].copy_from_slice(&p[2].to_le_bytes());
+    };
+    match colors {
+        Some(c) => {
+            for ((o, p), c) in out.zip(c.chunks_exact(3)) {
+                xyz(o, p);
+                o[12..16].copy_from_slice(&color(c));
+            }
         }
-        let (r, g, b) = match colors {
-            Some(c) => (c[3 * i], c[3 * i + 1], c[3 * i + 2]),
-            None => (255, 255, 255),
-        };
-        data.extend_from_slice(&[b, g, r, 0]);
+        None => {
+            for (o, p) in out {
+                xyz(o, p);
+                o[12..16].copy_from_slice(&white);
+            }
+        }
     }
 }
 
@@ -695,6 +721,61 @@ fn write_world_impl(
     flavor: WorldFlavor,
     compress: bool,
 ) -> Result<()> {
+    set.write(path, |file| {
+        let w = write_world_to(
+            BufWriter::new(file),
+            path,
+            scene,
+            octomap,
+            extra,
+            flavor,
+            compress,
+        )?;
+        w.into_inner()
+            .map_err(|e| Error::io(path, e.into_error()))
+            .map(|_| ())
+    })
+}
+
+/// The `world.mcap` of [`write_world_mcap_extra_into`] in memory, its
+/// chunks stored uncompressed (what a live world sends as it is written: a
+/// file of it is these bytes), written into `buf` (cleared first: its
+/// memory is reused). `name` stands for the file in errors.
+pub fn world_mcap_bytes(
+    name: &Path,
+    scene: &WorldScene<'_>,
+    octomap: Option<&[([f64; 3], f64)]>,
+    extra: &[ExtraChannel<'_>],
+    flavor: WorldFlavor,
+    mut buf: Vec<u8>,
+) -> Result<Vec<u8>> {
+    buf.clear();
+    // The cloud's bytes and a little more: one allocation at most.
+    let cloud_bytes = 16 * scene.cloud.len() + octomap.map_or(0, |l| 64 * l.len());
+    buf.reserve(cloud_bytes + (1 << 20));
+    let w = write_world_to(
+        std::io::Cursor::new(buf),
+        name,
+        scene,
+        octomap,
+        extra,
+        flavor,
+        false,
+    )?;
+    Ok(w.into_inner())
+}
+
+/// Writes the world into `out` (the file at `path`, named in errors):
+/// the scene's channels, the occupied voxels, then `extra`.
+fn write_world_to<W: Write + Seek>(
+    out: W,
+    path: &Path,
+    scene: &WorldScene<'_>,
+    octomap: Option<&[([f64; 3], f64)]>,
+    extra: &[ExtraChannel<'_>],
+    flavor: WorldFlavor,
+    compress: bool,
+) -> Result<W> {
     if let CloudRef::Memory(points, colors) = scene.cloud {
         crate::io::ply::check_shapes(points, colors)?;
     }
@@ -703,101 +784,100 @@ fn write_world_impl(
         WorldFlavor::Foxglove => "",
         WorldFlavor::Ros2 => "ros2",
     };
-    set.write(path, |file| {
-        // The cloud's messages go a piece at a time from the cloud into the
-        // file (PiecewiseWriter): none is ever whole in memory.
-        let w = PiecewiseWriter::new(
-            BufWriter::new(file),
-            path,
-            profile,
-            concat!("slam2world ", env!("CARGO_PKG_VERSION")),
-        )?;
-        let mut w = if compress { w } else { w.uncompressed() };
-        let put = |w: &mut PiecewiseWriter<_>, ch: &mut Channel, data: &[u8]| {
+    // The cloud's messages go a piece at a time from the cloud into the
+    // file (PiecewiseWriter): none is ever whole in memory.
+    let w = PiecewiseWriter::new(
+        out,
+        path,
+        profile,
+        concat!("slam2world ", env!("CARGO_PKG_VERSION")),
+    )?;
+    let mut w = if compress { w } else { w.uncompressed() };
+    let put = |w: &mut PiecewiseWriter<_>, ch: &mut Channel, data: &[u8]| {
+        crate::interrupt::check()?;
+        w.message(ch, t, data)
+    };
+    let clouds = |w: &mut PiecewiseWriter<_>, ch: &mut Channel, ros2: bool| {
+        cloud_messages(scene.cloud, CLOUD_MESSAGE_POINTS, |n, pieces| {
             crate::interrupt::check()?;
-            w.message(ch, t, data)
-        };
-        let clouds = |w: &mut PiecewiseWriter<_>, ch: &mut Channel, ros2: bool| {
-            cloud_messages(scene.cloud, CLOUD_MESSAGE_POINTS, |n, pieces| {
-                crate::interrupt::check()?;
-                let msg = if ros2 {
-                    CloudMessage::ros2(scene.stamp, scene.world_frame, n)
-                } else {
-                    CloudMessage::foxglove(scene.stamp, scene.world_frame, n)
-                };
-                w.message_with(ch, t, msg.len() as u64, |out| msg.write(out, pieces, path))
-            })
-        };
-        match flavor {
-            WorldFlavor::Foxglove => {
-                let mut cloud =
-                    w.add_channel(topics::CLOUD, schemas::FOXGLOVE_POINT_CLOUD, "protobuf")?;
-                let mut tf =
-                    w.add_channel(topics::TF, schemas::FOXGLOVE_FRAME_TRANSFORM, "protobuf")?;
-                let msg = foxglove_frame_transform(
-                    scene.stamp,
-                    scene.world_frame,
-                    scene.slam_frame,
-                    &scene.t_world_slam,
-                );
+            let msg = if ros2 {
+                CloudMessage::ros2(scene.stamp, scene.world_frame, n)
+            } else {
+                CloudMessage::foxglove(scene.stamp, scene.world_frame, n)
+            };
+            w.message_with(ch, t, msg.len() as u64, |out| msg.write(out, pieces, path))
+        })
+    };
+    match flavor {
+        WorldFlavor::Foxglove => {
+            let mut cloud =
+                w.add_channel(topics::CLOUD, schemas::FOXGLOVE_POINT_CLOUD, "protobuf")?;
+            let mut tf =
+                w.add_channel(topics::TF, schemas::FOXGLOVE_FRAME_TRANSFORM, "protobuf")?;
+            let msg = foxglove_frame_transform(
+                scene.stamp,
+                scene.world_frame,
+                scene.slam_frame,
+                &scene.t_world_slam,
+            );
+            put(&mut w, &mut tf, &msg)?;
+            for (child, pose) in scene.frames {
+                let msg = foxglove_frame_transform(scene.stamp, scene.world_frame, child, pose);
                 put(&mut w, &mut tf, &msg)?;
-                for (child, pose) in scene.frames {
-                    let msg = foxglove_frame_transform(scene.stamp, scene.world_frame, child, pose);
-                    put(&mut w, &mut tf, &msg)?;
-                }
-                clouds(&mut w, &mut cloud, false)?;
-                for (topic, traj) in [
-                    (
-                        topics::SLAM_TRAJECTORY,
-                        scene.slam_trajectory.map(TrajectoryRef::Memory),
-                    ),
-                    (topics::REFERENCE, scene.reference),
-                ] {
-                    if let Some(traj) = traj {
-                        let mut ch =
-                            w.add_channel(topic, schemas::FOXGLOVE_POSES_IN_FRAME, "protobuf")?;
-                        let msg = PosesMessage::new(scene.stamp, scene.world_frame, traj);
-                        crate::interrupt::check()?;
-                        w.message_with(&mut ch, t, msg.len(), |out| msg.write(out, path))?;
-                    }
-                }
-                if let Some(leaves) = octomap {
+            }
+            clouds(&mut w, &mut cloud, false)?;
+            for (topic, traj) in [
+                (
+                    topics::SLAM_TRAJECTORY,
+                    scene.slam_trajectory.map(TrajectoryRef::Memory),
+                ),
+                (topics::REFERENCE, scene.reference),
+            ] {
+                if let Some(traj) = traj {
                     let mut ch =
-                        w.add_channel(topics::OCTOMAP, schemas::FOXGLOVE_SCENE_UPDATE, "protobuf")?;
-                    let msg = foxglove_scene_update_cubes(scene.stamp, scene.world_frame, leaves);
-                    put(&mut w, &mut ch, &msg)?;
+                        w.add_channel(topic, schemas::FOXGLOVE_POSES_IN_FRAME, "protobuf")?;
+                    let msg = PosesMessage::new(scene.stamp, scene.world_frame, traj);
+                    crate::interrupt::check()?;
+                    w.message_with(&mut ch, t, msg.len(), |out| msg.write(out, path))?;
                 }
             }
-            WorldFlavor::Ros2 => {
-                let mut tf = w.add_channel(topics::TF, schemas::ROS2_TF_MESSAGE, "cdr")?;
-                let mut cloud = w.add_channel(topics::CLOUD, schemas::ROS2_POINT_CLOUD2, "cdr")?;
-                let msg = ros2_tf(
-                    scene.stamp,
-                    scene.world_frame,
-                    scene.slam_frame,
-                    &scene.t_world_slam,
-                );
-                put(&mut w, &mut tf, &msg)?;
-                for (child, pose) in scene.frames {
-                    let msg = ros2_tf(scene.stamp, scene.world_frame, child, pose);
-                    put(&mut w, &mut tf, &msg)?;
-                }
-                clouds(&mut w, &mut cloud, true)?;
-                if let Some(leaves) = octomap {
-                    let mut ch =
-                        w.add_channel(topics::OCTOMAP, schemas::ROS2_POINT_CLOUD2, "cdr")?;
-                    let (pts, cols) = leaf_centers_colored(leaves);
-                    let msg = ros2_point_cloud(scene.stamp, scene.world_frame, &pts, Some(&cols));
-                    put(&mut w, &mut ch, &msg)?;
-                }
+            if let Some(leaves) = octomap {
+                let mut ch =
+                    w.add_channel(topics::OCTOMAP, schemas::FOXGLOVE_SCENE_UPDATE, "protobuf")?;
+                let msg = foxglove_scene_update_cubes(scene.stamp, scene.world_frame, leaves);
+                put(&mut w, &mut ch, &msg)?;
             }
         }
-        for x in extra {
-            let mut ch = w.add_channel(x.topic, x.schema, x.message_encoding)?;
-            put(&mut w, &mut ch, x.data)?;
+        WorldFlavor::Ros2 => {
+            let mut tf = w.add_channel(topics::TF, schemas::ROS2_TF_MESSAGE, "cdr")?;
+            let mut cloud = w.add_channel(topics::CLOUD, schemas::ROS2_POINT_CLOUD2, "cdr")?;
+            let msg = ros2_tf(
+                scene.stamp,
+                scene.world_frame,
+                scene.slam_frame,
+                &scene.t_world_slam,
+            );
+            put(&mut w, &mut tf, &msg)?;
+            for (child, pose) in scene.frames {
+                let msg = ros2_tf(scene.stamp, scene.world_frame, child, pose);
+                put(&mut w, &mut tf, &msg)?;
+            }
+            clouds(&mut w, &mut cloud, true)?;
+            if let Some(leaves) = octomap {
+                let mut ch = w.add_channel(topics::OCTOMAP, schemas::ROS2_POINT_CLOUD2, "cdr")?;
+                let (pts, cols) = leaf_centers_colored(leaves);
+                let msg = ros2_point_cloud(scene.stamp, scene.world_frame, &pts, Some(&cols));
+                put(&mut w, &mut ch, &msg)?;
+            }
         }
-        w.finish()?.flush().map_err(|e| Error::io(path, e))
-    })
+    }
+    for x in extra {
+        let mut ch = w.add_channel(x.topic, x.schema, x.message_encoding)?;
+        put(&mut w, &mut ch, x.data)?;
+    }
+    let mut out = w.finish()?;
+    out.flush().map_err(|e| Error::io(path, e))?;
+    Ok(out)
 }
 
 /// Topics and options of [`write_slam_log`].
