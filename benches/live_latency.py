@@ -139,10 +139,20 @@ class Peer:
         self.sock.sendall(header + mask + masked.tobytes())
 
     def subscribe_advertised(self, payload: memoryview, topics: dict[int, str]) -> None:
+        """Subscribes to the channels an `advertise` names, and again to one whose subscription
+        was refused as unknown: the SDK's server (foxglove 0.30) sends a new channel's
+        `advertise` before it records the channel as advertised to the client, so a
+        subscription that comes back at once can be refused."""
         msg = json.loads(bytes(payload))
         if msg.get("op") == "advertise":
             topics.update({c["id"]: c["topic"] for c in msg["channels"]})
             subs = [{"id": c["id"], "channelId": c["id"]} for c in msg["channels"]]
+            self.send(json.dumps({"op": "subscribe", "subscriptions": subs}).encode())
+        text = str(msg.get("message", "")) if msg.get("op") == "status" else ""
+        if text.startswith("Unknown channel ID: ") and int(text.rsplit(" ", 1)[1]) in topics:
+            cid = int(text.rsplit(" ", 1)[1])
+            time.sleep(0.01)
+            subs = [{"id": cid, "channelId": cid}]
             self.send(json.dumps({"op": "subscribe", "subscriptions": subs}).encode())
 
 

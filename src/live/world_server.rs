@@ -65,11 +65,11 @@ impl std::str::FromStr for ServeOptions {
 }
 
 /// Messages queued for one client of a live world ([`WorldServer::live`])
-/// before the oldest are dropped: a world of about ten messages and half
-/// another. The bound is in messages: a client that subscribed to the cloud
-/// alone and reads nothing holds up to this many clouds (8 MB each at the
-/// default bound).
-const LIVE_BACKLOG: usize = 16;
+/// before the oldest are dropped: about six worlds of ten messages. The
+/// bound is in messages: a client that subscribed to the cloud alone and
+/// reads nothing holds up to this many clouds (8 MB each at the default
+/// bound).
+const LIVE_BACKLOG: usize = 64;
 
 /// How long [`WorldServer::stop`] waits for its clients' sends to end.
 const STOP_WAIT: std::time::Duration = std::time::Duration::from_secs(2);
@@ -130,12 +130,10 @@ impl Served {
     /// and schema.
     fn adopt(&mut self, file: McapFile) -> Result<()> {
         let infos = file.channels()?;
-        for c in self.channels.values_mut() {
-            c.0 = None;
-        }
+        // The new topics' channels first; the served world changes only
+        // once all of them are there.
         for info in infos.values() {
-            if let Some(c) = self.channels.get_mut(&info.topic) {
-                c.0 = Some(info.id);
+            if self.channels.contains_key(&info.topic) {
                 continue;
             }
             let schema = (info.schema_id != 0).then(|| {
@@ -156,12 +154,19 @@ impl Served {
                     reason: format!("channel {}: {e}", info.topic),
                 })?;
             self.topics_by_id.insert(channel.id(), info.topic.clone());
-            self.channels
-                .insert(info.topic.clone(), (Some(info.id), channel));
+            self.channels.insert(info.topic.clone(), (None, channel));
             self.topics
                 .lock()
                 .unwrap_or_else(|e| e.into_inner())
                 .push(info.topic.clone());
+        }
+        for c in self.channels.values_mut() {
+            c.0 = None;
+        }
+        for info in infos.values() {
+            if let Some(c) = self.channels.get_mut(&info.topic) {
+                c.0 = Some(info.id);
+            }
         }
         self.file = Some(file);
         Ok(())

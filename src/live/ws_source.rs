@@ -57,9 +57,17 @@ pub struct WsSource {
     /// Subscriptions: our id to the server's channel id.
     subscriptions: HashMap<u32, u64>,
     next_subscription: u32,
+    /// Subscriptions asked again, by channel ([`RESUBSCRIBE`] at most each).
+    resubscribed: HashMap<u64, u32>,
     /// Messages received.
     pub received: u64,
 }
+
+/// Times a refused subscription to a channel is asked again: the Foxglove
+/// SDK's server (0.30) sends a new channel's `advertise` before it records
+/// the channel as advertised to the client, so a subscription sent back at
+/// once can be refused as "Unknown channel ID".
+const RESUBSCRIBE: u32 = 3;
 
 impl std::fmt::Debug for WsSource {
     fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
@@ -134,6 +142,7 @@ impl WsSource {
             channels: HashMap::new(),
             subscriptions: HashMap::new(),
             next_subscription: 1,
+            resubscribed: HashMap::new(),
             received: 0,
         })
     }
@@ -261,6 +270,34 @@ impl WsSource {
                         .map_err(|e| ws_err(&self.url, format!("subscribe: {e}")))?;
                 }
             }
+            Some("status") => {
+                // A subscription refused in the SDK's advertise race: asked
+                // again (a few times at most), the channel still advertised.
+                let text = v
+                    .get("message")
+                    .and_then(|m| m.as_str())
+                    .unwrap_or_default();
+                let refused = text
+                    .strip_prefix("Unknown channel ID: ")
+                    .and_then(|n| n.trim().parse::<u64>().ok());
+                let Some(id) = refused else {
+                    return Ok(());
+                };
+                let sub = self
+                    .subscriptions
+                    .iter()
+                    .find_map(|(s, c)| (*c == id).then_some(*s));
+                let tries = self.resubscribed.entry(id).or_insert(0);
+                if let (Some(sub), true) = (sub, *tries < RESUBSCRIBE) {
+                    *tries += 1;
+                    std::thread::sleep(std::time::Duration::from_millis(10));
+                    let msg = serde_json::json!({"op": "subscribe",
+                        "subscriptions": [{"id": sub, "channelId": id}]});
+                    self.socket
+                        .send(Message::text(msg.to_string()))
+                        .map_err(|e| ws_err(&self.url, format!("subscribe: {e}")))?;
+                }
+            }
             Some("unadvertise") => {
                 if let Some(ids) = v.get("channelIds").and_then(|c| c.as_array()) {
                     for id in ids.iter().filter_map(|x| x.as_u64()) {
@@ -342,6 +379,46 @@ mod tests {
         assert_eq!(src.received, 1);
         drop(src);
         h.join().unwrap();
+    }
+
+    #[test]
+    fn a_subscription_refused_in_the_advertise_race_is_asked_again() {
+        // The SDK's server refuses a subscription that overtakes its own
+        // record of the advertise; the client asks again, a few times at most.
+        let listener = TcpListener::bind("127.0.0.1:0").unwrap();
+        let url = format!("ws://{}", listener.local_addr().unwrap());
+        let h = std::thread::spawn(move || {
+            let (stream, _) = listener.accept().unwrap();
+            let callback = |_: &Request, mut r: Response| {
+                r.headers_mut()
+                    .insert("Sec-WebSocket-Protocol", "foxglove.sdk.v1".parse().unwrap());
+                Ok(r)
+            };
+            let mut ws = tungstenite::accept_hdr(stream, callback).unwrap();
+            ws.send(advertise()).unwrap();
+            let refused =
+                Message::text(r#"{"op":"status","level":2,"message":"Unknown channel ID: 7"}"#);
+            let mut subscribes = 0;
+            while subscribes <= RESUBSCRIBE {
+                let Ok(m) = ws.read() else { break };
+                if m.to_text().is_ok_and(|t| t.contains("subscribe")) {
+                    subscribes += 1;
+                    ws.send(refused.clone()).unwrap();
+                }
+            }
+            ws.send(frame(1, 5, b"late")).unwrap();
+            while ws.read().is_ok() {}
+            subscribes
+        });
+        let mut src = WsSource::connect(&url, Duration::from_secs(5)).unwrap();
+        let m = src.recv().unwrap().unwrap();
+        assert_eq!(
+            (m.channel.topic.as_str(), m.data.as_slice()),
+            ("/gt", &b"late"[..])
+        );
+        drop(src);
+        // The first subscription and RESUBSCRIBE more, then no more.
+        assert_eq!(h.join().unwrap(), 1 + RESUBSCRIBE);
     }
 
     #[test]

@@ -119,11 +119,25 @@ def collect(
                             topics[ch["id"]] = ch["topic"]
                             subs.append({"id": ch["id"], "channelId": ch["id"]})
                         ws.send(json.dumps({"op": "subscribe", "subscriptions": subs}))
+                    elif (cid := refused_channel(msg)) in topics:
+                        # The SDK's server (foxglove 0.30) sends a new channel's `advertise`
+                        # before it records the channel as advertised to the client: a
+                        # subscription that comes back at once can be refused. Ask again.
+                        time.sleep(0.01)
+                        sub = {"id": cid, "channelId": cid}
+                        ws.send(json.dumps({"op": "subscribe", "subscriptions": [sub]}))
                     continue
                 sub, log_time = struct.unpack_from("<IQ", frame, 1)
                 received[topics[sub]].append((log_time, bytes(frame[13:])))
     except BaseException as e:  # noqa: BLE001 - reported by the test that collects
         errors.append(e)
+
+
+def refused_channel(msg: dict) -> int | None:
+    """The channel of an error `status` that refused a subscription ("Unknown channel ID: N")."""
+    text = str(msg.get("message", "")) if msg.get("op") == "status" else ""
+    head = "Unknown channel ID: "
+    return int(text[len(head) :]) if text.startswith(head) else None
 
 
 def wait_for_file(received: dict[str, list[tuple[int, bytes]]], path: Path) -> dict:
