@@ -44,7 +44,7 @@ use crate::pipeline::outputs::{
     MAP_BT, MAP_HEIGHT_NPY, MAP_PGM, MAP_YAML, REPORT_JSON, WORLD_MCAP,
 };
 use crate::pipeline::report::{to_json_bytes, FollowReport};
-use crate::pipeline::session::{LogFeed, Pushed, Session, SessionOptions};
+use crate::pipeline::session::{LogFeed, Pushed, Session, SessionOptions, UpdateTiming};
 
 fn serve_at(s: &str) -> std::result::Result<ServeOptions, String> {
     s.parse().map_err(|e: Error| e.to_string())
@@ -277,11 +277,8 @@ impl Follower<'_> {
             timing,
         } = pushed
         {
-            let latency = decode_s + timing.fit_s + timing.backproject_s + timing.insert_s;
             self.keyframes += 1;
-            self.report
-                .update(&self.feed.session, id, decode_s, &timing, latency);
-            self.publish()?;
+            let latency = self.updated(id, decode_s, &timing)?;
             if !self.args.quiet {
                 status_line(&self.feed.session, id, latency)?;
             }
@@ -290,13 +287,19 @@ impl Follower<'_> {
             // The ground refit the keyframe called for, after its points
             // went out (--serve), and the world again.
             let timing = self.feed.session.catch_up()?;
-            let latency = timing.fit_s + timing.backproject_s + timing.insert_s;
-            let id = self.report.last_keyframe;
-            self.report
-                .update(&self.feed.session, id, 0.0, &timing, latency);
-            self.publish()?;
+            self.updated(self.report.last_keyframe, 0.0, &timing)?;
         }
         Ok(())
+    }
+
+    /// After an update of the session for keyframe `id`: the report brought
+    /// up to it and the world published; returns the update's latency.
+    fn updated(&mut self, id: i32, decode_s: f64, timing: &UpdateTiming) -> Result<f64> {
+        let latency = decode_s + timing.total_s();
+        self.report
+            .update(&self.feed.session, id, decode_s, timing, latency);
+        self.publish()?;
+        Ok(latency)
     }
 
     /// Hands the world of the session as it stands to the clients with

@@ -323,6 +323,24 @@ pub struct UpdateTiming {
     pub rebuilt: bool,
 }
 
+impl UpdateTiming {
+    /// Seconds of the update in all: fit, backprojection and insertion.
+    pub fn total_s(&self) -> f64 {
+        self.fit_s + self.backproject_s + self.insert_s
+    }
+
+    /// This update followed by `next` (a deferred refit's), as one.
+    pub fn then(self, next: UpdateTiming) -> UpdateTiming {
+        UpdateTiming {
+            fit_s: self.fit_s + next.fit_s,
+            backproject_s: self.backproject_s + next.backproject_s,
+            insert_s: self.insert_s + next.insert_s,
+            inserted: self.inserted + next.inserted,
+            rebuilt: self.rebuilt || next.rebuilt,
+        }
+    }
+}
+
 /// A tracked frame waiting for its reference pose: time, SLAM position.
 type Pending = (f64, Vector3<f64>);
 

@@ -79,13 +79,7 @@ impl PySession {
         }
         let c = self.inner.catch_up()?;
         self.publish(py, None, false, &c)?;
-        Ok(UpdateTiming {
-            fit_s: t.fit_s + c.fit_s,
-            backproject_s: t.backproject_s + c.backproject_s,
-            insert_s: t.insert_s + c.insert_s,
-            inserted: t.inserted + c.inserted,
-            rebuilt: t.rebuilt || c.rebuilt,
-        })
+        Ok(t.then(c))
     }
 
     /// After an update: the world as it stands to the clients of `serve`
@@ -107,7 +101,7 @@ impl PySession {
             return Ok(());
         }
         let id = id.unwrap_or(live.report.last_keyframe);
-        let latency = t.fit_s + t.backproject_s + t.insert_s;
+        let latency = t.total_s();
         live.report.update(&self.inner, id, 0.0, t, latency);
         live.report.finished = finished;
         let state = to_json_bytes(&live.report)?;
